@@ -1,0 +1,33 @@
+//! Errors raised by the physics crate. Every variant names the offending quantity so a
+//! user can fix the input without reading code.
+
+use thiserror::Error;
+
+/// Everything that can go wrong when building or rendering a scene.
+#[derive(Debug, Error, Clone, PartialEq)]
+pub enum SimError {
+    /// The volume description is impossible (zero size, bad spacing, non-orthonormal axes…).
+    #[error("invalid volume: {0}")]
+    InvalidVolume(String),
+    /// A voxel holds NaN or ±Inf.
+    #[error("volume has a non-finite value ({value}) at voxel (i={i}, j={j}, k={k})")]
+    NonFiniteVoxel {
+        /// Voxel index along the first (fastest) axis.
+        i: usize,
+        /// Voxel index along the second axis.
+        j: usize,
+        /// Voxel index along the third (slowest) axis.
+        k: usize,
+        /// The offending value, printed as text (NaN, inf, -inf).
+        value: String,
+    },
+    /// The projection geometry is impossible (SID < SAD, zero pixel pitch, empty detector…).
+    #[error("invalid geometry: {0}")]
+    InvalidGeometry(String),
+    /// A physical parameter is outside the range the model or its data tables cover.
+    #[error("out of range: {0}")]
+    OutOfRange(String),
+}
+
+/// Result alias for this crate.
+pub type Result<T> = std::result::Result<T, SimError>;

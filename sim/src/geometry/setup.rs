@@ -1,0 +1,159 @@
+//! A calibrated acquisition set-up — the paper's K = (SAD, SID) — that turns poses into
+//! views.
+
+use super::{Detector, Pose, View, ViewBeam};
+use crate::error::{Result, SimError};
+use glam::DVec3;
+use serde::{Deserialize, Serialize};
+
+/// The beam of a set-up.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "kind", rename_all = "kebab-case")]
+pub enum Beam {
+    /// Flat-panel cone beam.
+    Cone {
+        /// Source-to-isocentre distance (SAD), mm.
+        sad_mm: f64,
+        /// Source-to-detector distance (SID), mm; ≥ SAD.
+        sid_mm: f64,
+    },
+    /// Parallel beam; the detector plane passes through the isocentre and pixel pitch is
+    /// measured there.
+    Parallel,
+}
+
+/// Beam, detector and isocentre: everything but the pose.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Geometry {
+    /// Cone or parallel beam.
+    pub beam: Beam,
+    /// The flat panel.
+    pub detector: Detector,
+    /// The point the source rotates about and always faces, world LPS mm.
+    pub isocentre: DVec3,
+}
+
+impl Geometry {
+    /// Checks distances and the detector.
+    pub fn validate(&self) -> Result<()> {
+        self.detector.validate()?;
+        if !self.isocentre.is_finite() {
+            return Err(SimError::InvalidGeometry(format!(
+                "isocentre {} is not finite",
+                self.isocentre
+            )));
+        }
+        if let Beam::Cone { sad_mm, sid_mm } = self.beam {
+            if !(sad_mm.is_finite() && sad_mm > 0.0) {
+                return Err(SimError::InvalidGeometry(format!(
+                    "SAD is {sad_mm} mm; it must be finite and > 0"
+                )));
+            }
+            if !sid_mm.is_finite() || sid_mm < sad_mm {
+                return Err(SimError::InvalidGeometry(format!(
+                    "SID ({sid_mm} mm) is smaller than SAD ({sad_mm} mm): the detector would sit between the source and the isocentre"
+                )));
+            }
+        }
+        Ok(())
+    }
+
+    /// The view for one pose.
+    pub fn view(&self, pose: Pose) -> Result<View> {
+        self.validate()?;
+        if !(pose.theta_deg.is_finite() && pose.phi_deg.is_finite()) {
+            return Err(SimError::InvalidGeometry(format!(
+                "pose angles θ = {}, φ = {} must be finite",
+                pose.theta_deg, pose.phi_deg
+            )));
+        }
+        let f = pose.frame();
+        let d = &self.detector;
+        let (beam, plane_centre) = match self.beam {
+            Beam::Cone { sad_mm, sid_mm } => (
+                ViewBeam::Cone {
+                    source: self.isocentre + sad_mm * f.to_source,
+                },
+                self.isocentre - (sid_mm - sad_mm) * f.to_source,
+            ),
+            Beam::Parallel => (
+                ViewBeam::Parallel {
+                    direction: -f.to_source,
+                },
+                self.isocentre,
+            ),
+        };
+        let centre = plane_centre + d.offset_u_mm * f.u + d.offset_v_mm * f.v;
+        let u = d.pitch_u_mm * f.u;
+        let v = d.pitch_v_mm * f.v;
+        let view = View {
+            beam,
+            detector_origin: centre
+                - 0.5 * (d.cols as f64 - 1.0) * u
+                - 0.5 * (d.rows as f64 - 1.0) * v,
+            u,
+            v,
+            rows: d.rows,
+            cols: d.cols,
+        };
+        view.validate()?;
+        Ok(view)
+    }
+
+    /// Views for several poses.
+    pub fn views(&self, poses: &[Pose]) -> Result<Vec<View>> {
+        poses.iter().map(|&p| self.view(p)).collect()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn cone(sad: f64, sid: f64) -> Geometry {
+        Geometry {
+            beam: Beam::Cone {
+                sad_mm: sad,
+                sid_mm: sid,
+            },
+            detector: Detector::new(3, 5, 2.0),
+            isocentre: DVec3::new(1.0, 2.0, 3.0),
+        }
+    }
+
+    #[test]
+    fn cone_view_places_source_and_panel() {
+        let v = cone(1000.0, 1500.0).view(Pose::AP).unwrap();
+        let ViewBeam::Cone { source } = v.beam else {
+            panic!()
+        };
+        assert!((source - DVec3::new(1.0, -998.0, 3.0)).length() < 1e-9);
+        let centre = v.pixel_centre(1.0, 2.0);
+        assert!((centre - DVec3::new(1.0, 502.0, 3.0)).length() < 1e-9);
+        // Pixel (0,0): patient right (−x) and head (+z) side.
+        let p00 = v.pixel_centre(0.0, 0.0);
+        assert!(p00.x < centre.x && p00.z > centre.z);
+        // The isocentre projects onto the panel centre.
+        let (r, c) = v.project_point(DVec3::new(1.0, 2.0, 3.0)).unwrap();
+        assert!((r - 1.0).abs() < 1e-9 && (c - 2.0).abs() < 1e-9);
+    }
+
+    #[test]
+    fn impossible_geometry_is_named() {
+        let e = cone(1000.0, 900.0).validate().unwrap_err().to_string();
+        assert!(e.contains("SID (900 mm) is smaller than SAD (1000 mm)"), "{e}");
+        let e = cone(0.0, 900.0).validate().unwrap_err().to_string();
+        assert!(e.contains("SAD is 0 mm"), "{e}");
+        let mut g = cone(1000.0, 1500.0);
+        g.detector.rows = 0;
+        assert!(g.validate().unwrap_err().to_string().contains("empty detector"));
+        g.detector.rows = 4;
+        g.detector.pitch_u_mm = -1.0;
+        assert!(g.validate().unwrap_err().to_string().contains("column pitch is -1 mm"));
+        let e = cone(1000.0, 1500.0)
+            .view(Pose::new(f64::NAN, 0.0))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("must be finite"), "{e}");
+    }
+}

@@ -1,0 +1,14 @@
+//! Ray tracers: how a ray's path through the voxel grid is turned into numbers.
+//!
+//! * [`siddon`] — exact: visits every voxel the ray crosses with the exact length of the
+//!   crossing, and hands `(voxel, length)` pairs to a [`PathAccumulator`].
+//! * [`trilinear`] — ray marching through the trilinearly interpolated field.
+//!
+//! Both take a [`crate::ray::GridRay`] (a world ray already clipped to the grid), so the
+//! geometry is decided once, in one place, for every tracer.
+
+pub mod accumulate;
+pub mod siddon;
+pub mod trilinear;
+
+pub use accumulate::{LineIntegral, PathAccumulator};

@@ -1,0 +1,329 @@
+//! Voxel volumes and the world frame.
+//!
+//! # World frame
+//! tomograf works in the **DICOM patient frame, LPS**, in millimetres: +x points to the
+//! patient's **L**eft, +y to **P**osterior, +z to **S**uperior (head). NIfTI files are RAS;
+//! their affine is converted on load by negating its first two rows
+//! (see `tomograf_datasets::nifti`). DICOM series are already LPS.
+//!
+//! # Voxel layout
+//! A volume has dimensions `(nx, ny, nz)` along its three index axes `(i, j, k)`. Voxel
+//! `(i, j, k)` is stored at `i + nx * (j + ny * k)` (i fastest, as in NIfTI and in
+//! DICOM stacked slice by slice). The world position of the **centre** of voxel
+//! `(i, j, k)` is
+//!
+//! ```text
+//! p = origin + direction · (spacing ∘ (i, j, k))
+//! ```
+//!
+//! where `direction` is an orthonormal 3×3 matrix whose columns are the world directions
+//! of the index axes (DICOM's direction cosines; a reflection is allowed) and `spacing`
+//! is in mm. Each voxel is the box of size `spacing` centred there, so the volume covers
+//! index coordinates `[-0.5, n - 0.5]` on each axis.
+//!
+//! # Grid coordinates
+//! Tracers work in *grid coordinates* `g = (i, j, k) + 0.5`, in which voxel `(i, j, k)` is
+//! the half-open unit cube `[i, i+1) × [j, j+1) × [k, k+1)` and the volume is `[0, n]³`.
+//! A world ray `p(t) = o + t·d` (t in mm, `d` a unit vector) maps to `g(t) = g0 + t·gd`
+//! with the **same** parameter `t`, so segment lengths measured in `t` are millimetres.
+
+use crate::error::{Result, SimError};
+use glam::{DMat3, DVec3};
+
+/// A scalar field sampled on a regular grid placed in the LPS world frame.
+///
+/// The meaning of the values depends on the producer: CT volumes hold HU,
+/// [`crate::attenuation`] turns them into linear attenuation coefficients in mm⁻¹,
+/// which is what every projector integrates.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Volume {
+    dims: [usize; 3],
+    spacing: DVec3,
+    origin: DVec3,
+    direction: DMat3,
+    data: Vec<f32>,
+}
+
+/// Largest number of voxels a volume may hold (2³⁴ voxels = 64 GiB of f32). Larger
+/// requests are refused before any allocation is attempted.
+pub const MAX_VOXELS: usize = 1 << 34;
+
+impl Volume {
+    /// Builds a volume, checking every invariant.
+    ///
+    /// * `dims` — voxels along `(i, j, k)`, each ≥ 1.
+    /// * `spacing` — voxel size in mm along `(i, j, k)`, each finite and > 0.
+    /// * `origin` — world (LPS, mm) position of the centre of voxel `(0, 0, 0)`.
+    /// * `direction` — columns are the world directions of the index axes; must be
+    ///   orthonormal to 1e-4 (it is re-orthonormalised to f64 precision).
+    /// * `data` — `nx·ny·nz` values, `i` fastest. NaN and ±Inf are refused.
+    pub fn new(
+        dims: [usize; 3],
+        spacing: DVec3,
+        origin: DVec3,
+        direction: DMat3,
+        data: Vec<f32>,
+    ) -> Result<Self> {
+        let count = checked_voxel_count(dims)?;
+        if data.len() != count {
+            return Err(SimError::InvalidVolume(format!(
+                "dimensions {}×{}×{} need {count} voxels but {} values were given",
+                dims[0],
+                dims[1],
+                dims[2],
+                data.len()
+            )));
+        }
+        for (axis, s) in spacing.to_array().iter().enumerate() {
+            if !(s.is_finite() && *s > 0.0) {
+                return Err(SimError::InvalidVolume(format!(
+                    "spacing along axis {axis} is {s} mm; it must be finite and > 0"
+                )));
+            }
+        }
+        if !origin.is_finite() {
+            return Err(SimError::InvalidVolume(format!(
+                "origin {origin} is not finite"
+            )));
+        }
+        let direction = orthonormalise(direction)?;
+        if let Some(pos) = data.iter().position(|v| !v.is_finite()) {
+            let [i, j, k] = unravel(pos, dims);
+            return Err(SimError::NonFiniteVoxel {
+                i,
+                j,
+                k,
+                value: data[pos].to_string(),
+            });
+        }
+        Ok(Self {
+            dims,
+            spacing,
+            origin,
+            direction,
+            data,
+        })
+    }
+
+    /// A volume with identity direction whose grid is centred on `centre` (world mm).
+    pub fn centred(
+        dims: [usize; 3],
+        spacing: DVec3,
+        centre: DVec3,
+        data: Vec<f32>,
+    ) -> Result<Self> {
+        let half = (DVec3::new(dims[0] as f64, dims[1] as f64, dims[2] as f64) - 1.0) * 0.5;
+        Self::new(dims, spacing, centre - half * spacing, DMat3::IDENTITY, data)
+    }
+
+    /// Voxels along `(i, j, k)`.
+    pub fn dims(&self) -> [usize; 3] {
+        self.dims
+    }
+    /// Voxel size in mm along `(i, j, k)`.
+    pub fn spacing(&self) -> DVec3 {
+        self.spacing
+    }
+    /// World (LPS, mm) position of the centre of voxel `(0, 0, 0)`.
+    pub fn origin(&self) -> DVec3 {
+        self.origin
+    }
+    /// Orthonormal matrix whose columns are the world directions of the index axes.
+    pub fn direction(&self) -> DMat3 {
+        self.direction
+    }
+    /// The voxel values, `i` fastest.
+    pub fn data(&self) -> &[f32] {
+        &self.data
+    }
+    /// Consumes the volume and returns its values.
+    pub fn into_data(self) -> Vec<f32> {
+        self.data
+    }
+    /// Replaces every value with `f(value)`; the result must stay finite.
+    pub fn map(&self, f: impl Fn(f32) -> f32 + Sync) -> Result<Self> {
+        let data = self.data.iter().map(|&v| f(v)).collect();
+        Self::new(self.dims, self.spacing, self.origin, self.direction, data)
+    }
+    /// Number of voxels.
+    pub fn len(&self) -> usize {
+        self.data.len()
+    }
+    /// Always false: a volume holds at least one voxel.
+    pub fn is_empty(&self) -> bool {
+        self.data.is_empty()
+    }
+    /// Value of voxel `(i, j, k)`; panics if out of range.
+    pub fn get(&self, i: usize, j: usize, k: usize) -> f32 {
+        self.data[i + self.dims[0] * (j + self.dims[1] * k)]
+    }
+    /// World position (mm) of the centre of the volume.
+    pub fn centre(&self) -> DVec3 {
+        let n = DVec3::new(self.dims[0] as f64, self.dims[1] as f64, self.dims[2] as f64);
+        self.index_to_world((n - 1.0) * 0.5)
+    }
+    /// World position (mm) of continuous voxel index `idx` (voxel centres at integers).
+    pub fn index_to_world(&self, idx: DVec3) -> DVec3 {
+        self.origin + self.direction * (idx * self.spacing)
+    }
+    /// Continuous voxel index of world point `p` (mm); voxel centres are at integers.
+    pub fn world_to_index(&self, p: DVec3) -> DVec3 {
+        (self.direction.transpose() * (p - self.origin)) / self.spacing
+    }
+    /// Grid coordinates (see the module docs) of world point `p`: voxel `(i,j,k)` is
+    /// `[i, i+1)³`.
+    pub fn world_to_grid(&self, p: DVec3) -> DVec3 {
+        self.world_to_index(p) + 0.5
+    }
+    /// Grid-coordinate change per mm along the world direction `d`.
+    pub fn world_dir_to_grid(&self, d: DVec3) -> DVec3 {
+        (self.direction.transpose() * d) / self.spacing
+    }
+    /// The eight world corners of the volume's bounding box (outer voxel faces).
+    pub fn world_corners(&self) -> [DVec3; 8] {
+        let n = DVec3::new(self.dims[0] as f64, self.dims[1] as f64, self.dims[2] as f64);
+        std::array::from_fn(|c| {
+            let g = DVec3::new(
+                if c & 1 == 0 { 0.0 } else { n.x },
+                if c & 2 == 0 { 0.0 } else { n.y },
+                if c & 4 == 0 { 0.0 } else { n.z },
+            );
+            self.index_to_world(g - 0.5)
+        })
+    }
+    /// Smallest and largest value.
+    pub fn min_max(&self) -> (f32, f32) {
+        self.data
+            .iter()
+            .fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), &v| {
+                (lo.min(v), hi.max(v))
+            })
+    }
+}
+
+/// `nx·ny·nz`, refusing zero sizes, overflow and volumes above [`MAX_VOXELS`].
+pub fn checked_voxel_count(dims: [usize; 3]) -> Result<usize> {
+    if dims.contains(&0) {
+        return Err(SimError::InvalidVolume(format!(
+            "dimensions {}×{}×{} contain a zero",
+            dims[0], dims[1], dims[2]
+        )));
+    }
+    dims.iter()
+        .try_fold(1usize, |acc, &n| acc.checked_mul(n))
+        .filter(|&n| n <= MAX_VOXELS)
+        .ok_or_else(|| {
+            SimError::InvalidVolume(format!(
+                "dimensions {}×{}×{} exceed the limit of {MAX_VOXELS} voxels ({} GiB as f32)",
+                dims[0],
+                dims[1],
+                dims[2],
+                MAX_VOXELS * 4 >> 30
+            ))
+        })
+}
+
+fn unravel(pos: usize, dims: [usize; 3]) -> [usize; 3] {
+    [
+        pos % dims[0],
+        (pos / dims[0]) % dims[1],
+        pos / (dims[0] * dims[1]),
+    ]
+}
+
+/// Checks that `m` is orthonormal to 1e-4 and returns it re-orthonormalised (Gram–Schmidt,
+/// keeping its handedness) so that transforms are exact to f64 precision.
+fn orthonormalise(m: DMat3) -> Result<DMat3> {
+    if !m.is_finite() {
+        return Err(SimError::InvalidVolume(format!(
+            "direction matrix {m} is not finite"
+        )));
+    }
+    let cols = [m.x_axis, m.y_axis, m.z_axis];
+    for (a, c) in cols.iter().enumerate() {
+        if (c.length() - 1.0).abs() > 1e-4 {
+            return Err(SimError::InvalidVolume(format!(
+                "direction column {a} = {c} is not a unit vector (length {})",
+                c.length()
+            )));
+        }
+    }
+    for (a, b) in [(0, 1), (0, 2), (1, 2)] {
+        let d = cols[a].dot(cols[b]);
+        if d.abs() > 1e-4 {
+            return Err(SimError::InvalidVolume(format!(
+                "direction columns {a} and {b} are not orthogonal (dot product {d}); sheared grids are not supported"
+            )));
+        }
+    }
+    let x = cols[0].normalize();
+    let y = (cols[1] - x * x.dot(cols[1])).normalize();
+    let z_right = x.cross(y);
+    let z = if z_right.dot(cols[2]) >= 0.0 {
+        z_right
+    } else {
+        -z_right
+    };
+    Ok(DMat3::from_cols(x, y, z))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn cube(n: usize) -> Vec<f32> {
+        vec![0.0; n * n * n]
+    }
+
+    #[test]
+    fn rejects_bad_spacing_and_values() {
+        let id = DMat3::IDENTITY;
+        let e = Volume::new([2, 2, 2], DVec3::new(1.0, 0.0, 1.0), DVec3::ZERO, id, cube(2));
+        assert!(e.unwrap_err().to_string().contains("spacing along axis 1"));
+        let e = Volume::new([2, 2, 2], DVec3::new(1.0, -1.0, 1.0), DVec3::ZERO, id, cube(2));
+        assert!(e.unwrap_err().to_string().contains("must be finite and > 0"));
+        let mut d = cube(2);
+        d[5] = f32::NAN;
+        let e = Volume::new([2, 2, 2], DVec3::ONE, DVec3::ZERO, id, d).unwrap_err();
+        assert_eq!(
+            e,
+            SimError::NonFiniteVoxel {
+                i: 1,
+                j: 0,
+                k: 1,
+                value: "NaN".into()
+            }
+        );
+        let e = Volume::new([0, 2, 2], DVec3::ONE, DVec3::ZERO, id, vec![]).unwrap_err();
+        assert!(e.to_string().contains("contain a zero"));
+        let e = checked_voxel_count([1 << 20, 1 << 20, 1 << 20]).unwrap_err();
+        assert!(e.to_string().contains("exceed the limit"));
+        let sheared = DMat3::from_cols(DVec3::X, DVec3::new(0.1, 1.0, 0.0).normalize(), DVec3::Z);
+        let e = Volume::new([2, 2, 2], DVec3::ONE, DVec3::ZERO, sheared, cube(2)).unwrap_err();
+        assert!(e.to_string().contains("not orthogonal"));
+    }
+
+    #[test]
+    fn index_world_round_trip_with_rotation_and_reflection() {
+        let r = DMat3::from_rotation_z(0.3) * DMat3::from_diagonal(DVec3::new(1.0, -1.0, 1.0));
+        let v = Volume::new(
+            [3, 4, 5],
+            DVec3::new(0.5, 0.7, 2.5),
+            DVec3::new(10.0, -20.0, 5.0),
+            r,
+            vec![0.0; 60],
+        )
+        .unwrap();
+        let idx = DVec3::new(1.25, 2.5, 3.75);
+        let back = v.world_to_index(v.index_to_world(idx));
+        assert!((back - idx).length() < 1e-12);
+        // Voxel (0,0,0) centre is the origin.
+        assert!((v.index_to_world(DVec3::ZERO) - v.origin()).length() < 1e-12);
+    }
+
+    #[test]
+    fn centred_volume_centre() {
+        let v = Volume::centred([4, 5, 6], DVec3::new(1.0, 2.0, 3.0), DVec3::new(1.0, 2.0, 3.0), vec![0.0; 120]).unwrap();
+        assert!((v.centre() - DVec3::new(1.0, 2.0, 3.0)).length() < 1e-12);
+    }
+}
