@@ -46,7 +46,9 @@ pub fn mu_water_per_mm(energy_kev: f64) -> Result<f64> {
             "effective energy {energy_kev} keV is outside the water attenuation table ({lo}–{hi} keV)"
         )));
     }
-    let k = t.partition_point(|&(e, _)| e <= energy_kev).clamp(1, t.len() - 1);
+    let k = t
+        .partition_point(|&(e, _)| e <= energy_kev)
+        .clamp(1, t.len() - 1);
     let ((e0, m0), (e1, m1)) = (t[k - 1], t[k]);
     let w = (energy_kev.ln() - e0.ln()) / (e1.ln() - e0.ln());
     Ok((m0.ln() + w * (m1.ln() - m0.ln())).exp())
@@ -130,13 +132,19 @@ mod tests {
         for (e, mu_rho) in NIST_WATER {
             let ours = mu_water_per_mm(e).unwrap();
             let nist = mu_rho / 10.0; // cm²/g · 1 g/cm³ → cm⁻¹ → mm⁻¹
-            assert!((ours / nist - 1.0).abs() < 5e-3, "{e} keV: {ours} vs {nist}");
+            assert!(
+                (ours / nist - 1.0).abs() < 5e-3,
+                "{e} keV: {ours} vs {nist}"
+            );
         }
     }
 
     #[test]
     fn interpolation_is_log_log_between_bins() {
-        let (a, b) = (mu_water_per_mm(60.0).unwrap(), mu_water_per_mm(61.0).unwrap());
+        let (a, b) = (
+            mu_water_per_mm(60.0).unwrap(),
+            mu_water_per_mm(61.0).unwrap(),
+        );
         let mid = mu_water_per_mm(60.5).unwrap();
         let w = (60.5f64.ln() - 60f64.ln()) / (61f64.ln() - 60f64.ln());
         let expect = (a.ln() + w * (b.ln() - a.ln())).exp();

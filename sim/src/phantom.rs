@@ -48,7 +48,11 @@ impl Shape {
                 centre,
                 semi_axes,
                 rotation_z_deg,
-            } => (centre, DMat3::from_rotation_z(rotation_z_deg.to_radians()), semi_axes),
+            } => (
+                centre,
+                DMat3::from_rotation_z(rotation_z_deg.to_radians()),
+                semi_axes,
+            ),
             Shape::Cylinder {
                 centre,
                 semi_axes,
@@ -76,9 +80,15 @@ impl Shape {
     pub fn bounds(&self) -> (DVec3, DVec3) {
         let (c, r, s) = self.local();
         let ext = DVec3::new(
-            (r.x_axis.x * s.x).hypot(r.y_axis.x * s.y).hypot(r.z_axis.x * s.z),
-            (r.x_axis.y * s.x).hypot(r.y_axis.y * s.y).hypot(r.z_axis.y * s.z),
-            (r.x_axis.z * s.x).hypot(r.y_axis.z * s.y).hypot(r.z_axis.z * s.z),
+            (r.x_axis.x * s.x)
+                .hypot(r.y_axis.x * s.y)
+                .hypot(r.z_axis.x * s.z),
+            (r.x_axis.y * s.x)
+                .hypot(r.y_axis.y * s.y)
+                .hypot(r.z_axis.y * s.z),
+            (r.x_axis.z * s.x)
+                .hypot(r.y_axis.z * s.y)
+                .hypot(r.z_axis.z * s.z),
         );
         (c - ext, c + ext)
     }
@@ -89,16 +99,30 @@ impl Shape {
         let o = (r.transpose() * (ray.origin - c)) / s;
         let d = (r.transpose() * ray.direction) / s;
         let (lo, hi) = match self {
-            Shape::Ellipsoid { .. } => quadratic_interval(d.length_squared(), o.dot(d), o.length_squared() - 1.0),
+            Shape::Ellipsoid { .. } => {
+                quadratic_interval(d.length_squared(), o.dot(d), o.length_squared() - 1.0)
+            }
             Shape::Cylinder { .. } => {
-                let (a, b, cc) = (d.x * d.x + d.y * d.y, o.x * d.x + o.y * d.y, o.x * o.x + o.y * o.y - 1.0);
+                let (a, b, cc) = (
+                    d.x * d.x + d.y * d.y,
+                    o.x * d.x + o.y * d.y,
+                    o.x * o.x + o.y * o.y - 1.0,
+                );
                 let (l1, h1) = if a == 0.0 {
-                    if cc <= 0.0 { (f64::NEG_INFINITY, f64::INFINITY) } else { return 0.0 }
+                    if cc <= 0.0 {
+                        (f64::NEG_INFINITY, f64::INFINITY)
+                    } else {
+                        return 0.0;
+                    }
                 } else {
                     quadratic_interval(a, b, cc)
                 };
                 let (l2, h2) = if d.z == 0.0 {
-                    if o.z.abs() <= 1.0 { (f64::NEG_INFINITY, f64::INFINITY) } else { return 0.0 }
+                    if o.z.abs() <= 1.0 {
+                        (f64::NEG_INFINITY, f64::INFINITY)
+                    } else {
+                        return 0.0;
+                    }
                 } else {
                     let (t1, t2) = ((-1.0 - o.z) / d.z, (1.0 - o.z) / d.z);
                     (t1.min(t2), t1.max(t2))
@@ -119,7 +143,11 @@ fn quadratic_interval(a: f64, b: f64, c: f64) -> (f64, f64) {
     let sq = disc.sqrt();
     // Stable roots.
     let q = -(b + b.signum() * sq);
-    let (t1, t2) = if q == 0.0 { (-sq / a, sq / a) } else { (q / a, c / q) };
+    let (t1, t2) = if q == 0.0 {
+        (-sq / a, sq / a)
+    } else {
+        (q / a, c / q)
+    };
     (t1.min(t2), t1.max(t2))
 }
 
@@ -168,16 +196,56 @@ impl Phantom {
         Self {
             background_hu: -1000.0,
             components: vec![
-                comp("subcutaneous fat", cyl([0.0, 0.0, 0.0], [165.0, 115.0], 160.0), 900.0),
-                comp("muscle and soft tissue", cyl([0.0, 0.0, 0.0], [150.0, 100.0], 160.0), 140.0),
-                comp("right lung", e([-75.0, -5.0, 20.0], [55.0, 70.0, 120.0], -8.0), -860.0),
-                comp("left lung", e([75.0, -5.0, 20.0], [55.0, 70.0, 120.0], 8.0), -860.0),
-                comp("nodule", e([-70.0, -20.0, 40.0], [6.0, 6.0, 6.0], 0.0), 800.0),
-                comp("heart", e([15.0, -30.0, -50.0], [50.0, 45.0, 55.0], 30.0), 10.0),
-                comp("aorta (contrast)", cyl([-10.0, 30.0, 40.0], [14.0, 14.0], 60.0), 160.0),
-                comp("vertebral column", cyl([0.0, 60.0, 0.0], [20.0, 16.0], 160.0), 660.0),
-                comp("sternum", cyl([0.0, -92.0, -10.0], [14.0, 6.0], 70.0), 500.0),
-                comp("orientation marker", e([100.0, -60.0, 120.0], [5.0, 5.0, 5.0], 0.0), 1000.0),
+                comp(
+                    "subcutaneous fat",
+                    cyl([0.0, 0.0, 0.0], [165.0, 115.0], 160.0),
+                    900.0,
+                ),
+                comp(
+                    "muscle and soft tissue",
+                    cyl([0.0, 0.0, 0.0], [150.0, 100.0], 160.0),
+                    140.0,
+                ),
+                comp(
+                    "right lung",
+                    e([-75.0, -5.0, 20.0], [55.0, 70.0, 120.0], -8.0),
+                    -860.0,
+                ),
+                comp(
+                    "left lung",
+                    e([75.0, -5.0, 20.0], [55.0, 70.0, 120.0], 8.0),
+                    -860.0,
+                ),
+                comp(
+                    "nodule",
+                    e([-70.0, -20.0, 40.0], [6.0, 6.0, 6.0], 0.0),
+                    800.0,
+                ),
+                comp(
+                    "heart",
+                    e([15.0, -30.0, -50.0], [50.0, 45.0, 55.0], 30.0),
+                    10.0,
+                ),
+                comp(
+                    "aorta (contrast)",
+                    cyl([-10.0, 30.0, 40.0], [14.0, 14.0], 60.0),
+                    160.0,
+                ),
+                comp(
+                    "vertebral column",
+                    cyl([0.0, 60.0, 0.0], [20.0, 16.0], 160.0),
+                    660.0,
+                ),
+                comp(
+                    "sternum",
+                    cyl([0.0, -92.0, -10.0], [14.0, 6.0], 70.0),
+                    500.0,
+                ),
+                comp(
+                    "orientation marker",
+                    e([100.0, -60.0, 120.0], [5.0, 5.0, 5.0], 0.0),
+                    1000.0,
+                ),
             ],
         }
     }
@@ -211,27 +279,29 @@ impl Phantom {
                 (c, lo, hi)
             })
             .collect();
-        data.par_chunks_mut(slice).enumerate().for_each(|(k, plane)| {
-            for (c, lo, hi) in &ranges {
-                let kf = k as f64;
-                if kf < lo.z || kf > hi.z {
-                    continue;
-                }
-                let (j0, j1) = (lo.y as usize, (hi.y.min((dims[1] - 1) as f64)) as usize);
-                let (i0, i1) = (lo.x as usize, (hi.x.min((dims[0] - 1) as f64)) as usize);
-                if hi.y < 0.0 || hi.x < 0.0 {
-                    continue;
-                }
-                for j in j0..=j1 {
-                    for i in i0..=i1 {
-                        let p = origin + DVec3::new(i as f64, j as f64, kf) * spacing;
-                        if c.shape.contains(p) {
-                            plane[i + dims[0] * j] += c.delta_hu as f32;
+        data.par_chunks_mut(slice)
+            .enumerate()
+            .for_each(|(k, plane)| {
+                for (c, lo, hi) in &ranges {
+                    let kf = k as f64;
+                    if kf < lo.z || kf > hi.z {
+                        continue;
+                    }
+                    let (j0, j1) = (lo.y as usize, (hi.y.min((dims[1] - 1) as f64)) as usize);
+                    let (i0, i1) = (lo.x as usize, (hi.x.min((dims[0] - 1) as f64)) as usize);
+                    if hi.y < 0.0 || hi.x < 0.0 {
+                        continue;
+                    }
+                    for j in j0..=j1 {
+                        for i in i0..=i1 {
+                            let p = origin + DVec3::new(i as f64, j as f64, kf) * spacing;
+                            if c.shape.contains(p) {
+                                plane[i + dims[0] * j] += c.delta_hu as f32;
+                            }
                         }
                     }
                 }
-            }
-        });
+            });
         Volume::new(dims, spacing, origin, DMat3::IDENTITY, data)
     }
 
@@ -275,7 +345,9 @@ mod tests {
     #[test]
     fn thorax_stays_above_air() {
         let p = Phantom::thorax();
-        let v = p.voxelize([64, 64, 40], DVec3::new(5.6, 5.6, 8.3), DVec3::ZERO).unwrap();
+        let v = p
+            .voxelize([64, 64, 40], DVec3::new(5.6, 5.6, 8.3), DVec3::ZERO)
+            .unwrap();
         let (lo, hi) = v.min_max();
         assert!(lo >= -1000.0 && hi < 2100.0, "{lo} {hi}");
         // Lung, soft tissue and bone are all present.

@@ -113,7 +113,13 @@ impl Volume {
         data: Vec<f32>,
     ) -> Result<Self> {
         let half = (DVec3::new(dims[0] as f64, dims[1] as f64, dims[2] as f64) - 1.0) * 0.5;
-        Self::new(dims, spacing, centre - half * spacing, DMat3::IDENTITY, data)
+        Self::new(
+            dims,
+            spacing,
+            centre - half * spacing,
+            DMat3::IDENTITY,
+            data,
+        )
     }
 
     /// Voxels along `(i, j, k)`.
@@ -159,7 +165,11 @@ impl Volume {
     }
     /// World position (mm) of the centre of the volume.
     pub fn centre(&self) -> DVec3 {
-        let n = DVec3::new(self.dims[0] as f64, self.dims[1] as f64, self.dims[2] as f64);
+        let n = DVec3::new(
+            self.dims[0] as f64,
+            self.dims[1] as f64,
+            self.dims[2] as f64,
+        );
         self.index_to_world((n - 1.0) * 0.5)
     }
     /// World position (mm) of continuous voxel index `idx` (voxel centres at integers).
@@ -181,7 +191,11 @@ impl Volume {
     }
     /// The eight world corners of the volume's bounding box (outer voxel faces).
     pub fn world_corners(&self) -> [DVec3; 8] {
-        let n = DVec3::new(self.dims[0] as f64, self.dims[1] as f64, self.dims[2] as f64);
+        let n = DVec3::new(
+            self.dims[0] as f64,
+            self.dims[1] as f64,
+            self.dims[2] as f64,
+        );
         std::array::from_fn(|c| {
             let g = DVec3::new(
                 if c & 1 == 0 { 0.0 } else { n.x },
@@ -278,10 +292,26 @@ mod tests {
     #[test]
     fn rejects_bad_spacing_and_values() {
         let id = DMat3::IDENTITY;
-        let e = Volume::new([2, 2, 2], DVec3::new(1.0, 0.0, 1.0), DVec3::ZERO, id, cube(2));
+        let e = Volume::new(
+            [2, 2, 2],
+            DVec3::new(1.0, 0.0, 1.0),
+            DVec3::ZERO,
+            id,
+            cube(2),
+        );
         assert!(e.unwrap_err().to_string().contains("spacing along axis 1"));
-        let e = Volume::new([2, 2, 2], DVec3::new(1.0, -1.0, 1.0), DVec3::ZERO, id, cube(2));
-        assert!(e.unwrap_err().to_string().contains("must be finite and > 0"));
+        let e = Volume::new(
+            [2, 2, 2],
+            DVec3::new(1.0, -1.0, 1.0),
+            DVec3::ZERO,
+            id,
+            cube(2),
+        );
+        assert!(
+            e.unwrap_err()
+                .to_string()
+                .contains("must be finite and > 0")
+        );
         let mut d = cube(2);
         d[5] = f32::NAN;
         let e = Volume::new([2, 2, 2], DVec3::ONE, DVec3::ZERO, id, d).unwrap_err();
@@ -323,7 +353,13 @@ mod tests {
 
     #[test]
     fn centred_volume_centre() {
-        let v = Volume::centred([4, 5, 6], DVec3::new(1.0, 2.0, 3.0), DVec3::new(1.0, 2.0, 3.0), vec![0.0; 120]).unwrap();
+        let v = Volume::centred(
+            [4, 5, 6],
+            DVec3::new(1.0, 2.0, 3.0),
+            DVec3::new(1.0, 2.0, 3.0),
+            vec![0.0; 120],
+        )
+        .unwrap();
         assert!((v.centre() - DVec3::new(1.0, 2.0, 3.0)).length() < 1e-12);
     }
 }

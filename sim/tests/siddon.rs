@@ -15,7 +15,9 @@ use tomograf_sim::{GridRay, Projector, Ray, Renderer, Volume};
 const TOL: f64 = 1e-9;
 
 fn siddon(vol: &Volume, ray: &Ray) -> f64 {
-    Renderer::new(vol, Projector::Siddon).unwrap().line_integral(ray)
+    Renderer::new(vol, Projector::Siddon)
+        .unwrap()
+        .line_integral(ray)
 }
 
 fn check(vol: &Volume, ray: &Ray, what: &str) {
@@ -42,7 +44,11 @@ fn random_point_near(vol: &Volume, r: &mut rand_chacha::ChaCha8Rng, margin: f64)
 fn random_cone_rays_match_reference() {
     let mut r = rng(1);
     for case in 0..40 {
-        let dims = [r.random_range(1..24), r.random_range(1..24), r.random_range(1..24)];
+        let dims = [
+            r.random_range(1..24),
+            r.random_range(1..24),
+            r.random_range(1..24),
+        ];
         let vol = random_volume(&mut r, dims, case % 2 == 1);
         for _ in 0..50 {
             // Source far outside, end point far outside: the ray crosses the volume.
@@ -76,8 +82,18 @@ fn parallel_lines_of_infinite_extent() {
     let vol = random_volume(&mut r, [20, 17, 11], true);
     for _ in 0..200 {
         let p = random_point_near(&vol, &mut r, 2.0);
-        let d = DVec3::new(r.random_range(-1.0..1.0), r.random_range(-1.0..1.0), r.random_range(-1.0..1.0)).normalize();
-        let ray = Ray { origin: p, direction: d, t_min: f64::NEG_INFINITY, t_max: f64::INFINITY };
+        let d = DVec3::new(
+            r.random_range(-1.0..1.0),
+            r.random_range(-1.0..1.0),
+            r.random_range(-1.0..1.0),
+        )
+        .normalize();
+        let ray = Ray {
+            origin: p,
+            direction: d,
+            t_min: f64::NEG_INFINITY,
+            t_max: f64::INFINITY,
+        };
         check(&vol, &ray, "parallel");
     }
 }
@@ -87,7 +103,9 @@ fn parallel_lines_of_infinite_extent() {
 fn exact_grid(dims: [usize; 3]) -> Volume {
     let spacing = DVec3::new(1.0, 0.5, 2.0);
     let n = dims[0] * dims[1] * dims[2];
-    let data = (0..n).map(|i| 0.001 * ((i * 7919) % 101) as f32 + 0.01).collect();
+    let data = (0..n)
+        .map(|i| 0.001 * ((i * 7919) % 101) as f32 + 0.01)
+        .collect();
     Volume::new(dims, spacing, 0.5 * spacing, DMat3::IDENTITY, data).unwrap()
 }
 
@@ -133,7 +151,13 @@ fn rays_through_voxel_corners_and_edges() {
     for _ in 0..300 {
         // Two lattice points (integer grid coordinates) outside/on the box: the ray passes
         // through corners, and often along edges and faces.
-        let mut p = || [r.random_range(-3..12) as f64, r.random_range(-3..12) as f64, r.random_range(-3..12) as f64];
+        let mut p = || {
+            [
+                r.random_range(-3..12) as f64,
+                r.random_range(-3..12) as f64,
+                r.random_range(-3..12) as f64,
+            ]
+        };
         let (a, b) = (p(), p());
         if a == b {
             continue;
@@ -170,8 +194,20 @@ fn grazing_and_missing_rays() {
         check(&vol, &Ray::segment(w(a), w(b)), "touching");
     }
     // Missing entirely, and ending before the volume.
-    assert_eq!(siddon(&vol, &Ray::segment(w([-1.0, -1.0, -1.0]), w([-1.0, 9.0, 9.0]))), 0.0);
-    assert_eq!(siddon(&vol, &Ray::segment(w([-9.0, 2.0, 2.0]), w([-0.5, 2.0, 2.0]))), 0.0);
+    assert_eq!(
+        siddon(
+            &vol,
+            &Ray::segment(w([-1.0, -1.0, -1.0]), w([-1.0, 9.0, 9.0]))
+        ),
+        0.0
+    );
+    assert_eq!(
+        siddon(
+            &vol,
+            &Ray::segment(w([-9.0, 2.0, 2.0]), w([-0.5, 2.0, 2.0]))
+        ),
+        0.0
+    );
 }
 
 #[test]
@@ -182,13 +218,24 @@ fn path_lengths_sum_to_the_clipped_length_and_visit_each_voxel_once() {
         let a = random_point_near(&vol, &mut r, 20.0);
         let b = random_point_near(&vol, &mut r, 20.0);
         let ray = Ray::segment(a, b);
-        let Some(g) = GridRay::clip(&vol, &ray) else { continue };
+        let Some(g) = GridRay::clip(&vol, &ray) else {
+            continue;
+        };
         let mut rec = PathRecorder::default();
         siddon::trace(vol.dims(), &g, &mut rec);
         let total: f64 = rec.segments.iter().map(|s| s.1).sum();
-        assert!(rel_err(total, g.length()) < 1e-12, "{total} vs {}", g.length());
+        assert!(
+            rel_err(total, g.length()) < 1e-12,
+            "{total} vs {}",
+            g.length()
+        );
         // Consecutive positive-length voxels are face neighbours, never repeated.
-        let visited: Vec<usize> = rec.segments.iter().filter(|s| s.1 > 1e-12).map(|s| s.0).collect();
+        let visited: Vec<usize> = rec
+            .segments
+            .iter()
+            .filter(|s| s.1 > 1e-12)
+            .map(|s| s.0)
+            .collect();
         let mut sorted = visited.clone();
         sorted.sort();
         sorted.dedup();

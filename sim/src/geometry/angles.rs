@@ -7,10 +7,14 @@ use crate::error::{Result, SimError};
 /// (e.g. `arc(0.0, 5.0, 72, 0.0)` is the paper's 72 views every 5° of a full rotation).
 pub fn arc(start_deg: f64, step_deg: f64, count: usize, phi_deg: f64) -> Result<Vec<Pose>> {
     if count == 0 {
-        return Err(SimError::InvalidGeometry("an arc needs at least one view".into()));
+        return Err(SimError::InvalidGeometry(
+            "an arc needs at least one view".into(),
+        ));
     }
     if !(start_deg.is_finite() && step_deg.is_finite() && phi_deg.is_finite()) {
-        return Err(SimError::InvalidGeometry("arc angles must be finite".into()));
+        return Err(SimError::InvalidGeometry(
+            "arc angles must be finite".into(),
+        ));
     }
     Ok((0..count)
         .map(|i| Pose::new(start_deg + i as f64 * step_deg, phi_deg))

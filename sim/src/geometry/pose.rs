@@ -48,10 +48,7 @@ impl Pose {
 
     /// A pose from angles in degrees.
     pub fn new(theta_deg: f64, phi_deg: f64) -> Self {
-        Self {
-            theta_deg,
-            phi_deg,
-        }
+        Self { theta_deg, phi_deg }
     }
 
     /// The source direction and detector axes of this pose.
@@ -79,7 +76,10 @@ mod tests {
     #[test]
     fn ap_and_lateral_frames() {
         let f = Pose::AP.frame();
-        assert!(close(f.to_source, DVec3::new(0.0, -1.0, 0.0)), "AP source anterior");
+        assert!(
+            close(f.to_source, DVec3::new(0.0, -1.0, 0.0)),
+            "AP source anterior"
+        );
         assert!(close(f.u, DVec3::X), "AP columns towards patient left");
         assert!(close(f.v, -DVec3::Z), "AP rows towards feet");
         let f = Pose::LATERAL.frame();

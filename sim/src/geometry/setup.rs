@@ -141,15 +141,28 @@ mod tests {
     #[test]
     fn impossible_geometry_is_named() {
         let e = cone(1000.0, 900.0).validate().unwrap_err().to_string();
-        assert!(e.contains("SID (900 mm) is smaller than SAD (1000 mm)"), "{e}");
+        assert!(
+            e.contains("SID (900 mm) is smaller than SAD (1000 mm)"),
+            "{e}"
+        );
         let e = cone(0.0, 900.0).validate().unwrap_err().to_string();
         assert!(e.contains("SAD is 0 mm"), "{e}");
         let mut g = cone(1000.0, 1500.0);
         g.detector.rows = 0;
-        assert!(g.validate().unwrap_err().to_string().contains("empty detector"));
+        assert!(
+            g.validate()
+                .unwrap_err()
+                .to_string()
+                .contains("empty detector")
+        );
         g.detector.rows = 4;
         g.detector.pitch_u_mm = -1.0;
-        assert!(g.validate().unwrap_err().to_string().contains("column pitch is -1 mm"));
+        assert!(
+            g.validate()
+                .unwrap_err()
+                .to_string()
+                .contains("column pitch is -1 mm")
+        );
         let e = cone(1000.0, 1500.0)
             .view(Pose::new(f64::NAN, 0.0))
             .unwrap_err()

@@ -58,11 +58,16 @@ impl View {
             ("row step v", self.v),
         ] {
             if !x.is_finite() {
-                return Err(SimError::InvalidGeometry(format!("{name} {x} is not finite")));
+                return Err(SimError::InvalidGeometry(format!(
+                    "{name} {x} is not finite"
+                )));
             }
         }
         let normal = self.u.cross(self.v);
-        if self.u.length() == 0.0 || self.v.length() == 0.0 || normal.length() < 1e-9 * self.u.length() * self.v.length() {
+        if self.u.length() == 0.0
+            || self.v.length() == 0.0
+            || normal.length() < 1e-9 * self.u.length() * self.v.length()
+        {
             return Err(SimError::InvalidGeometry(format!(
                 "pixel steps u = {} and v = {} must be non-zero and not parallel",
                 self.u, self.v

@@ -97,7 +97,11 @@ pub fn trace_strided<A: PathAccumulator>(
     // 2. Whole slabs along m. Invariant: t is the m-plane where the slab starts, `voxel`
     //    the voxel there, next[m] the plane where it ends; next[o1], next[o2] ≥ t.
     let slab = inv[m].abs();
-    let (dm, d1, d2) = (step[m] * strides[m], step[o1] * strides[o1], step[o2] * strides[o2]);
+    let (dm, d1, d2) = (
+        step[m] * strides[m],
+        step[o1] * strides[o1],
+        step[o2] * strides[o2],
+    );
     while next[m] < t_end {
         let t_slab_end = next[m];
         let gap = next[o1].min(next[o2]).min(t_end);
@@ -105,7 +109,11 @@ pub fn trace_strided<A: PathAccumulator>(
             // A run of whole slabs with no other crossing: count them (estimate, then
             // settle with the exact crossing expression) and report them at once.
             let first_plane = next_plane_index(ijk[m], step[m]);
-            let crossable = if step[m] > 0 { n[m] - first_plane } else { first_plane };
+            let crossable = if step[m] > 0 {
+                n[m] - first_plane
+            } else {
+                first_plane
+            };
             let plane_at =
                 |k: i64| plane_t((first_plane + (k - 1) * step[m]) as f64, g0[m], inv[m]);
             let mut k = (((gap - t) * gd[m].abs()).floor().min(crossable as f64) as i64).max(1);
@@ -115,7 +123,11 @@ pub fn trace_strided<A: PathAccumulator>(
             while k < crossable && plane_at(k + 1) < gap {
                 k += 1;
             }
-            let lowest = if step[m] > 0 { voxel } else { voxel - (k - 1) * strides[m] };
+            let lowest = if step[m] > 0 {
+                voxel
+            } else {
+                voxel - (k - 1) * strides[m]
+            };
             acc.run(lowest as usize, strides[m] as usize, k as usize, slab);
             t = plane_at(k);
             ijk[m] += k * step[m];

@@ -50,7 +50,8 @@ pub fn sample(values: &[f32], dims: [usize; 3], g: [f64; 3]) -> f64 {
 /// `step_voxels` grid units apart (at most). Result in the field's units × mm.
 pub fn march(values: &[f32], dims: [usize; 3], ray: &GridRay, step_voxels: f64) -> f64 {
     let length = ray.length();
-    let grid_per_mm = (ray.gd[0] * ray.gd[0] + ray.gd[1] * ray.gd[1] + ray.gd[2] * ray.gd[2]).sqrt();
+    let grid_per_mm =
+        (ray.gd[0] * ray.gd[0] + ray.gd[1] * ray.gd[1] + ray.gd[2] * ray.gd[2]).sqrt();
     let steps = ((length * grid_per_mm / step_voxels).ceil() as usize).max(1);
     let h = length / steps as f64;
     let mut sum = 0.0;

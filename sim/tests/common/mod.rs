@@ -16,8 +16,16 @@ pub fn rng(seed: u64) -> ChaCha8Rng {
 pub fn random_volume(r: &mut ChaCha8Rng, dims: [usize; 3], rotate: bool) -> Volume {
     let n = dims[0] * dims[1] * dims[2];
     let data = (0..n).map(|_| r.random_range(0.0f32..0.05)).collect();
-    let spacing = DVec3::new(r.random_range(0.3..3.0), r.random_range(0.3..3.0), r.random_range(0.3..3.0));
-    let origin = DVec3::new(r.random_range(-50.0..50.0), r.random_range(-50.0..50.0), r.random_range(-50.0..50.0));
+    let spacing = DVec3::new(
+        r.random_range(0.3..3.0),
+        r.random_range(0.3..3.0),
+        r.random_range(0.3..3.0),
+    );
+    let origin = DVec3::new(
+        r.random_range(-50.0..50.0),
+        r.random_range(-50.0..50.0),
+        r.random_range(-50.0..50.0),
+    );
     let dir = if rotate {
         let q = glam::DQuat::from_euler(
             glam::EulerRot::ZYX,
@@ -26,7 +34,11 @@ pub fn random_volume(r: &mut ChaCha8Rng, dims: [usize; 3], rotate: bool) -> Volu
             r.random_range(-3.0..3.0),
         );
         let m = DMat3::from_quat(q);
-        if r.random_bool(0.5) { m * DMat3::from_diagonal(DVec3::new(1.0, 1.0, -1.0)) } else { m }
+        if r.random_bool(0.5) {
+            m * DMat3::from_diagonal(DVec3::new(1.0, 1.0, -1.0))
+        } else {
+            m
+        }
     } else {
         DMat3::IDENTITY
     };
@@ -95,5 +107,9 @@ pub fn grid_to_world(vol: &Volume, g: DVec3) -> DVec3 {
 }
 
 pub fn rel_err(a: f64, b: f64) -> f64 {
-    if a == b { 0.0 } else { (a - b).abs() / a.abs().max(b.abs()) }
+    if a == b {
+        0.0
+    } else {
+        (a - b).abs() / a.abs().max(b.abs())
+    }
 }
