@@ -1,1 +1,51 @@
-fn main(){}
+//! `tomograf` — X-ray projections (DRRs) of CT volumes with exact ray tracing.
+
+mod bench;
+mod output;
+mod project;
+mod scene;
+
+use anyhow::Result;
+use clap::{Parser, Subcommand};
+
+#[derive(Debug, Parser)]
+#[command(name = "tomograf", version, about, long_about = None)]
+struct Cli {
+    /// Worker threads (default: all cores). Results do not depend on it.
+    #[arg(long, global = true)]
+    threads: Option<usize>,
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Debug, Subcommand)]
+enum Command {
+    /// Render projections of a CT volume (or the built-in phantom when none is given).
+    Project(Box<project::ProjectArgs>),
+    /// Write the built-in analytic thorax phantom as a NIfTI volume (HU).
+    Phantom(project::PhantomArgs),
+    /// Measure projector speed and accuracy and write the figures as markdown.
+    Bench(bench::BenchArgs),
+}
+
+fn main() {
+    let cli = Cli::parse();
+    if let Err(e) = run(cli) {
+        eprintln!("error: {e:#}");
+        std::process::exit(1);
+    }
+}
+
+fn run(cli: Cli) -> Result<()> {
+    if let Some(n) = cli.threads {
+        anyhow::ensure!(n > 0, "--threads must be at least 1");
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(n)
+            .build_global()?;
+    }
+    match cli.command {
+        Command::Project(args) => project::run(*args),
+        Command::Phantom(args) => project::write_phantom(args),
+        Command::Bench(args) => bench::run(args),
+    }
+}

@@ -1,1 +1,20 @@
+//! # tomograf-datasets — file formats for tomograf
+//!
+//! * [`nifti`]: CT volumes from/to NIfTI-1/2 (`.nii`, `.nii.gz`), converted between NIfTI's
+//!   RAS frame and tomograf's LPS world frame (mm).
+//! * [`image`]: projection images to OpenEXR, TIFF (32-bit float), NPY (`<f4`) and 8-bit
+//!   PNG (windowed, for viewing). Images are `rows × cols`, row 0 at the top.
+//! * [`atomic`]: every file is written through [`atomic::write_atomic`], so a failed or
+//!   interrupted write never leaves a half-written file behind.
+//!
+//! Errors ([`DatasetError`]) always name the file and say what is wrong with it; bad
+//! input never panics.
 
+#![warn(missing_docs)]
+
+pub mod atomic;
+pub mod error;
+pub mod image;
+pub mod nifti;
+
+pub use error::{DatasetError, Result};

@@ -232,7 +232,7 @@ pub fn checked_voxel_count(dims: [usize; 3]) -> Result<usize> {
                 dims[0],
                 dims[1],
                 dims[2],
-                MAX_VOXELS * 4 >> 30
+                (MAX_VOXELS * 4) >> 30
             ))
         })
 }

@@ -1,5 +1,7 @@
 //! Extreme inputs: one voxel, very long paths, huge attenuation.
 
+#![allow(clippy::needless_range_loop)] // loops over the three grid axes read best with an index
+
 mod common;
 
 use common::*;

@@ -3,6 +3,8 @@
 //! Pixel (0, 0) is the top-left pixel in the beam's-eye view; in the AP view the patient's
 //! right is on the image's left and the head at the top.
 
+#![allow(clippy::needless_range_loop)] // loops over the three grid axes read best with an index
+
 use glam::{DMat3, DVec3};
 use tomograf_sim::{Beam, Detector, Geometry, Pose, Projection, Projector, Renderer, Volume};
 

@@ -3,6 +3,8 @@
 //! Tolerance: 1e-9 relative — both compute the same exact sum in f64, and only the order
 //! of additions (≈1e-16 each) and rounding of crossing parameters may differ.
 
+#![allow(clippy::needless_range_loop)] // loops over the three grid axes read best with an index
+
 mod common;
 
 use common::*;

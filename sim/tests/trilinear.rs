@@ -4,6 +4,8 @@
 //! between consecutive crossings of the dual-grid planes (through voxel centres) and the
 //! box faces, so 3-point Gauss–Legendre on each such piece integrates it exactly.
 
+#![allow(clippy::needless_range_loop)] // loops over the three grid axes read best with an index
+
 mod common;
 
 use common::*;

@@ -1,0 +1,185 @@
+//! Atomic file replacement: a reader never sees a half-written file.
+//!
+//! The content is written to a temporary file in the destination's directory (same file
+//! system, so the final rename is atomic), flushed and synced to disk, then renamed over
+//! the destination. On any failure — including a panic in the write closure — the
+//! temporary file is removed and the destination is left untouched (an existing file keeps
+//! its old content; a missing one stays missing).
+
+use crate::error::{DatasetError, Result};
+use std::fs::{File, OpenOptions};
+use std::io::{self, BufWriter};
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicU64, Ordering};
+
+/// Distinguishes temporary files created by concurrent calls in one process.
+static COUNTER: AtomicU64 = AtomicU64::new(0);
+
+/// Writes a file atomically.
+///
+/// `write` receives a buffered writer on a temporary file named
+/// `.<file name>.<pid>.<n>.tmp` in the same directory as `path`. When it returns `Ok`, the
+/// data is flushed, `fsync`ed and the temporary file is renamed over `path`. When it
+/// returns an error (or panics), the temporary file is deleted and `path` is not touched.
+///
+/// Errors name `path` and the step that failed (creating, writing, syncing, renaming).
+/// The directory of `path` must already exist.
+pub fn write_atomic(
+    path: &Path,
+    write: impl FnOnce(&mut BufWriter<File>) -> io::Result<()>,
+) -> Result<()> {
+    let Some(name) = path.file_name() else {
+        return Err(DatasetError::invalid_output(
+            path,
+            "the path has no file name",
+        ));
+    };
+    let dir = match path.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p.to_owned(),
+        _ => PathBuf::from("."),
+    };
+    let (file, guard) = create_temp(&dir, &name.to_string_lossy())
+        .map_err(|e| DatasetError::io(path, "creating a temporary file", e))?;
+
+    let mut writer = BufWriter::new(file);
+    write(&mut writer).map_err(|e| DatasetError::io(path, "writing", e))?;
+    let file = writer
+        .into_inner()
+        .map_err(|e| DatasetError::io(path, "writing", e.into_error()))?;
+    file.sync_all()
+        .map_err(|e| DatasetError::io(path, "syncing to disk", e))?;
+    drop(file);
+
+    std::fs::rename(&guard.path, path)
+        .map_err(|e| DatasetError::io(path, "renaming the temporary file into place", e))?;
+    guard.disarm();
+    sync_dir(&dir);
+    Ok(())
+}
+
+/// Deletes the temporary file when dropped, unless disarmed after the rename.
+struct TempGuard {
+    path: PathBuf,
+    armed: bool,
+}
+
+impl TempGuard {
+    fn disarm(mut self) {
+        self.armed = false;
+    }
+}
+
+impl Drop for TempGuard {
+    fn drop(&mut self) {
+        if self.armed {
+            let _ = std::fs::remove_file(&self.path);
+        }
+    }
+}
+
+/// Creates a fresh temporary file next to the destination (never reusing an existing one).
+fn create_temp(dir: &Path, name: &str) -> io::Result<(File, TempGuard)> {
+    let pid = std::process::id();
+    let mut last = io::Error::other("no temporary name tried");
+    for _ in 0..1000 {
+        let n = COUNTER.fetch_add(1, Ordering::Relaxed);
+        let tmp = dir.join(format!(".{name}.{pid}.{n}.tmp"));
+        match OpenOptions::new().write(true).create_new(true).open(&tmp) {
+            Ok(file) => {
+                let guard = TempGuard {
+                    path: tmp,
+                    armed: true,
+                };
+                return Ok((file, guard));
+            }
+            // A stale file left by a crashed process with the same pid: try the next name.
+            Err(e) if e.kind() == io::ErrorKind::AlreadyExists => last = e,
+            Err(e) => return Err(e),
+        }
+    }
+    Err(last)
+}
+
+/// Makes the rename durable where the platform allows it (best effort).
+fn sync_dir(dir: &Path) {
+    #[cfg(unix)]
+    if let Ok(d) = File::open(dir) {
+        let _ = d.sync_all();
+    }
+    #[cfg(not(unix))]
+    let _ = dir;
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::io::Write;
+
+    fn entries(dir: &Path) -> Vec<String> {
+        let mut v: Vec<String> = std::fs::read_dir(dir)
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .collect();
+        v.sort();
+        v
+    }
+
+    #[test]
+    fn success_replaces_the_file() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("out.bin");
+        std::fs::write(&path, b"old").unwrap();
+        write_atomic(&path, |w| w.write_all(b"new content")).unwrap();
+        assert_eq!(std::fs::read(&path).unwrap(), b"new content");
+        assert_eq!(entries(dir.path()), vec!["out.bin"]);
+    }
+
+    #[test]
+    fn failing_closure_leaves_nothing() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("out.bin");
+        let err = write_atomic(&path, |w| {
+            w.write_all(&[1u8; 100_000])?;
+            Err(io::Error::other("encoder exploded"))
+        })
+        .unwrap_err();
+        let msg = err.to_string();
+        assert!(
+            msg.contains("out.bin") && msg.contains("encoder exploded"),
+            "{msg}"
+        );
+        assert!(entries(dir.path()).is_empty(), "{:?}", entries(dir.path()));
+    }
+
+    #[test]
+    fn failing_closure_keeps_old_content() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("keep.bin");
+        std::fs::write(&path, b"old").unwrap();
+        assert!(write_atomic(&path, |_| Err(io::Error::other("no"))).is_err());
+        assert_eq!(std::fs::read(&path).unwrap(), b"old");
+        assert_eq!(entries(dir.path()), vec!["keep.bin"]);
+    }
+
+    #[test]
+    fn panicking_closure_leaves_no_temp_file() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("p.bin");
+        let r = std::panic::catch_unwind(|| {
+            let _ = write_atomic(&path, |_| panic!("boom"));
+        });
+        assert!(r.is_err());
+        assert!(entries(dir.path()).is_empty());
+    }
+
+    #[test]
+    fn missing_directory_is_a_clear_error() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("no/such/dir/x.bin");
+        let msg = write_atomic(&path, |_| Ok(())).unwrap_err().to_string();
+        assert!(
+            msg.contains("x.bin") && msg.contains("creating a temporary file"),
+            "{msg}"
+        );
+    }
+}

@@ -1,0 +1,9 @@
+#!/usr/bin/env bash
+# The full test command (README "Run every test"; .ci/run calls exactly this).
+# Formatting and lints first (cheap), then every Rust test in the workspace with
+# optimised code (the tests render real-sized volumes).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+cargo fmt --all -- --check
+cargo clippy --workspace --all-targets --release --quiet -- -D warnings
+cargo test --workspace --release

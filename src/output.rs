@@ -1,0 +1,200 @@
+//! Output files of `tomograf project`: per-view EXR / TIFF / PNG, one NPY stack, and the
+//! JSON sidecar that records every view's geometry so any image can be reproduced.
+//!
+//! Every file is written to a temporary name and renamed into place, so an interrupted
+//! run never leaves a half-written file.
+
+use crate::project::{Job, VolumeSource};
+use crate::scene::Scene;
+use anyhow::{Context, Result, bail};
+use serde::Serialize;
+use std::path::{Path, PathBuf};
+use tomograf_datasets::{atomic, image};
+use tomograf_sim::{Geometry, Pose, Projection, Projector, Quantity, View};
+
+/// An output file format.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Format {
+    /// 32-bit float OpenEXR, one channel "Y", one file per view.
+    Exr,
+    /// 32-bit float TIFF, one file per view.
+    Tiff,
+    /// One `.npy` stack of shape (views, rows, cols), little-endian f32.
+    Npy,
+    /// 8-bit grey PNG preview per view, windowed.
+    Png,
+}
+
+impl Format {
+    pub fn parse(name: &str) -> Result<Self> {
+        Ok(match name.trim().to_ascii_lowercase().as_str() {
+            "exr" => Self::Exr,
+            "tiff" | "tif" => Self::Tiff,
+            "npy" => Self::Npy,
+            "png" => Self::Png,
+            other => bail!("unknown output format '{other}': use exr, tiff, npy or png"),
+        })
+    }
+}
+
+/// Where and how images are written.
+pub struct Outputs {
+    pub dir: PathBuf,
+    pub prefix: String,
+    pub formats: Vec<Format>,
+    pub window: Option<[f32; 2]>,
+}
+
+impl Outputs {
+    pub fn from_scene(scene: &Scene) -> Result<Self> {
+        let o = &scene.output;
+        let names = o
+            .formats
+            .clone()
+            .unwrap_or_else(|| vec!["exr".into(), "npy".into(), "png".into()]);
+        let mut formats = crate::project::parse_formats(&names)?;
+        formats.dedup();
+        if formats.is_empty() {
+            bail!("no output format given");
+        }
+        let prefix = o.prefix.clone().unwrap_or_else(|| "drr".into());
+        if prefix.is_empty() || prefix.contains(['/', '\\']) {
+            bail!("output prefix '{prefix}' must be a non-empty file name without slashes");
+        }
+        if let Some([lo, hi]) = o.window
+            && (lo >= hi || lo.is_nan() || hi.is_nan())
+        {
+            bail!("PNG window [{lo}, {hi}] must have LOW < HIGH");
+        }
+        Ok(Self {
+            dir: o.dir.clone().unwrap_or_else(|| "out".into()),
+            prefix,
+            formats,
+            window: o.window,
+        })
+    }
+
+    pub fn prepare(&self) -> Result<()> {
+        std::fs::create_dir_all(&self.dir)
+            .with_context(|| format!("cannot create output folder {}", self.dir.display()))
+    }
+
+    fn path(&self, view: usize, ext: &str) -> PathBuf {
+        self.dir.join(format!("{}_{view:03}.{ext}", self.prefix))
+    }
+
+    /// Writes the per-view files of view `index`.
+    pub fn write_view(&self, index: usize, img: &Projection) -> Result<()> {
+        for f in &self.formats {
+            match f {
+                Format::Exr => image::write_exr(&self.path(index, "exr"), img)?,
+                Format::Tiff => image::write_tiff(&self.path(index, "tiff"), img)?,
+                Format::Png => {
+                    let (lo, hi) = match self.window {
+                        Some([lo, hi]) => (lo, hi),
+                        None => auto_window(img),
+                    };
+                    image::write_png(&self.path(index, "png"), img, (lo, hi))?
+                }
+                Format::Npy => {}
+            }
+        }
+        Ok(())
+    }
+
+    /// Writes the NPY stack and the sidecar; returns the number of files written in all.
+    pub fn finish(&self, images: &[Projection], sidecar: &Sidecar) -> Result<usize> {
+        let per_view = self.formats.iter().filter(|f| **f != Format::Npy).count();
+        let mut files = per_view * images.len();
+        if self.formats.contains(&Format::Npy) && !images.is_empty() {
+            let (rows, cols) = (images[0].rows, images[0].cols);
+            if images.iter().any(|i| i.rows != rows || i.cols != cols) {
+                bail!(
+                    "views have different detector sizes; they cannot share one .npy stack (use exr or tiff)"
+                );
+            }
+            let data: Vec<f32> = images.iter().flat_map(|i| i.data.iter().copied()).collect();
+            image::write_npy(
+                &self.dir.join(format!("{}.npy", self.prefix)),
+                &data,
+                &[images.len(), rows, cols],
+            )?;
+            files += 1;
+        }
+        let mut sidecar = serde_json::to_value(sidecar)?;
+        sidecar["files"] = serde_json::json!({
+            "formats": self.formats,
+            "per_view": format!("{}_NNN.<ext> (NNN = view index)", self.prefix),
+            "npy_stack": self.formats.contains(&Format::Npy).then(|| format!("{}.npy", self.prefix)),
+            "png_window": self.window.map_or("per-image min..max".to_string(), |w| format!("{w:?}")),
+        });
+        let path = self.dir.join(format!("{}.json", self.prefix));
+        write_json(&path, &sidecar)?;
+        Ok(files + 1)
+    }
+}
+
+fn write_json(path: &Path, value: &serde_json::Value) -> Result<()> {
+    atomic::write_atomic(path, |w| {
+        serde_json::to_writer_pretty(&mut *w, value).map_err(std::io::Error::other)?;
+        std::io::Write::write_all(w, b"\n")
+    })?;
+    Ok(())
+}
+
+/// Min..max of an image (or [v, v+1] for a constant image).
+fn auto_window(img: &Projection) -> (f32, f32) {
+    let (lo, hi) = img
+        .data
+        .iter()
+        .fold((f32::INFINITY, f32::NEG_INFINITY), |(a, b), &v| {
+            (a.min(v), b.max(v))
+        });
+    if hi > lo { (lo, hi) } else { (lo, lo + 1.0) }
+}
+
+/// The JSON sidecar: the full geometry of every view and how values were produced.
+#[derive(Debug, Serialize)]
+pub struct Sidecar<'a> {
+    pub tomograf_version: &'static str,
+    pub conventions: &'static str,
+    pub volume: &'a VolumeSource,
+    pub projector: Projector,
+    pub quantity: Quantity,
+    pub geometry: Option<Geometry>,
+    pub views: Vec<SidecarView>,
+}
+
+#[derive(Debug, Serialize)]
+pub struct SidecarView {
+    pub index: usize,
+    pub pose: Option<Pose>,
+    #[serde(flatten)]
+    pub view: View,
+}
+
+impl<'a> Sidecar<'a> {
+    pub fn new(volume: &'a VolumeSource, job: &Job) -> Self {
+        Self {
+            tomograf_version: env!("CARGO_PKG_VERSION"),
+            conventions: "World frame DICOM LPS, mm. Pixel (row r, col c) centre = detector_origin + c*u + r*v; \
+                          pixel (0,0) is top-left in the beam's-eye view; images row-major. Cone rays run from \
+                          source to pixel centre; parallel rays are whole lines along direction.",
+            volume,
+            projector: job.projector,
+            quantity: job.quantity,
+            geometry: job.geometry,
+            views: job
+                .views
+                .iter()
+                .enumerate()
+                .map(|(index, view)| SidecarView {
+                    index,
+                    pose: job.poses.get(index).copied(),
+                    view: *view,
+                })
+                .collect(),
+        }
+    }
+}

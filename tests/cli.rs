@@ -1,0 +1,273 @@
+//! End-to-end tests of the `tomograf` command line.
+
+use std::path::Path;
+use std::process::Command;
+
+fn tomograf(args: &[&str]) -> std::process::Output {
+    Command::new(env!("CARGO_BIN_EXE_tomograf"))
+        .args(args)
+        .output()
+        .expect("runs")
+}
+
+/// A small phantom grid so each render takes milliseconds.
+const SMALL: [&str; 8] = [
+    "--phantom-dims",
+    "64,64,40",
+    "--phantom-spacing",
+    "5.6,5.6,8.3",
+    "--rows",
+    "64",
+    "--cols",
+    "64",
+];
+
+fn ok(out: &std::process::Output) {
+    assert!(
+        out.status.success(),
+        "failed: {}\n{}",
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+}
+
+fn read_npy(path: &Path) -> (Vec<u64>, Vec<f32>) {
+    let bytes = std::fs::read(path).unwrap();
+    let npy = npyz::NpyFile::new(&bytes[..]).unwrap();
+    let shape = npy.shape().to_vec();
+    (shape, npy.into_vec::<f32>().unwrap())
+}
+
+#[test]
+fn default_job_renders_the_phantom_with_every_output() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path().to_str().unwrap();
+    let mut args = vec![
+        "project",
+        "-o",
+        d,
+        "--format",
+        "exr,tiff,npy,png",
+        "--view",
+        "ap",
+        "--view",
+        "lateral",
+    ];
+    args.extend(SMALL);
+    ok(&tomograf(&args));
+    for f in [
+        "drr_000.exr",
+        "drr_001.exr",
+        "drr_000.tiff",
+        "drr_000.png",
+        "drr_001.png",
+        "drr.npy",
+        "drr.json",
+    ] {
+        assert!(dir.path().join(f).is_file(), "{f} missing");
+    }
+    let (shape, data) = read_npy(&dir.path().join("drr.npy"));
+    assert_eq!(shape, vec![2, 64, 64]);
+    assert!(data.iter().all(|v| v.is_finite() && *v >= 0.0));
+    // Through ~23 cm of tissue at 60 keV the centre line integral is several units.
+    let centre = data[32 * 64 + 32];
+    assert!(
+        centre > 2.0 && centre < 10.0,
+        "centre line integral {centre}"
+    );
+    let side: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(dir.path().join("drr.json")).unwrap()).unwrap();
+    assert_eq!(side["views"].as_array().unwrap().len(), 2);
+    assert_eq!(side["views"][1]["pose"]["theta_deg"], 90.0);
+    assert!(side["views"][0]["beam"]["source"].is_array());
+    assert_eq!(side["projector"]["kind"], "siddon");
+    assert_eq!(side["volume"]["phantom"], "thorax");
+}
+
+#[test]
+fn nifti_round_trip_renders_the_same_image() {
+    // The phantom written to NIfTI (RAS on disk) and read back must give the very same
+    // pixels as the in-memory phantom: no flip, shift or transpose on the way.
+    let dir = tempfile::tempdir().unwrap();
+    let nii = dir.path().join("p.nii.gz");
+    ok(&tomograf(&[
+        "phantom",
+        "-o",
+        nii.to_str().unwrap(),
+        "--dims",
+        "64,64,40",
+        "--spacing",
+        "5.6,5.6,8.3",
+    ]));
+    let a = dir.path().join("a");
+    let b = dir.path().join("b");
+    let mut args = vec![
+        "project",
+        "-o",
+        a.to_str().unwrap(),
+        "--format",
+        "npy",
+        "--view",
+        "30,10",
+    ];
+    args.extend(SMALL);
+    ok(&tomograf(&args));
+    ok(&tomograf(&[
+        "project",
+        nii.to_str().unwrap(),
+        "-o",
+        b.to_str().unwrap(),
+        "--format",
+        "npy",
+        "--view",
+        "30,10",
+        "--rows",
+        "64",
+        "--cols",
+        "64",
+    ]));
+    // NIfTI-1 stores spacing and origin as f32 (~1e-5 mm here), which moves grazing rays'
+    // tiny chords; allow 1e-4 relative (absolute below L = 1). A flip, shift or transpose
+    // changes pixels by O(1).
+    let (x, y) = (
+        read_npy(&a.join("drr.npy")).1,
+        read_npy(&b.join("drr.npy")).1,
+    );
+    assert_eq!(x.len(), y.len());
+    let worst = x
+        .iter()
+        .zip(&y)
+        .map(|(p, q)| (p - q).abs() / p.abs().max(1.0))
+        .fold(0.0f32, f32::max);
+    assert!(worst < 1e-4, "largest relative difference {worst}");
+    assert!(x.iter().any(|&v| v > 1.0), "image is not empty");
+}
+
+#[test]
+fn same_bytes_whatever_the_thread_count_and_scene_equals_flags() {
+    let dir = tempfile::tempdir().unwrap();
+    let run = |name: &str, extra: &[&str]| {
+        let out = dir.path().join(name);
+        let mut args = vec![
+            "project",
+            "-o",
+            out.to_str().unwrap(),
+            "--format",
+            "npy",
+            "--arc",
+            "0:40:3",
+        ];
+        args.extend(SMALL);
+        args.extend(extra);
+        ok(&tomograf(&args));
+        std::fs::read(out.join("drr.npy")).unwrap()
+    };
+    let one = {
+        let out = dir.path().join("t1");
+        let mut args = vec![
+            "--threads",
+            "1",
+            "project",
+            "-o",
+            out.to_str().unwrap(),
+            "--format",
+            "npy",
+            "--arc",
+            "0:40:3",
+        ];
+        args.extend(SMALL);
+        ok(&tomograf(&args));
+        std::fs::read(out.join("drr.npy")).unwrap()
+    };
+    assert_eq!(one, run("t2", &[]));
+    // The same job from a scene file.
+    let scene = dir.path().join("scene.toml");
+    std::fs::write(
+        &scene,
+        format!(
+            "[volume]\nphantom_dims = [64, 64, 40]\nphantom_spacing_mm = [5.6, 5.6, 8.3]\n[detector]\nrows = 64\ncols = 64\n[views]\narc = \"0:40:3\"\n[output]\ndir = \"{}\"\nformats = [\"npy\"]\n",
+            dir.path().join("s").display()
+        ),
+    )
+    .unwrap();
+    ok(&tomograf(&["project", "--scene", scene.to_str().unwrap()]));
+    assert_eq!(
+        one,
+        std::fs::read(dir.path().join("s").join("drr.npy")).unwrap()
+    );
+}
+
+#[test]
+fn bad_input_is_a_clear_error() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path().to_str().unwrap();
+    let cases: &[(&[&str], &str)] = &[
+        (
+            &["--sad", "1000", "--sid", "900"],
+            "SID (900 mm) is smaller than SAD (1000 mm)",
+        ),
+        (&["--pitch", "0"], "pitch is 0 mm"),
+        (&["--rows", "0"], "empty detector"),
+        (
+            &["--phantom-spacing", "1,-1,1"],
+            "spacing along axis 1 is -1 mm",
+        ),
+        (&["--format", "jpeg"], "unknown output format 'jpeg'"),
+        (
+            &["--energy-kev", "900"],
+            "outside the water attenuation table",
+        ),
+        (&["--view", "sideways"], "neither a named view"),
+        (
+            &["--projector", "trilinear", "--step", "0"],
+            "trilinear step is 0 voxels",
+        ),
+        (
+            &["--beam", "parallel", "--sad", "1000"],
+            "do not apply to a parallel beam",
+        ),
+    ];
+    for (extra, msg) in cases {
+        let mut args = vec!["project", "-o", d, "--phantom-dims", "8,8,8"];
+        if !extra.contains(&"--phantom-spacing") {
+            args.extend(["--phantom-spacing", "40,40,40"]);
+        }
+        args.extend(*extra);
+        let out = tomograf(&args);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success(), "{extra:?} should fail");
+        assert!(err.contains(msg), "{extra:?}: expected '{msg}' in: {err}");
+        assert!(!err.contains("panicked"), "{err}");
+    }
+    // Missing and corrupt volumes.
+    let bad = dir.path().join("bad.nii");
+    std::fs::write(&bad, b"not a nifti file at all").unwrap();
+    for (path, msg) in [
+        (bad.to_str().unwrap(), "bad.nii"),
+        ("/nonexistent/ct.nii.gz", "ct.nii.gz"),
+        ("ct.mha", "only NIfTI"),
+    ] {
+        let out = tomograf(&["project", path, "-o", d]);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(
+            !out.status.success() && err.contains(msg) && !err.contains("panicked"),
+            "{path}: {err}"
+        );
+    }
+}
+
+#[test]
+fn bench_quick_runs() {
+    let dir = tempfile::tempdir().unwrap();
+    let md = dir.path().join("bench.md");
+    ok(&tomograf(&[
+        "bench",
+        "--quick",
+        "--repeats",
+        "1",
+        "--out",
+        md.to_str().unwrap(),
+    ]));
+    let text = std::fs::read_to_string(md).unwrap();
+    assert!(text.contains("G voxel steps/s") && text.contains("Observed order"));
+}
