@@ -93,18 +93,37 @@ def main():
     med, p99, mx = np.median(rel[inside]), np.percentile(rel[inside], 99), rel.max()
     big = np.argwhere(rel > 1e-4)
 
-    # Explain every pixel differing by more than 1e-4: plastimatch drops each ray's exit
-    # voxel. Re-derive that voxel's contribution from the volume to check.
-    unexplained = []
+    # Explain every pixel differing by more than 1e-4 relative. Two known causes:
+    #  (a) plastimatch drops each ray's exit voxel: re-derive that voxel's contribution;
+    #  (b) grazing rays whose short chords move with the geometry's last digits: measure each
+    #      pixel's sensitivity by re-rendering with the isocentre moved by 6e-5 mm (the
+    #      resolution of single-precision coordinates near 1000 mm) along x and along z.
+    sens = np.zeros_like(tg)
+    for axis in (0, 2):
+        shift = np.zeros(3)
+        shift[axis] = 6e-5
+        iso_moved = ",".join(f"{x:.9f}" for x in iso_lps + shift)
+        at = tg_cmd.index("--prefix") + 1
+        moved_cmd = tg_cmd[:at] + [f"moved{axis}"] + tg_cmd[at + 1:]
+        run(moved_cmd + ["--isocentre", iso_moved])
+        moved = np.load(w / "tg" / f"moved{axis}.npy")[0].astype(np.float64)
+        sens = np.maximum(sens, np.abs(moved - tg))
+    by_exit_voxel, by_precision, unexplained = 0, 0, []
     if len(big):
         sys.path.insert(0, str(ROOT / "scripts"))
         from siddon_exit_voxel import exit_voxel_contribution  # noqa: E402
         for r, c in big:
             drop = exit_voxel_contribution(mu, SPACING, iso_lps, SAD, SID, N, PITCH, r, c)
-            if abs((tg[r, c] - drop) - plm[r, c]) > 1e-4 * max(abs(tg[r, c]), 1e-6):
-                unexplained.append((int(r), int(c), tg[r, c], plm[r, c], drop))
+            d = tg[r, c] - plm[r, c]
+            if drop > 0 and abs(d - drop) <= 1e-4 * max(abs(tg[r, c]), 1e-6):
+                by_exit_voxel += 1
+            elif abs(d) <= 3.0 * sens[r, c]:
+                by_precision += 1
+            else:
+                unexplained.append((int(r), int(c), tg[r, c], plm[r, c], drop, sens[r, c]))
     if not (med < 1e-5 and not unexplained):
-        sys.exit(f"line integrals disagree: median rel {med:.2e}, unexplained pixels {unexplained[:10]}")
+        sys.exit(f"line integrals disagree: median rel {med:.2e}, unexplained pixels "
+                 f"(row, col, tomograf, plastimatch, exit voxel, sensitivity) {unexplained[:10]}")
 
     # 3. Times.
     plm_total, plm_wall, tg_render, tg_wall = [], [], [], []
@@ -129,12 +148,19 @@ AP cone beam, SAD {SAD:.0f} mm, SID {SID:.0f} mm, {N}×{N} detector of {PITCH} m
 
 ## Agreement (checked before timing)
 
-| pixels compared | median rel. diff | 99th percentile | max rel. diff | pixels > 1e-4 | of those not explained by plastimatch's dropped exit voxel |
-|---:|---:|---:|---:|---:|---:|
-| {int(inside.sum())} | {med:.2e} | {p99:.2e} | {mx:.2e} | {len(big)} | {len(unexplained)} |
+| pixels compared | median rel. diff | 99th percentile | max rel. diff | pixels > 1e-4 rel. | explained by the dropped exit voxel | explained by geometric precision | unexplained |
+|---:|---:|---:|---:|---:|---:|---:|---:|
+| {int(inside.sum())} | {med:.2e} | {p99:.2e} | {mx:.2e} | {len(big)} | {by_exit_voxel} | {by_precision} | {len(unexplained)} |
 
-plastimatch leaves out the last voxel of every ray; rays that leave the volume through tissue
-differ by that voxel's contribution, which the script recomputes for every pixel above 1e-4.
+Every pixel differing by more than 1e-4 relative is explained, or the script fails before timing:
+* plastimatch leaves out the last voxel of every ray; for rays that leave the volume through
+  tissue the script recomputes that voxel's contribution (independent numpy tracer,
+  `scripts/siddon_exit_voxel.py`) and checks it accounts for the difference;
+* rays grazing the phantom's flat top and bottom faces have chords of a fraction of a voxel
+  whose length moves with the last digits of the geometry; the script re-renders with the
+  isocentre moved by 6·10⁻⁵ mm (the spacing of single-precision numbers near 1000 mm) along x
+  and z, and accepts a difference within 3× that measured sensitivity.
+  Largest absolute difference among all pixels: {np.abs(tg - plm).max():.2e}.
 
 ## Time (median of {args.repeats})
 

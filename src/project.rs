@@ -44,7 +44,7 @@ pub struct ProjectArgs {
     #[arg(long)]
     pub sid: Option<f64>,
     /// Isocentre X,Y,Z in world LPS mm [default: the volume's centre].
-    #[arg(long, value_parser = parse3)]
+    #[arg(long, value_parser = parse3, allow_hyphen_values = true)]
     pub isocentre: Option<[f64; 3]>,
     /// Detector rows [default: 256].
     #[arg(long)]

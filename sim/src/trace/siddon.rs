@@ -95,59 +95,57 @@ pub fn trace_strided<A: PathAccumulator>(
     }
 
     // 2. Whole slabs along m. Invariant: t is the m-plane where the slab starts, `voxel`
-    //    the voxel there, next[m] the plane where it ends; next[o1], next[o2] ≥ t.
+    //    the voxel there, next[m] the plane where it ends; next[o1], next[o2] ≥ t (up to
+    //    rounding).
     let slab = inv[m].abs();
+    let grid_per_mm = gd[m].abs();
     let (dm, d1, d2) = (
         step[m] * strides[m],
         step[o1] * strides[o1],
         step[o2] * strides[o2],
     );
     while next[m] < t_end {
-        let t_slab_end = next[m];
+        // Whole slabs before the next crossing of another axis (or the exit): counted from
+        // the distance; rounding may count one slab too many or too few, which only moves
+        // a rounding-sized sliver between neighbours (the slab code below absorbs a
+        // crossing that lies a hair before the slab start). `inside` keeps the walk in
+        // the grid whatever the rounding.
         let gap = next[o1].min(next[o2]).min(t_end);
-        if gap - t_slab_end > 4.0 * slab {
-            // A run of whole slabs with no other crossing: count them (estimate, then
-            // settle with the exact crossing expression) and report them at once.
-            let first_plane = next_plane_index(ijk[m], step[m]);
-            let crossable = if step[m] > 0 {
-                n[m] - first_plane
-            } else {
-                first_plane
-            };
-            let plane_at =
-                |k: i64| plane_t((first_plane + (k - 1) * step[m]) as f64, g0[m], inv[m]);
-            let mut k = (((gap - t) * gd[m].abs()).floor().min(crossable as f64) as i64).max(1);
-            while k > 1 && plane_at(k) >= gap {
-                k -= 1;
-            }
-            while k < crossable && plane_at(k + 1) < gap {
-                k += 1;
-            }
+        let inside = if step[m] > 0 {
+            n[m] - 1 - ijk[m]
+        } else {
+            ijk[m]
+        };
+        let k = (((gap - t) * grid_per_mm) as i64).min(inside);
+        if k >= 2 {
             let lowest = if step[m] > 0 {
                 voxel
             } else {
                 voxel - (k - 1) * strides[m]
             };
             acc.run(lowest as usize, strides[m] as usize, k as usize, slab);
-            t = plane_at(k);
             ijk[m] += k * step[m];
             voxel += k * dm;
+            t = plane_t(next_plane(ijk[m] - step[m], step[m]), g0[m], inv[m]);
             next[m] = plane_t(next_plane(ijk[m], step[m]), g0[m], inv[m]);
-            continue;
+            if next[m] >= t_end {
+                break;
+            }
         }
         // One slab, crossing at most one o1-plane and one o2-plane, without branches:
         // three segments (zero-length where a crossing does not happen).
+        let t_slab_end = next[m];
         let (c1, c2) = (next[o1], next[o2]);
         let (x1, x2) = (c1 < t_slab_end, c2 < t_slab_end);
-        let ca = c1.min(c2).min(t_slab_end);
-        let cb = c1.max(c2).min(t_slab_end);
+        let ca = c1.min(c2).clamp(t, t_slab_end);
+        let cb = c1.max(c2).clamp(t, t_slab_end);
         let after_1 = voxel + if x1 { d1 } else { 0 };
         let after_2 = voxel + if x2 { d2 } else { 0 };
         let va = if c1 <= c2 { after_1 } else { after_2 };
         let vb = after_1 + after_2 - voxel;
         acc.segments3(
             [voxel as usize, va as usize, vb as usize],
-            [(ca - t).max(0.0), cb - ca, t_slab_end - cb],
+            [ca - t, cb - ca, t_slab_end - cb],
         );
         ijk[o1] += if x1 { step[o1] } else { 0 };
         ijk[o2] += if x2 { step[o2] } else { 0 };
