@@ -28,6 +28,48 @@ pub fn write_atomic(
     path: &Path,
     write: impl FnOnce(&mut BufWriter<File>) -> io::Result<()>,
 ) -> Result<()> {
+    let (name, dir) = split(path)?;
+    let (file, guard) = create_temp(&dir, |pid, n| format!(".{name}.{pid}.{n}.tmp"))
+        .map_err(|e| DatasetError::io(path, "creating a temporary file", e))?;
+
+    let mut writer = BufWriter::new(file);
+    write(&mut writer).map_err(|e| DatasetError::io(path, "writing", e))?;
+    let file = writer
+        .into_inner()
+        .map_err(|e| DatasetError::io(path, "writing", e.into_error()))?;
+    commit(path, &dir, file, guard)
+}
+
+/// Writes a file atomically through a writer that needs a *path* rather than a stream
+/// (e.g. one that picks compression from the file name).
+///
+/// An empty temporary file `.<file name, dots → _>-tmp-<pid>-<n><suffix>` is reserved in
+/// the directory of `path`; `suffix` (e.g. `.nii.gz`) must start with a dot and is the only
+/// extension of that name. `write` must replace the content of the path it is given
+/// (creating or truncating the file). Then the file is `fsync`ed and renamed over `path`,
+/// as in [`write_atomic`]; when `write` fails (or panics) the temporary file is removed and
+/// `path` is not touched.
+pub(crate) fn write_atomic_to_path(
+    path: &Path,
+    suffix: &str,
+    write: impl FnOnce(&Path) -> Result<()>,
+) -> Result<()> {
+    let (name, dir) = split(path)?;
+    let stem = name.replace('.', "_");
+    let (file, guard) = create_temp(&dir, |pid, n| format!(".{stem}-tmp-{pid}-{n}{suffix}"))
+        .map_err(|e| DatasetError::io(path, "creating a temporary file", e))?;
+    drop(file);
+
+    write(&guard.path)?;
+    let file = OpenOptions::new()
+        .write(true)
+        .open(&guard.path)
+        .map_err(|e| DatasetError::io(path, "reopening the temporary file", e))?;
+    commit(path, &dir, file, guard)
+}
+
+/// The destination's file name (lossy UTF-8) and directory.
+fn split(path: &Path) -> Result<(String, PathBuf)> {
     let Some(name) = path.file_name() else {
         return Err(DatasetError::invalid_output(
             path,
@@ -38,14 +80,11 @@ pub fn write_atomic(
         Some(p) if !p.as_os_str().is_empty() => p.to_owned(),
         _ => PathBuf::from("."),
     };
-    let (file, guard) = create_temp(&dir, &name.to_string_lossy())
-        .map_err(|e| DatasetError::io(path, "creating a temporary file", e))?;
+    Ok((name.to_string_lossy().into_owned(), dir))
+}
 
-    let mut writer = BufWriter::new(file);
-    write(&mut writer).map_err(|e| DatasetError::io(path, "writing", e))?;
-    let file = writer
-        .into_inner()
-        .map_err(|e| DatasetError::io(path, "writing", e.into_error()))?;
+/// Syncs the finished temporary file and renames it over `path`.
+fn commit(path: &Path, dir: &Path, file: File, guard: TempGuard) -> Result<()> {
     file.sync_all()
         .map_err(|e| DatasetError::io(path, "syncing to disk", e))?;
     drop(file);
@@ -53,7 +92,7 @@ pub fn write_atomic(
     std::fs::rename(&guard.path, path)
         .map_err(|e| DatasetError::io(path, "renaming the temporary file into place", e))?;
     guard.disarm();
-    sync_dir(&dir);
+    sync_dir(dir);
     Ok(())
 }
 
@@ -77,13 +116,14 @@ impl Drop for TempGuard {
     }
 }
 
-/// Creates a fresh temporary file next to the destination (never reusing an existing one).
-fn create_temp(dir: &Path, name: &str) -> io::Result<(File, TempGuard)> {
+/// Creates a fresh temporary file in `dir` named `name(pid, n)` (never reusing an existing
+/// one).
+fn create_temp(dir: &Path, name: impl Fn(u32, u64) -> String) -> io::Result<(File, TempGuard)> {
     let pid = std::process::id();
     let mut last = io::Error::other("no temporary name tried");
     for _ in 0..1000 {
         let n = COUNTER.fetch_add(1, Ordering::Relaxed);
-        let tmp = dir.join(format!(".{name}.{pid}.{n}.tmp"));
+        let tmp = dir.join(name(pid, n));
         match OpenOptions::new().write(true).create_new(true).open(&tmp) {
             Ok(file) => {
                 let guard = TempGuard {
@@ -170,6 +210,40 @@ mod tests {
         });
         assert!(r.is_err());
         assert!(entries(dir.path()).is_empty());
+    }
+
+    #[test]
+    fn path_writer_gets_a_temp_name_with_only_the_suffix_as_extension() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("ct.scan.nii.gz");
+        std::fs::write(&path, b"old").unwrap();
+        let mut seen = PathBuf::new();
+        write_atomic_to_path(&path, ".nii.gz", |tmp| {
+            seen = tmp.to_owned();
+            std::fs::write(tmp, b"new").map_err(|e| DatasetError::io(&path, "writing", e))
+        })
+        .unwrap();
+        assert_eq!(std::fs::read(&path).unwrap(), b"new");
+        assert_eq!(entries(dir.path()), vec!["ct.scan.nii.gz"]);
+        assert_eq!(seen.parent(), Some(dir.path()));
+        let name = seen.file_name().unwrap().to_string_lossy().into_owned();
+        assert!(name.starts_with(".ct_scan_nii_gz-tmp-"), "{name}");
+        // Stripping the suffix leaves a name with no extension of its own.
+        let stem = Path::new(name.strip_suffix(".nii.gz").unwrap());
+        assert_eq!(stem.extension(), None, "{name}");
+    }
+
+    #[test]
+    fn failing_path_writer_leaves_nothing() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("out.nii");
+        let err = write_atomic_to_path(&path, ".nii", |tmp| {
+            std::fs::write(tmp, [0u8; 1000]).unwrap();
+            Err(DatasetError::invalid_output(&path, "writer refused"))
+        })
+        .unwrap_err();
+        assert!(err.to_string().contains("writer refused"), "{err}");
+        assert!(entries(dir.path()).is_empty(), "{:?}", entries(dir.path()));
     }
 
     #[test]

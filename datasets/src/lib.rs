@@ -1,11 +1,12 @@
 //! # tomograf-datasets — file formats for tomograf
 //!
-//! * [`nifti`]: CT volumes from/to NIfTI-1/2 (`.nii`, `.nii.gz`), converted between NIfTI's
-//!   RAS frame and tomograf's LPS world frame (mm).
+//! * [`nifti`]: CT volumes from/to NIfTI-1 (`.nii`, `.nii.gz`) through the `nifti` crate,
+//!   converted between NIfTI's RAS frame and tomograf's LPS world frame (mm).
 //! * [`image`]: projection images to OpenEXR, TIFF (32-bit float), NPY (`<f4`) and 8-bit
 //!   PNG (windowed, for viewing). Images are `rows × cols`, row 0 at the top.
-//! * [`atomic`]: every file is written through [`atomic::write_atomic`], so a failed or
-//!   interrupted write never leaves a half-written file behind.
+//! * [`atomic`]: every file is written atomically (through [`atomic::write_atomic`], or
+//!   its path-based variant for the NIfTI writer), so a failed or interrupted write never
+//!   leaves a half-written file behind.
 //!
 //! Errors ([`DatasetError`]) always name the file and say what is wrong with it; bad
 //! input never panics.

@@ -220,8 +220,10 @@ fn big_endian_float32_and_gzip() {
     assert_eq!(plain.origin(), DVec3::new(-1.0, -2.0, 3.0));
 }
 
+/// A valid NIfTI-2 file: the `nifti` crate reads NIfTI-1 only, so it must be refused with
+/// a clear "not supported" error (plain, gzip-compressed and big-endian alike).
 #[test]
-fn nifti2_float64_with_extension_gap() {
+fn nifti2_is_refused_as_unsupported() {
     // NIfTI-2: 540-byte header, magic at 4, datatype 12, bitpix 14, dim i64[8] at 16,
     // pixdim f64[8] at 104, vox_offset i64 at 168, scl_slope/inter f64 at 176/184,
     // qform/sform i32 at 344/348, srow_x/y/z f64[4] at 400/432/464.
@@ -251,14 +253,72 @@ fn nifti2_float64_with_extension_gap() {
     for v in [4.0f64, -8.0] {
         b.extend_from_slice(&v.to_le_bytes());
     }
+    let unsupported = |msg: String| {
+        assert!(
+            msg.contains("not supported") && msg.contains("NIfTI-2"),
+            "{msg}"
+        );
+    };
+    unsupported(read_err("v2.nii", &b));
+    let mut gz = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::default());
+    gz.write_all(&b).unwrap();
+    unsupported(read_err("v2.nii.gz", &gz.finish().unwrap()));
+    b[..4].copy_from_slice(&540i32.to_be_bytes());
+    unsupported(read_err("v2be.nii", &b));
+}
+
+/// Voxel order with fewer and more than three axes (`dim[0]` = 2 and 4 with a single
+/// volume), an extension gap before the data (`vox_offset` > 352) and int32 voxels.
+#[test]
+fn two_and_four_axes_keep_i_fastest_order() {
     let dir = tempfile::tempdir().unwrap();
-    let v = read_nifti(&save(dir.path(), "v2.nii", &b)).unwrap();
-    assert_eq!(v.dims(), [2, 1, 1]);
-    assert_eq!(v.data(), &[12.0, 6.0]);
-    // i steps along RAS +y by 2 mm → LPS −y.
-    let got = v.index_to_world(DVec3::new(1.0, 0.0, 0.0));
-    assert!(close(got, DVec3::new(-5.0, -8.0, 7.0), 1e-12), "{got}");
-    assert!(close(v.spacing(), DVec3::new(2.0, 1.5, 3.0), 1e-12));
+    let raw: Vec<i32> = (0..12).map(|n| n * n - 40).collect();
+    let le: Vec<u8> = raw.iter().flat_map(|x| x.to_le_bytes()).collect();
+    for (name, dim, shape) in [
+        ("two.nii", [2, 4, 3, 0, 0, 0, 0, 0], [4, 3, 1]),
+        ("four.nii", [4, 2, 3, 2, 1, 0, 0, 0], [2, 3, 2]),
+    ] {
+        let mut s = Spec::new([1, 1, 1], 8, 32);
+        s.dim = dim;
+        s.vox_offset = 368.0;
+        let mut bytes = s.bytes(false, &[]);
+        bytes[348] = 1; // extension flag; 16 bytes of extension follow
+        bytes.extend_from_slice(&16i32.to_le_bytes());
+        bytes.extend_from_slice(&[0u8; 12]);
+        bytes.extend_from_slice(&le);
+        let v = read_nifti(&save(dir.path(), name, &bytes)).unwrap();
+        assert_eq!(v.dims(), shape, "{name}");
+        for k in 0..shape[2] {
+            for j in 0..shape[1] {
+                for i in 0..shape[0] {
+                    let n = i + shape[0] * (j + shape[1] * k);
+                    assert_eq!(v.get(i, j, k), raw[n] as f32, "{name} ({i},{j},{k})");
+                }
+            }
+        }
+    }
+}
+
+/// Compression is recognised from the content (a gzip file named `.nii` reads), and a
+/// multi-member gzip stream (as written by parallel compressors) is read to its end.
+#[test]
+fn gzip_by_content_and_multi_member() {
+    let dir = tempfile::tempdir().unwrap();
+    let s = Spec::new([2, 2, 2], 2, 8);
+    let bytes = s.bytes(false, &[1, 2, 3, 4, 5, 6, 7, 8]);
+    let member = |part: &[u8]| {
+        let mut gz = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::default());
+        gz.write_all(part).unwrap();
+        gz.finish().unwrap()
+    };
+    let single = member(&bytes);
+    let v = read_nifti(&save(dir.path(), "packed_but_named.nii", &single)).unwrap();
+    assert_eq!(v.data(), &[1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0, 8.0]);
+    let mut multi = member(&bytes[..200]);
+    multi.extend(member(&bytes[200..355]));
+    multi.extend(member(&bytes[355..]));
+    let w = read_nifti(&save(dir.path(), "multi.nii.gz", &multi)).unwrap();
+    assert_eq!(v, w);
 }
 
 fn read_err(name: &str, bytes: &[u8]) -> String {

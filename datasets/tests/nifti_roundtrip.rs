@@ -1,5 +1,7 @@
 //! NIfTI write → read round trips, the consistency of the sform and qform we write, and a
-//! cross-check of our header with the `nifti` crate's independent parser.
+//! check of the header fields that end up in the file against the geometry computed by
+//! hand. (The byte-level reading checks, independent of any NIfTI library, are in
+//! `nifti_handmade.rs`.)
 
 use glam::{DMat3, DVec3};
 use std::path::Path;
@@ -102,8 +104,9 @@ fn written_qform_matches_sform() {
     }
 }
 
-/// Reads our header back with the `nifti` crate's parser and checks the fields against the
-/// RAS affine computed by hand from the LPS volume.
+/// Reads the written header back with the `nifti` crate's parser and checks its fields
+/// against the RAS affine computed by hand from the LPS volume, and its first bytes
+/// against the NIfTI-1 layout (little-endian `sizeof_hdr` = 348).
 #[test]
 fn header_agrees_with_the_nifti_crate() {
     let dir = tempfile::tempdir().unwrap();
@@ -113,6 +116,9 @@ fn header_agrees_with_the_nifti_crate() {
         write_nifti(&path, &v).unwrap();
         let h = nifti::NiftiHeader::from_file(&path).unwrap();
         assert_eq!(h.sizeof_hdr, 348);
+        assert_eq!(h.endianness, nifti::Endianness::Little);
+        assert_eq!(h.xyzt_units, 2); // mm
+        assert_eq!((h.scl_slope, h.scl_inter), (1.0, 0.0));
         assert_eq!(&h.magic, b"n+1\0");
         assert_eq!(&h.dim[..4], &[3, 5, 4, 3]);
         assert_eq!((h.datatype, h.bitpix), (16, 32));
@@ -136,14 +142,43 @@ fn header_agrees_with_the_nifti_crate() {
     }
 }
 
+/// An axis longer than 32767 voxels needs NIfTI-2, which the `nifti` crate cannot write:
+/// a clear error naming the file and the limit, and nothing left on disk.
 #[test]
-fn huge_dimension_round_trips_as_nifti2() {
+fn axis_beyond_nifti1_limit_is_refused() {
     let dir = tempfile::tempdir().unwrap();
     let v = volume([40_000, 1, 2], rotated());
-    let path = dir.path().join("wide.nii");
-    write_nifti(&path, &v).unwrap();
-    assert_eq!(&std::fs::read(&path).unwrap()[..4], &540i32.to_le_bytes());
-    assert_same(&v, &read_nifti(&path).unwrap());
+    for name in ["wide.nii", "wide.nii.gz"] {
+        let e = write_nifti(&dir.path().join(name), &v)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains(name) && e.contains("32767") && e.contains("NIfTI-2 is not supported"),
+            "{e}"
+        );
+    }
+    assert!(list(dir.path()).is_empty(), "{:?}", list(dir.path()));
+    // The largest NIfTI-1 axis still round-trips.
+    let edge = volume([32_767, 1, 2], rotated());
+    let path = dir.path().join("edge.nii");
+    write_nifti(&path, &edge).unwrap();
+    assert_same(&edge, &read_nifti(&path).unwrap());
+}
+
+/// Upper-case `.GZ` still compresses, and a name without the usual extension is written
+/// as a single file under exactly that name (the crate is never left to pick the name).
+#[test]
+fn output_name_is_kept_and_gz_is_case_insensitive() {
+    let dir = tempfile::tempdir().unwrap();
+    let v = volume([3, 2, 2], reflected());
+    for name in ["UPPER.NII.GZ", "plain.vol", "noext"] {
+        let path = dir.path().join(name);
+        write_nifti(&path, &v).unwrap();
+        assert_same(&v, &read_nifti(&path).unwrap());
+        let gz = std::fs::read(&path).unwrap().starts_with(&[0x1f, 0x8b]);
+        assert_eq!(gz, name.ends_with(".GZ"), "{name}");
+    }
+    assert_eq!(list(dir.path()), vec!["UPPER.NII.GZ", "noext", "plain.vol"]);
 }
 
 #[test]

@@ -5,14 +5,14 @@
 //! Superior) by one of three methods, chosen in this order:
 //! 1. `sform_code > 0`: the general affine in `srow_x/y/z`;
 //! 2. `qform_code > 0`: rotation from the quaternion `(b, c, d)`, voxel size `pixdim[1..=3]`,
-//!    the third axis flipped when `qfac = pixdim[0] < 0`, translation `qoffset`;
+//!    the third axis flipped when `qfac = pixdim[0] < 0`, translation `quatern_x/y/z`;
 //! 3. otherwise: `diag(pixdim[1..=3])`, zero translation.
 //!
 //! LPS is RAS with x and y negated, so the LPS affine is the RAS one with its first two
 //! rows negated.
 
-use super::header::Header;
 use glam::{DMat3, DQuat, DVec3};
+use nifti::NiftiHeader;
 
 /// `world = linear · (i, j, k) + translation`, in mm.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -41,9 +41,15 @@ impl Affine {
 
 /// The voxel-to-RAS affine of a header, and the name of the method used. Errors are
 /// descriptions of what is wrong (the caller adds the file name).
-pub(crate) fn ras_affine(h: &Header) -> Result<(Affine, &'static str), String> {
+pub(crate) fn ras_affine(h: &NiftiHeader) -> Result<(Affine, &'static str), String> {
     if h.sform_code > 0 {
-        let col = |c: usize| DVec3::new(h.srow[0][c], h.srow[1][c], h.srow[2][c]);
+        let col = |c: usize| {
+            DVec3::new(
+                f64::from(h.srow_x[c]),
+                f64::from(h.srow_y[c]),
+                f64::from(h.srow_z[c]),
+            )
+        };
         let a = Affine {
             linear: DMat3::from_cols(col(0), col(1), col(2)),
             translation: col(3),
@@ -54,8 +60,12 @@ pub(crate) fn ras_affine(h: &Header) -> Result<(Affine, &'static str), String> {
         Ok((a, "sform"))
     } else if h.qform_code > 0 {
         let d = voxel_size(h, "qform")?;
-        let [b, c, dq] = h.quatern;
-        let t = DVec3::from_array(h.qoffset);
+        let [b, c, dq] = [h.quatern_b, h.quatern_c, h.quatern_d].map(f64::from);
+        let t = DVec3::new(
+            f64::from(h.quatern_x),
+            f64::from(h.quatern_y),
+            f64::from(h.quatern_z),
+        );
         if !([b, c, dq].iter().all(|v| v.is_finite()) && t.is_finite()) {
             return Err("the qform quaternion or offset contains NaN or infinite values".into());
         }
@@ -82,16 +92,20 @@ pub(crate) fn ras_affine(h: &Header) -> Result<(Affine, &'static str), String> {
 }
 
 /// `pixdim[1..=3]`, which must be finite and > 0 for the qform and pixdim-only methods.
-fn voxel_size(h: &Header, method: &str) -> Result<DVec3, String> {
+fn voxel_size(h: &NiftiHeader, method: &str) -> Result<DVec3, String> {
     for i in 1..=3 {
-        let p = h.pixdim[i];
+        let p = f64::from(h.pixdim[i]);
         if !(p.is_finite() && p > 0.0) {
             return Err(format!(
                 "pixdim[{i}] = {p}: the voxel size must be finite and > 0 for the {method} transform"
             ));
         }
     }
-    Ok(DVec3::new(h.pixdim[1], h.pixdim[2], h.pixdim[3]))
+    Ok(DVec3::new(
+        f64::from(h.pixdim[1]),
+        f64::from(h.pixdim[2]),
+        f64::from(h.pixdim[3]),
+    ))
 }
 
 /// Rotation matrix of the unit quaternion `(a, b, c, d)` with `a` implied, exactly as in
