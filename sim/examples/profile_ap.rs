@@ -36,4 +36,93 @@ fn main() {
         "θ={theta}: {:.2} ms",
         t.elapsed().as_secs_f64() * 1e3 / n as f64
     );
+    if std::env::var_os("COUNT").is_some() {
+        count(&mu, &v);
+    }
+    if std::env::var_os("TRANSPOSED").is_some() {
+        println!(
+            "θ={theta} through a y-fastest copy: {:.2} ms",
+            transposed(&mu, &v)
+        );
+    }
+}
+
+/// Experiment: the same view traced through a y-fastest copy of the volume.
+#[allow(dead_code)]
+pub fn transposed(mu: &Volume, v: &View) -> f64 {
+    use rayon::prelude::*;
+    use tomograf_sim::trace::{LineIntegral, siddon};
+    let [nx, ny, nz] = mu.dims();
+    let mut t = vec![0f32; mu.len()];
+    for k in 0..nz {
+        for j in 0..ny {
+            for i in 0..nx {
+                t[j + ny * (i + nx * k)] = mu.get(i, j, k);
+            }
+        }
+    }
+    let strides = [ny, 1, nx * ny];
+    let run = || -> Vec<f32> {
+        (0..v.rows)
+            .into_par_iter()
+            .flat_map_iter(|r| (0..v.cols).map(move |c| (r, c)))
+            .map(|(r, c)| {
+                let Some(g) = GridRay::clip(mu, &v.ray(r as f64, c as f64)) else {
+                    return 0.0;
+                };
+                let mut acc = LineIntegral::new(&t);
+                siddon::trace_strided(mu.dims(), strides, &g, &mut acc);
+                acc.value() as f32
+            })
+            .collect()
+    };
+    let _ = run();
+    let t0 = Instant::now();
+    for _ in 0..20 {
+        std::hint::black_box(run());
+    }
+    t0.elapsed().as_secs_f64() * 1e3 / 20.0
+}
+
+/// Counts what the tracer reports per ray.
+#[derive(Default)]
+pub struct Counts {
+    pub segments: u64,
+    pub triples: u64,
+    pub runs: u64,
+    pub run_voxels: u64,
+}
+impl tomograf_sim::trace::PathAccumulator for Counts {
+    fn segment(&mut self, _: usize, _: f64) {
+        self.segments += 1;
+    }
+    fn segments3(&mut self, _: [usize; 3], _: [f64; 3]) {
+        self.triples += 1;
+    }
+    fn run(&mut self, _: usize, _: usize, count: usize, _: f64) {
+        self.runs += 1;
+        self.run_voxels += count as u64;
+    }
+}
+
+#[allow(dead_code)]
+pub fn count(mu: &Volume, v: &View) {
+    let mut c = Counts::default();
+    let mut rays = 0;
+    for r in 0..v.rows {
+        for col in 0..v.cols {
+            if let Some(g) = GridRay::clip(mu, &v.ray(r as f64, col as f64)) {
+                tomograf_sim::trace::siddon::trace(mu.dims(), &g, &mut c);
+                rays += 1;
+            }
+        }
+    }
+    let f = |x: u64| x as f64 / rays as f64;
+    println!(
+        "per ray ({rays} rays): single segments {:.1}, slab triples {:.1}, runs {:.1}, voxels in runs {:.1}",
+        f(c.segments),
+        f(c.triples),
+        f(c.runs),
+        f(c.run_voxels)
+    );
 }

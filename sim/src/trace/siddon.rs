@@ -95,8 +95,10 @@ pub fn trace_strided<A: PathAccumulator>(
     }
 
     // 2. Whole slabs along m. Invariant: t is the m-plane where the slab starts, `voxel`
-    //    the voxel there, next[m] the plane where it ends; next[o1], next[o2] ≥ t (up to
-    //    rounding).
+    //    the voxel there, next_m the plane where it ends; next_1, next_2 ≥ t (up to
+    //    rounding). Plane indices are carried as (exact, integer-valued) f64 so that no
+    //    crossing needs an integer-to-float conversion; crossing times are bit-identical
+    //    to `plane_t` of the integer plane.
     let slab = inv[m].abs();
     let grid_per_mm = gd[m].abs();
     let (dm, d1, d2) = (
@@ -104,18 +106,26 @@ pub fn trace_strided<A: PathAccumulator>(
         step[o1] * strides[o1],
         step[o2] * strides[o2],
     );
-    while next[m] < t_end {
+    let (fm, f1, f2) = (step[m] as f64, step[o1] as f64, step[o2] as f64);
+    let (g0m, g01, g02) = (g0[m], g0[o1], g0[o2]);
+    let (im, i1, i2) = (inv[m], inv[o1], inv[o2]);
+    let mut plane_m = next_plane(ijk[m], step[m]);
+    let mut plane_1 = next_plane(ijk[o1], step[o1]);
+    let mut plane_2 = next_plane(ijk[o2], step[o2]);
+    let (mut next_m, mut next_1, mut next_2) = (next[m], next[o1], next[o2]);
+    // Planes of m strictly inside the grid still ahead.
+    let mut inside = if step[m] > 0 {
+        n[m] - 1 - ijk[m]
+    } else {
+        ijk[m]
+    };
+    while next_m < t_end {
         // Whole slabs before the next crossing of another axis (or the exit): counted from
         // the distance; rounding may count one slab too many or too few, which only moves
         // a rounding-sized sliver between neighbours (the slab code below absorbs a
         // crossing that lies a hair before the slab start). `inside` keeps the walk in
         // the grid whatever the rounding.
-        let gap = next[o1].min(next[o2]).min(t_end);
-        let inside = if step[m] > 0 {
-            n[m] - 1 - ijk[m]
-        } else {
-            ijk[m]
-        };
+        let gap = next_1.min(next_2).min(t_end);
         let k = (((gap - t) * grid_per_mm) as i64).min(inside);
         if k >= 2 {
             let lowest = if step[m] > 0 {
@@ -124,21 +134,23 @@ pub fn trace_strided<A: PathAccumulator>(
                 voxel - (k - 1) * strides[m]
             };
             acc.run(lowest as usize, strides[m] as usize, k as usize, slab);
-            ijk[m] += k * step[m];
             voxel += k * dm;
-            t = plane_t(next_plane(ijk[m] - step[m], step[m]), g0[m], inv[m]);
-            next[m] = plane_t(next_plane(ijk[m], step[m]), g0[m], inv[m]);
-            if next[m] >= t_end {
+            inside -= k;
+            plane_m += (k - 1) as f64 * fm;
+            t = plane_t(plane_m, g0m, im);
+            plane_m += fm;
+            next_m = plane_t(plane_m, g0m, im);
+            if next_m >= t_end {
                 break;
             }
         }
         // One slab, crossing at most one o1-plane and one o2-plane, without branches:
         // three segments (zero-length where a crossing does not happen).
-        let t_slab_end = next[m];
-        let (c1, c2) = (next[o1], next[o2]);
+        let t_slab_end = next_m;
+        let (c1, c2) = (next_1, next_2);
         let (x1, x2) = (c1 < t_slab_end, c2 < t_slab_end);
-        let ca = c1.min(c2).clamp(t, t_slab_end);
-        let cb = c1.max(c2).clamp(t, t_slab_end);
+        let ca = c1.min(c2).max(t).min(t_slab_end);
+        let cb = c1.max(c2).max(t).min(t_slab_end);
         let after_1 = voxel + if x1 { d1 } else { 0 };
         let after_2 = voxel + if x2 { d2 } else { 0 };
         let va = if c1 <= c2 { after_1 } else { after_2 };
@@ -147,17 +159,21 @@ pub fn trace_strided<A: PathAccumulator>(
             [voxel as usize, va as usize, vb as usize],
             [ca - t, cb - ca, t_slab_end - cb],
         );
-        ijk[o1] += if x1 { step[o1] } else { 0 };
-        ijk[o2] += if x2 { step[o2] } else { 0 };
-        let n1 = plane_t(next_plane(ijk[o1], step[o1]), g0[o1], inv[o1]);
-        let n2 = plane_t(next_plane(ijk[o2], step[o2]), g0[o2], inv[o2]);
-        next[o1] = if x1 { n1 } else { c1 };
-        next[o2] = if x2 { n2 } else { c2 };
+        plane_1 += if x1 { f1 } else { 0.0 };
+        plane_2 += if x2 { f2 } else { 0.0 };
+        next_1 = if x1 { plane_t(plane_1, g01, i1) } else { c1 };
+        next_2 = if x2 { plane_t(plane_2, g02, i2) } else { c2 };
         t = t_slab_end;
-        ijk[m] += step[m];
         voxel = vb + dm;
-        next[m] = plane_t(next_plane(ijk[m], step[m]), g0[m], inv[m]);
+        inside -= 1;
+        plane_m += fm;
+        next_m = plane_t(plane_m, g0m, im);
     }
+    // Back to integer indices for the last partial slab.
+    ijk[m] = plane_m as i64 - if step[m] > 0 { 1 } else { 0 };
+    ijk[o1] = index_before(plane_1, step[o1], ijk[o1]);
+    ijk[o2] = index_before(plane_2, step[o2], ijk[o2]);
+    (next[m], next[o1], next[o2]) = (next_m, next_1, next_2);
 
     // 3. The partial last slab: plain incremental steps to the exit.
     loop {
@@ -171,6 +187,17 @@ pub fn trace_strided<A: PathAccumulator>(
         ijk[a] += step[a];
         voxel += step[a] * strides[a];
         next[a] = plane_t(next_plane(ijk[a], step[a]), g0[a], inv[a]);
+    }
+}
+
+/// The voxel index whose next plane (moving by `step`) is `plane`; `current` when the
+/// axis does not move.
+#[inline(always)]
+fn index_before(plane: f64, step: i64, current: i64) -> i64 {
+    match step {
+        1 => plane as i64 - 1,
+        -1 => plane as i64,
+        _ => current,
     }
 }
 
