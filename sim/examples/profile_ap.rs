@@ -25,7 +25,13 @@ fn main() {
         isocentre: DVec3::ZERO,
     };
     let v = g.view(Pose::new(theta, 0.0)).unwrap();
-    let r = Renderer::new(&mu, Projector::Siddon).unwrap();
+    let mut r = Renderer::new(&mu, Projector::Siddon).unwrap();
+    if let Some(t) = std::env::var("TG_PACKET_THRESHOLD")
+        .ok()
+        .and_then(|v| v.parse().ok())
+    {
+        r = r.with_packet_threshold(t);
+    }
     let _ = r.render(&v).unwrap();
     let t = Instant::now();
     let n = 20;

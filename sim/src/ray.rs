@@ -123,6 +123,20 @@ impl GridRay {
         ]
     }
 
+    /// The axis along which the ray advances fastest in grid units (largest |gd|); the
+    /// exact tracers walk whole slabs along it.
+    #[inline]
+    pub fn dominant_axis(&self) -> usize {
+        let a = self.gd.map(f64::abs);
+        if a[0] >= a[1] && a[0] >= a[2] {
+            0
+        } else if a[1] >= a[2] {
+            1
+        } else {
+            2
+        }
+    }
+
     /// Length of the clipped ray inside the box, mm.
     pub fn length(&self) -> f64 {
         self.t_exit - self.t_enter

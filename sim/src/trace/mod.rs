@@ -8,6 +8,7 @@
 //! geometry is decided once, in one place, for every tracer.
 
 pub mod accumulate;
+pub mod packet;
 pub mod siddon;
 pub mod trilinear;
 

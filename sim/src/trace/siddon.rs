@@ -68,13 +68,7 @@ pub fn trace_strided<A: PathAccumulator>(
     let mut t = ray.t_enter;
 
     // Dominant axis m (largest |gd|: at most one crossing of each other axis per slab).
-    let m = if gd[0].abs() >= gd[1].abs() && gd[0].abs() >= gd[2].abs() {
-        0
-    } else if gd[1].abs() >= gd[2].abs() {
-        1
-    } else {
-        2
-    };
+    let m = ray.dominant_axis();
     let (o1, o2) = ((m + 1) % 3, (m + 2) % 3);
 
     // 1. Plain incremental steps up to the first m-plane (the partial first slab).
