@@ -166,10 +166,11 @@ pub fn run(args: BenchArgs) -> Result<()> {
     )?;
     writeln!(
         md,
-        "| view | Siddon render ms | voxel steps/ray | G voxel steps/s |"
+        "| view | Siddon render ms | scalar tracer only, ms | voxel steps/ray | G voxel steps/s |"
     )?;
-    writeln!(md, "|---|---:|---:|---:|")?;
+    writeln!(md, "|---|---:|---:|---:|---:|")?;
     let siddon = Renderer::new(&mu, Projector::Siddon)?;
+    let scalar = Renderer::new(&mu, Projector::Siddon)?.with_packet_threshold(f64::INFINITY);
     for (name, pose) in [
         ("AP", Pose::AP),
         ("lateral", Pose::LATERAL),
@@ -178,10 +179,11 @@ pub fn run(args: BenchArgs) -> Result<()> {
     ] {
         let v = view(det, pose)?;
         let (ms, _) = median_ms(args.repeats, || Ok(siddon.render(&v)?))?;
+        let (ms_scalar, _) = median_ms(args.repeats, || Ok(scalar.render(&v)?))?;
         let steps = voxel_steps(&mu, &v);
         writeln!(
             md,
-            "| {name} | {ms:.1} | {:.0} | {:.3} |",
+            "| {name} | {ms:.1} | {ms_scalar:.1} | {:.0} | {:.3} |",
             steps as f64 / (det * det) as f64,
             steps as f64 / ms / 1e6
         )?;
