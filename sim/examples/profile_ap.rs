@@ -42,6 +42,10 @@ fn main() {
         "θ={theta}: {:.2} ms",
         t.elapsed().as_secs_f64() * 1e3 / n as f64
     );
+    if let Ok(p) = std::env::var("PAD") {
+        let [x, y]: [usize; 2] = p.split(',').map(|v| v.parse().unwrap()).collect::<Vec<_>>().try_into().unwrap();
+        println!("θ={theta} scalar through a copy padded to {x}×{y}: {:.2} ms", padded(&mu, &v, x, y));
+    }
     if std::env::var_os("COUNT").is_some() {
         count(&mu, &v);
     }
@@ -131,4 +135,41 @@ pub fn count(mu: &Volume, v: &View) {
         f(c.runs),
         f(c.run_voxels)
     );
+}
+
+/// Experiment: the same view traced (scalar) through a copy whose rows are padded to
+/// `pad_x` voxels and slices to `pad_y` rows, so strides are not powers of two.
+#[allow(dead_code)]
+pub fn padded(mu: &Volume, v: &View, pad_x: usize, pad_y: usize) -> f64 {
+    use rayon::prelude::*;
+    use tomograf_sim::trace::{LineIntegral, siddon};
+    let [nx, ny, nz] = mu.dims();
+    let strides = [1, pad_x, pad_x * pad_y];
+    let mut t = vec![0f32; pad_x * pad_y * nz];
+    for k in 0..nz {
+        for j in 0..ny {
+            for i in 0..nx {
+                t[i + pad_x * j + pad_x * pad_y * k] = mu.get(i, j, k);
+            }
+        }
+    }
+    let run = || -> Vec<f32> {
+        let mut out = vec![0f32; v.rows * v.cols];
+        out.par_chunks_mut(v.cols).enumerate().for_each(|(r, row)| {
+            for (c, px) in row.iter_mut().enumerate() {
+                *px = GridRay::clip(mu, &v.ray(r as f64, c as f64)).map_or(0.0, |g| {
+                    let mut acc = LineIntegral::new(&t);
+                    siddon::trace_strided(mu.dims(), strides, &g, &mut acc);
+                    acc.value() as f32
+                });
+            }
+        });
+        out
+    };
+    let _ = run();
+    let t0 = Instant::now();
+    for _ in 0..20 {
+        std::hint::black_box(run());
+    }
+    t0.elapsed().as_secs_f64() * 1e3 / 20.0
 }

@@ -34,6 +34,22 @@ impl Ray {
     }
 }
 
+/// A box of whole voxels `[lo, hi)` per axis, in grid coordinates (voxel indices).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct GridBox {
+    /// First voxel index per axis.
+    pub lo: [usize; 3],
+    /// One past the last voxel index per axis.
+    pub hi: [usize; 3],
+}
+
+impl GridBox {
+    /// The whole grid of `dims` voxels.
+    pub fn whole(dims: [usize; 3]) -> Self {
+        Self { lo: [0; 3], hi: dims }
+    }
+}
+
 /// A ray expressed in a volume's grid coordinates (voxel `(i,j,k)` = `[i,i+1)×…`) and
 /// clipped to the grid box `[0, n]³`: `g(t) = g0 + t·gd` for `t ∈ [t_enter, t_exit]`,
 /// `t` still in world mm.
@@ -80,6 +96,29 @@ impl GridRay {
         t_min: f64,
         t_max: f64,
     ) -> Option<Self> {
+        Self::clip_box(&GridBox::whole(dims), g0, gd, t_min, t_max)
+    }
+
+    /// Clips `ray` to a sub-box of `volume`'s grid (e.g. the part holding non-zero values,
+    /// [`crate::volume::Volume::occupied`]).
+    pub fn clip_to(volume: &Volume, ray: &Ray, bounds: &GridBox) -> Option<Self> {
+        Self::clip_box(
+            bounds,
+            volume.world_to_grid(ray.origin).to_array(),
+            volume.world_dir_to_grid(ray.direction).to_array(),
+            ray.t_min,
+            ray.t_max,
+        )
+    }
+
+    /// As [`GridRay::clip_grid`], clipping to the grid-coordinate box `[lo, hi)`.
+    pub fn clip_box(
+        bounds: &GridBox,
+        g0: [f64; 3],
+        gd: [f64; 3],
+        t_min: f64,
+        t_max: f64,
+    ) -> Option<Self> {
         let mut t_enter = t_min;
         let mut t_exit = t_max;
         let mut inv = [f64::INFINITY; 3];
@@ -90,17 +129,17 @@ impl GridRay {
             if gd[a].abs() < 1e-300 {
                 gd[a] = 0.0;
             }
-            let n = dims[a] as f64;
+            let (b_lo, b_hi) = (bounds.lo[a] as f64, bounds.hi[a] as f64);
             if gd[a] == 0.0 {
                 // Parallel to this axis' planes: inside iff the (constant) coordinate is in
-                // the half-open range [0, n) — the same convention voxels use.
-                if !(g0[a] >= 0.0 && g0[a] < n) {
+                // the half-open range [lo, hi) — the same convention voxels use.
+                if !(g0[a] >= b_lo && g0[a] < b_hi) {
                     return None;
                 }
                 continue;
             }
             inv[a] = 1.0 / gd[a];
-            let (lo, hi) = if gd[a] > 0.0 { (0.0, n) } else { (n, 0.0) };
+            let (lo, hi) = if gd[a] > 0.0 { (b_lo, b_hi) } else { (b_hi, b_lo) };
             t_enter = t_enter.max(plane_t(lo, g0[a], inv[a]));
             t_exit = t_exit.min(plane_t(hi, g0[a], inv[a]));
         }

@@ -6,7 +6,7 @@
 
 use crate::error::{Result, SimError};
 use crate::geometry::View;
-use crate::ray::{GridRay, Ray};
+use crate::ray::{GridBox, GridRay, Ray};
 use crate::trace::{LineIntegral, packet, siddon, trilinear};
 use crate::volume::Volume;
 use rayon::prelude::*;
@@ -102,6 +102,10 @@ pub struct Renderer<'a> {
     mu: &'a Volume,
     projector: Projector,
     packet_threshold: f64,
+    /// Where rays are clipped: for Siddon the box of non-zero mu (air adds exactly
+    /// nothing), for the trilinear field the whole grid (it is non-zero half a voxel
+    /// beyond). `None`: nothing to integrate.
+    bounds: Option<GridBox>,
 }
 
 impl<'a> Renderer<'a> {
@@ -114,10 +118,15 @@ impl<'a> Renderer<'a> {
                 "trilinear step is {step_voxels} voxels; it must be finite and > 0"
             )));
         }
+        let bounds = match projector {
+            Projector::Siddon => mu.occupied(),
+            Projector::Trilinear { .. } => Some(GridBox::whole(mu.dims())),
+        };
         Ok(Self {
             mu,
             projector,
             packet_threshold: packet::MIN_CROSSINGS_PER_LAYER,
+            bounds,
         })
     }
 
@@ -136,7 +145,12 @@ impl<'a> Renderer<'a> {
 
     /// ∫mu ds along one ray (f64; 0 when the ray misses the volume).
     pub fn line_integral(&self, ray: &Ray) -> f64 {
-        self.clipped_integral(GridRay::clip(self.mu, ray).as_ref())
+        self.clipped_integral(self.clip(ray).as_ref())
+    }
+
+    /// `ray` clipped to the part of the grid this projector integrates.
+    fn clip(&self, ray: &Ray) -> Option<GridRay> {
+        GridRay::clip_to(self.mu, ray, self.bounds.as_ref()?)
     }
 
     /// ∫mu ds along a ray already clipped to the grid (`None`: it misses).
@@ -166,7 +180,7 @@ impl<'a> Renderer<'a> {
             .for_each(|(r, row)| {
                 let r = r as f64;
                 let rays: Vec<Option<GridRay>> = (0..row.len())
-                    .map(|c| GridRay::clip(self.mu, &view.ray(r, c as f64)))
+                    .map(|c| self.clip(&view.ray(r, c as f64)))
                     .collect();
                 let mut values = vec![0.0f64; row.len()];
                 let mut handled = vec![false; row.len()];

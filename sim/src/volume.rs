@@ -28,6 +28,7 @@
 //! with the **same** parameter `t`, so segment lengths measured in `t` are millimetres.
 
 use crate::error::{Result, SimError};
+use crate::ray::GridBox;
 use glam::{DMat3, DVec3};
 
 /// A scalar field sampled on a regular grid placed in the LPS world frame.
@@ -205,6 +206,31 @@ impl Volume {
             self.index_to_world(g - 0.5)
         })
     }
+    /// The smallest box of voxels holding every non-zero value, or `None` if all are zero.
+    /// Tracers that integrate the values may clip rays to it: outside it they add nothing.
+    pub fn occupied(&self) -> Option<GridBox> {
+        use rayon::prelude::*;
+        let [nx, ny, _] = self.dims;
+        let slice = nx * ny;
+        self.data
+            .par_chunks(slice)
+            .enumerate()
+            .filter_map(|(k, plane)| {
+                let mut b: Option<GridBox> = None;
+                for (n, _) in plane.iter().enumerate().filter(|(_, v)| **v != 0.0) {
+                    let (i, j) = (n % nx, n / nx);
+                    let e = b.get_or_insert(GridBox { lo: [i, j, k], hi: [i + 1, j + 1, k + 1] });
+                    e.lo = [e.lo[0].min(i), e.lo[1].min(j), k];
+                    e.hi = [e.hi[0].max(i + 1), e.hi[1].max(j + 1), k + 1];
+                }
+                b
+            })
+            .reduce_with(|a, b| GridBox {
+                lo: std::array::from_fn(|d| a.lo[d].min(b.lo[d])),
+                hi: std::array::from_fn(|d| a.hi[d].max(b.hi[d])),
+            })
+    }
+
     /// Smallest and largest value.
     pub fn min_max(&self) -> (f32, f32) {
         self.data

@@ -245,3 +245,36 @@ fn path_lengths_sum_to_the_clipped_length_and_visit_each_voxel_once() {
         assert!(rec.segments.iter().all(|s| s.1 >= 0.0 && s.0 < vol.len()));
     }
 }
+
+#[test]
+fn rays_clipped_to_the_occupied_box_match_the_whole_grid_reference() {
+    // Random values inside a sub-box, exact zeros (air) around it: the renderer clips rays
+    // to the sub-box, the reference walks the whole grid.
+    let mut r = rng(6);
+    for case in 0..20 {
+        let mut vol = random_volume(&mut r, [18, 15, 12], case % 2 == 0);
+        let [nx, ny, nz] = vol.dims();
+        let (lo, hi) = ([3, 1, 4], [11, 15, 9]);
+        let data: Vec<f32> = vol
+            .data()
+            .iter()
+            .enumerate()
+            .map(|(n, &v)| {
+                let (i, j, k) = (n % nx, (n / nx) % ny, n / (nx * ny));
+                let inside = (lo[0]..hi[0]).contains(&i) && (lo[1]..hi[1]).contains(&j) && (lo[2]..hi[2]).contains(&k);
+                if inside { v + 0.001 } else { 0.0 }
+            })
+            .collect();
+        vol = Volume::new([nx, ny, nz], vol.spacing(), vol.origin(), vol.direction(), data).unwrap();
+        assert_eq!(vol.occupied().unwrap(), tomograf_sim::ray::GridBox { lo, hi });
+        for _ in 0..100 {
+            let a = random_point_near(&vol, &mut r, 10.0);
+            let b = random_point_near(&vol, &mut r, 10.0);
+            check(&vol, &Ray::segment(a, b), "occupied box");
+        }
+    }
+    // All air: every line integral is zero.
+    let air = Volume::centred([4, 4, 4], DVec3::ONE, DVec3::ZERO, vec![0.0; 64]).unwrap();
+    assert_eq!(air.occupied(), None);
+    assert_eq!(siddon(&air, &Ray::segment(DVec3::splat(-9.0), DVec3::splat(9.0))), 0.0);
+}
