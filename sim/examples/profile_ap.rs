@@ -43,8 +43,16 @@ fn main() {
         t.elapsed().as_secs_f64() * 1e3 / n as f64
     );
     if let Ok(p) = std::env::var("PAD") {
-        let [x, y]: [usize; 2] = p.split(',').map(|v| v.parse().unwrap()).collect::<Vec<_>>().try_into().unwrap();
-        println!("θ={theta} scalar through a copy padded to {x}×{y}: {:.2} ms", padded(&mu, &v, x, y));
+        let [x, y]: [usize; 2] = p
+            .split(',')
+            .map(|v| v.parse().unwrap())
+            .collect::<Vec<_>>()
+            .try_into()
+            .unwrap();
+        println!(
+            "θ={theta} scalar through a copy padded to {x}×{y}: {:.2} ms",
+            padded(&mu, &v, x, y)
+        );
     }
     if std::env::var_os("COUNT").is_some() {
         count(&mu, &v);

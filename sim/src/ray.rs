@@ -46,7 +46,10 @@ pub struct GridBox {
 impl GridBox {
     /// The whole grid of `dims` voxels.
     pub fn whole(dims: [usize; 3]) -> Self {
-        Self { lo: [0; 3], hi: dims }
+        Self {
+            lo: [0; 3],
+            hi: dims,
+        }
     }
 }
 
@@ -139,7 +142,11 @@ impl GridRay {
                 continue;
             }
             inv[a] = 1.0 / gd[a];
-            let (lo, hi) = if gd[a] > 0.0 { (b_lo, b_hi) } else { (b_hi, b_lo) };
+            let (lo, hi) = if gd[a] > 0.0 {
+                (b_lo, b_hi)
+            } else {
+                (b_hi, b_lo)
+            };
             t_enter = t_enter.max(plane_t(lo, g0[a], inv[a]));
             t_exit = t_exit.min(plane_t(hi, g0[a], inv[a]));
         }

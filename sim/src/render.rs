@@ -125,13 +125,13 @@ impl<'a> Renderer<'a> {
         Ok(Self {
             mu,
             projector,
-            packet_threshold: packet::MIN_CROSSINGS_PER_LAYER,
+            packet_threshold: packet::default_threshold(),
             bounds,
         })
     }
 
     /// Sets the crossings per voxel layer from which exact Siddon traces a packet of rays
-    /// with the SIMD tracer (default [`packet::MIN_CROSSINGS_PER_LAYER`]; `f64::INFINITY`
+    /// with the SIMD tracer (default [`packet::default_threshold`]; `f64::INFINITY`
     /// never does). Results agree either way to ~1e-12 relative; this is for tuning.
     pub fn with_packet_threshold(mut self, crossings_per_layer: f64) -> Self {
         self.packet_threshold = crossings_per_layer;

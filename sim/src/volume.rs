@@ -219,7 +219,10 @@ impl Volume {
                 let mut b: Option<GridBox> = None;
                 for (n, _) in plane.iter().enumerate().filter(|(_, v)| **v != 0.0) {
                     let (i, j) = (n % nx, n / nx);
-                    let e = b.get_or_insert(GridBox { lo: [i, j, k], hi: [i + 1, j + 1, k + 1] });
+                    let e = b.get_or_insert(GridBox {
+                        lo: [i, j, k],
+                        hi: [i + 1, j + 1, k + 1],
+                    });
                     e.lo = [e.lo[0].min(i), e.lo[1].min(j), k];
                     e.hi = [e.hi[0].max(i + 1), e.hi[1].max(j + 1), k + 1];
                 }

@@ -12,21 +12,26 @@ use rand::Rng;
 use tomograf_sim::trace::packet;
 use tomograf_sim::{Beam, Detector, Geometry, GridRay, Pose, Ray, Volume};
 
+/// Checks four rays with every kernel this CPU has; true if they formed a packet.
 fn check_group(vol: &Volume, rays: &[Ray; 4]) -> bool {
     let clipped: [Option<GridRay>; 4] = std::array::from_fn(|l| GridRay::clip(vol, &rays[l]));
-    let Some(v) = packet::line_integrals4(vol.data(), vol.dims(), &clipped) else {
-        return false;
-    };
-    for l in 0..4 {
-        let reference = brute_force(vol, &rays[l]);
-        assert!(
-            rel_err(v[l], reference) <= 1e-9 || (v[l] - reference).abs() < 1e-13,
-            "lane {l}: packet {} vs reference {reference} for {:?}",
-            v[l],
-            rays[l]
-        );
+    let mut used = false;
+    for kernel in packet::supported() {
+        let Some(v) = packet::line_integrals4(kernel, vol.data(), vol.dims(), &clipped) else {
+            continue;
+        };
+        used = true;
+        for l in 0..4 {
+            let reference = brute_force(vol, &rays[l]);
+            assert!(
+                rel_err(v[l], reference) <= 1e-9 || (v[l] - reference).abs() < 1e-13,
+                "{kernel:?} lane {l}: packet {} vs reference {reference} for {:?}",
+                v[l],
+                rays[l]
+            );
+        }
     }
-    true
+    used
 }
 
 #[test]
@@ -143,11 +148,60 @@ fn renderer_with_and_without_packets_agree() {
         };
         let (scalar, packets) = (render(f64::INFINITY), render(0.0));
         assert!(scalar.data.iter().any(|&v| v > 0.0) && scalar.data.contains(&0.0));
-        for (a, b) in scalar.data.iter().zip(&packets.data) {
+        for (n, (a, b)) in scalar.data.iter().zip(&packets.data).enumerate() {
             assert!(
                 (a - b).abs() <= 1e-6 * a.abs().max(1e-6),
-                "{pose:?}: scalar {a} vs packets {b}"
+                "{pose:?}, pixel ({}, {}): scalar {a} vs packets {b}",
+                n / view.cols,
+                n % view.cols
             );
+        }
+    }
+}
+
+#[test]
+fn whole_rows_with_every_kernel() {
+    // Rows of 37 rays (partial last packet), some missing the volume, through each kernel.
+    let mut r = rng(33);
+    let vol = random_volume(&mut r, [30, 26, 17], true);
+    let g = Geometry {
+        beam: Beam::Cone {
+            sad_mm: 200.0,
+            sid_mm: 320.0,
+        },
+        detector: Detector::new(9, 37, 4.0),
+        isocentre: vol.centre(),
+    };
+    for kernel in packet::supported() {
+        for pose in [Pose::AP, Pose::new(40.0, 25.0), Pose::new(100.0, -60.0)] {
+            let view = g.view(pose).unwrap();
+            for row in 0..9 {
+                let rays: Vec<Ray> = (0..37).map(|c| view.ray(row as f64, c as f64)).collect();
+                let clipped: Vec<Option<GridRay>> =
+                    rays.iter().map(|ray| GridRay::clip(&vol, ray)).collect();
+                let (mut out, mut handled) = (vec![0.0; 37], vec![false; 37]);
+                packet::trace_row_with(
+                    kernel,
+                    vol.data(),
+                    vol.dims(),
+                    &clipped,
+                    0.0,
+                    &mut out,
+                    &mut handled,
+                );
+                assert!(
+                    handled.iter().filter(|&&h| h).count() >= 8,
+                    "{kernel:?}: too few rays handled"
+                );
+                for c in (0..37).filter(|&c| handled[c]) {
+                    let reference = brute_force(&vol, &rays[c]);
+                    assert!(
+                        rel_err(out[c], reference) <= 1e-9 || (out[c] - reference).abs() < 1e-13,
+                        "{kernel:?} {pose:?} ({row}, {c}): {} vs {reference}",
+                        out[c]
+                    );
+                }
+            }
         }
     }
 }

@@ -261,12 +261,24 @@ fn rays_clipped_to_the_occupied_box_match_the_whole_grid_reference() {
             .enumerate()
             .map(|(n, &v)| {
                 let (i, j, k) = (n % nx, (n / nx) % ny, n / (nx * ny));
-                let inside = (lo[0]..hi[0]).contains(&i) && (lo[1]..hi[1]).contains(&j) && (lo[2]..hi[2]).contains(&k);
+                let inside = (lo[0]..hi[0]).contains(&i)
+                    && (lo[1]..hi[1]).contains(&j)
+                    && (lo[2]..hi[2]).contains(&k);
                 if inside { v + 0.001 } else { 0.0 }
             })
             .collect();
-        vol = Volume::new([nx, ny, nz], vol.spacing(), vol.origin(), vol.direction(), data).unwrap();
-        assert_eq!(vol.occupied().unwrap(), tomograf_sim::ray::GridBox { lo, hi });
+        vol = Volume::new(
+            [nx, ny, nz],
+            vol.spacing(),
+            vol.origin(),
+            vol.direction(),
+            data,
+        )
+        .unwrap();
+        assert_eq!(
+            vol.occupied().unwrap(),
+            tomograf_sim::ray::GridBox { lo, hi }
+        );
         for _ in 0..100 {
             let a = random_point_near(&vol, &mut r, 10.0);
             let b = random_point_near(&vol, &mut r, 10.0);
@@ -276,5 +288,8 @@ fn rays_clipped_to_the_occupied_box_match_the_whole_grid_reference() {
     // All air: every line integral is zero.
     let air = Volume::centred([4, 4, 4], DVec3::ONE, DVec3::ZERO, vec![0.0; 64]).unwrap();
     assert_eq!(air.occupied(), None);
-    assert_eq!(siddon(&air, &Ray::segment(DVec3::splat(-9.0), DVec3::splat(9.0))), 0.0);
+    assert_eq!(
+        siddon(&air, &Ray::segment(DVec3::splat(-9.0), DVec3::splat(9.0))),
+        0.0
+    );
 }

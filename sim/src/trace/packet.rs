@@ -1,7 +1,8 @@
-//! Exact line integrals of a whole detector row at once (AVX2, four rays per vector).
+//! Exact line integrals of a whole detector row at once (SIMD: eight rays per vector with
+//! AVX-512, four with AVX2).
 //!
 //! The same path as [`super::siddon`], organised for SIMD and for the cache. Rays that
-//! share a dominant axis `m` and its direction are grouped four to a vector ("packet"),
+//! share a dominant axis `m` and its direction are grouped into vectors ("packets"),
 //! and the row is traced **slab by slab**: for each voxel layer along `m`, every packet of
 //! the row adds that layer's contribution. The voxels one layer holds for one row stay in
 //! L1 while all packets use them, and the packets are independent, so they pipeline.
@@ -21,29 +22,23 @@
 //! of the order of 1e-16 of a voxel between neighbours, as in the scalar tracer; results
 //! agree with the brute-force reference to 1e-9 relative (`sim/tests/packet.rs`).
 //!
-//! Used by [`crate::render::Renderer`] when the CPU has AVX2 and FMA and the grid has
-//! fewer than 2³¹ voxels; packets whose rays disagree on the dominant axis are left to the
-//! scalar tracer.
+//! Used by [`crate::render::Renderer`] when the CPU has AVX2 and FMA (or AVX-512F) and
+//! the grid has fewer than 2³¹ voxels; packets whose rays disagree on the dominant axis are
+//! left to the scalar tracer. One kernel body (the `packet_kernel!` macro) is instantiated
+//! for each instruction set with that set's primitives.
 
 use crate::ray::GridRay;
 
 /// Whether this CPU can run the packet tracer.
 pub fn available() -> bool {
-    #[cfg(target_arch = "x86_64")]
-    {
-        std::is_x86_feature_detected!("avx2") && std::is_x86_feature_detected!("fma")
-    }
-    #[cfg(not(target_arch = "x86_64"))]
-    {
-        false
-    }
+    kernel().is_some()
 }
 
-/// Traces the rays of one row (`None`: the ray misses the grid). For each ray handled,
-/// writes ∫mu ds to `out` and sets `handled`; rays left unhandled (their packet mixes
-/// dominant axes or crosses fewer than `min_crossings` other-axis planes per layer, or the
-/// CPU lacks AVX2/FMA, or the grid has ≥ 2³¹ voxels) are for the scalar tracer. `mu` is
-/// indexed `i + nx·(j + ny·k)`.
+/// Traces the rays of one row (`None`: the ray misses the grid) with the widest kernel
+/// this CPU supports. For each ray handled, writes ∫mu ds to `out` and sets `handled`; rays
+/// left unhandled (their packet mixes dominant axes or crosses fewer than
+/// `min_crossings` other-axis planes per layer, or the CPU has no SIMD kernel, or the grid
+/// has ≥ 2³¹ voxels) are for the scalar tracer. `mu` is indexed `i + nx·(j + ny·k)`.
 pub fn trace_row(
     mu: &[f32],
     dims: [usize; 3],
@@ -53,35 +48,101 @@ pub fn trace_row(
     handled: &mut [bool],
 ) {
     handled.fill(false);
-    if mu.len() >= (1 << 31) || !available() {
-        return;
-    }
-    #[cfg(target_arch = "x86_64")]
-    // SAFETY: AVX2 and FMA were detected above.
-    unsafe {
-        avx2::trace_row(mu, dims, rays, min_crossings, out, handled)
+    if let Some(k) = kernel() {
+        trace_row_with(k, mu, dims, rays, min_crossings, out, handled);
     }
 }
 
-/// ∫mu ds for four rays, or `None` when they cannot share a packet or the CPU lacks
-/// AVX2/FMA. A convenience over [`trace_row`] for tests.
+/// Every kernel this CPU can run (for tests and benchmarks).
+pub fn supported() -> Vec<Kernel> {
+    match kernel() {
+        Some(Kernel::Avx512) => vec![Kernel::Avx2, Kernel::Avx512],
+        Some(Kernel::Avx2) => vec![Kernel::Avx2],
+        None => vec![],
+    }
+}
+
+/// As [`trace_row`] with a given kernel; does nothing unless the CPU supports it.
+pub fn trace_row_with(
+    kernel: Kernel,
+    mu: &[f32],
+    dims: [usize; 3],
+    rays: &[Option<GridRay>],
+    min_crossings: f64,
+    out: &mut [f64],
+    handled: &mut [bool],
+) {
+    handled.fill(false);
+    if mu.len() >= (1 << 31) || !supported().contains(&kernel) {
+        return;
+    }
+    #[cfg(target_arch = "x86_64")]
+    // SAFETY: the kernel's CPU features were detected (`supported`).
+    unsafe {
+        match kernel {
+            Kernel::Avx512 => avx512::trace_row(mu, dims, rays, min_crossings, out, handled),
+            Kernel::Avx2 => avx2::trace_row(mu, dims, rays, min_crossings, out, handled),
+        }
+    }
+}
+
+/// ∫mu ds for four rays with `kernel`, or `None` when they cannot share a packet or the
+/// CPU lacks the kernel. A convenience over [`trace_row_with`] for tests.
 pub fn line_integrals4(
+    kernel: Kernel,
     mu: &[f32],
     dims: [usize; 3],
     rays: &[Option<GridRay>; 4],
 ) -> Option<[f64; 4]> {
     let mut out = [0.0; 4];
     let mut handled = [false; 4];
-    trace_row(mu, dims, rays, 0.0, &mut out, &mut handled);
+    trace_row_with(kernel, mu, dims, rays, 0.0, &mut out, &mut handled);
     handled.iter().all(|&h| h).then_some(out)
 }
 
 /// Plane crossings of the other two axes per voxel layer below which the renderer leaves
-/// a packet to the scalar tracer: that one reports runs of whole layers at a fraction of
-/// the packet's cost per layer, which wins while crossings are sparse (near-axial views).
+/// a packet to the scalar tracer, which reports runs of whole layers cheaply and so wins
+/// while crossings are sparse (near-axial views) — unless the packets are eight wide.
 /// Chosen by timing thresholds 0–0.7 on the chest-sized case with
-/// `TG_PACKET_THRESHOLD=x cargo run --release -p tomograf-sim --example profile_ap θ`.
-pub const MIN_CROSSINGS_PER_LAYER: f64 = 0.3;
+/// `TG_PACKET_THRESHOLD=x cargo run --release -p tomograf-sim --example profile_ap θ`:
+/// with AVX-512 packets win everywhere (0), with AVX2 from 0.3 crossings per layer.
+pub fn default_threshold() -> f64 {
+    if kernel() == Some(Kernel::Avx512) {
+        0.0
+    } else {
+        0.3
+    }
+}
+
+/// The SIMD kernel this CPU runs.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Kernel {
+    /// Four rays per vector (AVX2 + FMA).
+    Avx2,
+    /// Eight rays per vector (AVX-512F).
+    Avx512,
+}
+
+/// The widest kernel this CPU supports, if any.
+pub fn kernel() -> Option<Kernel> {
+    #[cfg(target_arch = "x86_64")]
+    {
+        static K: std::sync::OnceLock<Option<Kernel>> = std::sync::OnceLock::new();
+        *K.get_or_init(|| {
+            let avx2 =
+                std::is_x86_feature_detected!("avx2") && std::is_x86_feature_detected!("fma");
+            if avx2 && std::is_x86_feature_detected!("avx512f") {
+                Some(Kernel::Avx512)
+            } else {
+                avx2.then_some(Kernel::Avx2)
+            }
+        })
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        None
+    }
+}
 
 /// The dominant axis and direction shared by a packet's rays, if they share one and
 /// cross at least `threshold` other-axis planes per layer.
@@ -99,244 +160,432 @@ fn packet_key(rays: &[Option<GridRay>], threshold: f64) -> Option<(usize, bool)>
         .then_some((m, positive))
 }
 
+/// The kernel body, instantiated per instruction set. The caller supplies the vector and
+/// mask types, the lane count and the primitives (all `#[inline]` with the set's target
+/// features): `splat`, `zero`, `min`, `max`, `add`, `sub`, `mul`, `fmadd` (a·b + c),
+/// `floor`, `gt`, `le`, `ne` (lane masks), `or` (of masks), `none` (no lane set),
+/// `select` (mask ? a : b), `load`/`store` (from/to `[f64; LANES]`), and `gather` (f32
+/// values at f64-valued indices, widened to f64).
+#[cfg(target_arch = "x86_64")]
+macro_rules! packet_kernel {
+    ($features:literal, $lanes:literal, $vec:ty, $mask:ty, { $($prims:item)* }) => {
+        use super::packet_key;
+        use crate::ray::GridRay;
+        #[allow(unused_imports)]
+        use std::arch::x86_64::*;
+
+        type V = $vec;
+        type M = $mask;
+        const LANES: usize = $lanes;
+
+        $($prims)*
+
+        /// Per-lane constants of one other axis.
+        struct Axis {
+            g0: V,
+            gd: V,
+            inv: V,
+            /// ±1 per lane (0 where the ray does not move along the axis).
+            step: V,
+            /// max(step, 0): offset from a voxel index to the plane crossed next.
+            ahead: V,
+        }
+
+        /// Per-lane constants of a packet of rays.
+        struct Packet {
+            g0m: V,
+            invm: V,
+            t_in: V,
+            t_out: V,
+            ax1: Axis,
+            ax2: Axis,
+        }
+
+        /// Grid constants of one other axis.
+        struct Other {
+            last: V,
+            stride: V,
+        }
+
+        #[target_feature(enable = $features)]
+        fn lanes(rays: &[Option<GridRay>], f: impl Fn(&GridRay) -> f64) -> V {
+            load(std::array::from_fn(|l| rays.get(l).and_then(Option::as_ref).map_or(0.0, &f)))
+        }
+
+        #[target_feature(enable = $features)]
+        fn axis(rays: &[Option<GridRay>], a: usize) -> Axis {
+            let step = lanes(rays, |r| {
+                if r.gd[a] > 0.0 {
+                    1.0
+                } else if r.gd[a] < 0.0 {
+                    -1.0
+                } else {
+                    0.0
+                }
+            });
+            Axis {
+                g0: lanes(rays, |r| r.g0[a]),
+                gd: lanes(rays, |r| r.gd[a]),
+                // Lanes that do not move along the axis never use their crossing parameter
+                // (it is selected away), so any finite value will do.
+                inv: lanes(rays, |r| if r.gd[a] != 0.0 { r.inv[a] } else { 0.0 }),
+                step,
+                ahead: max(step, zero()),
+            }
+        }
+
+        /// Voxel index along an axis at parameter `t`, clamped into the grid.
+        #[inline]
+        #[target_feature(enable = $features)]
+        fn index_at(ax: &Axis, o: &Other, t: V) -> V {
+            min(max(floor(fmadd(t, ax.gd, ax.g0)), zero()), o.last)
+        }
+
+        /// For one other axis in one layer, from the index `a` at the entry: the parameter
+        /// where the index changes (`t_b` if it does not) and the change of linear index.
+        #[inline]
+        #[target_feature(enable = $features)]
+        fn cross(ax: &Axis, o: &Other, a: V, t_a: V, t_b: V) -> (V, V) {
+            let b = index_at(ax, o, t_b);
+            let moved = min(max(mul(sub(b, a), ax.step), zero()), splat(1.0));
+            let t_c = mul(sub(add(a, ax.ahead), ax.g0), ax.inv);
+            let t_c = min(max(t_c, t_a), t_b);
+            (select(gt(moved, zero()), t_c, t_b), mul(mul(moved, ax.step), o.stride))
+        }
+
+        /// One packet's contribution from the voxel layer between planes `p_a` and `p_b`
+        /// (`base_m`: the layer's part of the linear voxel index).
+        #[inline]
+        #[target_feature(enable = $features)]
+        fn layer(mu: &[f32], p: &Packet, o1: &Other, o2: &Other, p_a: V, p_b: V, base_m: V) -> V {
+            let clamp_t = |t: V| min(max(t, p.t_in), p.t_out);
+            let t_a = clamp_t(mul(sub(p_a, p.g0m), p.invm));
+            let t_b = clamp_t(mul(sub(p_b, p.g0m), p.invm));
+            let a1 = index_at(&p.ax1, o1, t_a);
+            let a2 = index_at(&p.ax2, o2, t_a);
+            let (c1, d1) = cross(&p.ax1, o1, a1, t_a, t_b);
+            let (c2, d2) = cross(&p.ax2, o2, a2, t_a, t_b);
+            let base = fmadd(a1, o1.stride, fmadd(a2, o2.stride, base_m));
+            if none(or(ne(d1, zero()), ne(d2, zero()))) {
+                // No lane leaves its voxel inside this layer: one segment per lane.
+                return mul(gather(mu, base), sub(t_b, t_a));
+            }
+            let (ca, cb) = (min(c1, c2), max(c1, c2));
+            let va = add(base, select(le(c1, c2), d1, d2));
+            let vb = add(base, add(d1, d2));
+            let s = mul(gather(mu, base), sub(ca, t_a));
+            let s = fmadd(gather(mu, va), sub(cb, ca), s);
+            fmadd(gather(mu, vb), sub(t_b, cb), s)
+        }
+
+        #[target_feature(enable = $features)]
+        pub(super) fn trace_row(
+            mu: &[f32],
+            dims: [usize; 3],
+            rays: &[Option<GridRay>],
+            min_crossings: f64,
+            out: &mut [f64],
+            handled: &mut [bool],
+        ) {
+            let strides = [1usize, dims[0], dims[0] * dims[1]];
+            let span = |s: usize| s..(s + LANES).min(rays.len());
+            // Packets of neighbouring rays, grouped by shared dominant axis and direction.
+            let chunks: Vec<(usize, Option<(usize, bool)>)> = rays
+                .chunks(LANES)
+                .enumerate()
+                .map(|(i, c)| (i * LANES, packet_key(c, min_crossings)))
+                .collect();
+            for m in 0..3 {
+                for positive in [true, false] {
+                    let members: Vec<usize> = chunks
+                        .iter()
+                        .filter(|(_, k)| *k == Some((m, positive)))
+                        .map(|(start, _)| *start)
+                        .collect();
+                    if members.is_empty() {
+                        continue;
+                    }
+                    let (o1, o2) = ((m + 1) % 3, (m + 2) % 3);
+                    let other = |a: usize| Other {
+                        last: splat((dims[a] - 1) as f64),
+                        stride: splat(strides[a] as f64),
+                    };
+                    let (oth1, oth2) = (other(o1), other(o2));
+                    let packets: Vec<Packet> = members
+                        .iter()
+                        .map(|&s| {
+                            let r = &rays[span(s)];
+                            Packet {
+                                g0m: lanes(r, |g| g.g0[m]),
+                                invm: lanes(r, |g| g.inv[m]),
+                                t_in: lanes(r, |g| g.t_enter),
+                                t_out: lanes(r, |g| g.t_exit),
+                                ax1: axis(r, o1),
+                                ax2: axis(r, o2),
+                            }
+                        })
+                        .collect();
+                    // Voxel layers along m that any ray of the group touches.
+                    let n_m = dims[m] as i64;
+                    let (mut lo, mut hi) = (n_m, -1i64);
+                    for &s in &members {
+                        for r in rays[span(s)].iter().flatten() {
+                            for t in [r.t_enter, r.t_exit] {
+                                let l = ((r.g0[m] + t * r.gd[m]).floor() as i64).clamp(0, n_m - 1);
+                                lo = lo.min(l);
+                                hi = hi.max(l);
+                            }
+                        }
+                    }
+                    let (first, last, dir) = if positive { (lo, hi, 1i64) } else { (hi, lo, -1i64) };
+                    let entry_plane = |j: i64| (if positive { j } else { j + 1 }) as f64;
+                    let mut sums = vec![zero(); packets.len()];
+                    let mut j = first;
+                    loop {
+                        let p_a = splat(entry_plane(j));
+                        let p_b = splat(entry_plane(j + dir));
+                        let base_m = splat((j as usize * strides[m]) as f64);
+                        for (p, sum) in packets.iter().zip(sums.iter_mut()) {
+                            *sum = add(*sum, layer(mu, p, &oth1, &oth2, p_a, p_b, base_m));
+                        }
+                        if j == last {
+                            break;
+                        }
+                        j += dir;
+                    }
+                    for (&s, sum) in members.iter().zip(&sums) {
+                        let v = store(*sum);
+                        for n in span(s) {
+                            out[n] = if rays[n].is_some() { v[n - s] } else { 0.0 };
+                            handled[n] = true;
+                        }
+                    }
+                }
+            }
+            // Packets whose rays all miss: nothing to add.
+            for (start, key) in &chunks {
+                if key.is_none() && rays[span(*start)].iter().all(Option::is_none) {
+                    for n in span(*start) {
+                        out[n] = 0.0;
+                        handled[n] = true;
+                    }
+                }
+            }
+        }
+    };
+}
+
+/// Four lanes of f64 (AVX2 + FMA).
 #[cfg(target_arch = "x86_64")]
 mod avx2 {
-    use super::packet_key;
-    use crate::ray::GridRay;
-    use std::arch::x86_64::*;
-
-    /// Per-lane constants of one other axis.
-    struct Axis {
-        g0: __m256d,
-        gd: __m256d,
-        inv: __m256d,
-        /// ±1 per lane (0 where the ray does not move along the axis).
-        step: __m256d,
-        /// max(step, 0): offset from a voxel index to the plane crossed next.
-        ahead: __m256d,
-    }
-
-    /// Per-lane constants of a packet of four rays.
-    struct Packet {
-        g0m: __m256d,
-        invm: __m256d,
-        t_in: __m256d,
-        t_out: __m256d,
-        ax1: Axis,
-        ax2: Axis,
-    }
-
-    /// Grid constants of the two other axes.
-    struct Other {
-        last: __m256d,
-        stride: __m256d,
-    }
-
-    #[target_feature(enable = "avx2,fma")]
-    fn lanes(rays: &[Option<GridRay>], f: impl Fn(&GridRay) -> f64) -> __m256d {
-        let v: [f64; 4] =
-            std::array::from_fn(|l| rays.get(l).and_then(Option::as_ref).map_or(0.0, &f));
-        _mm256_setr_pd(v[0], v[1], v[2], v[3])
-    }
-
-    #[target_feature(enable = "avx2,fma")]
-    fn axis(rays: &[Option<GridRay>], a: usize) -> Axis {
-        let step = lanes(rays, |r| {
-            if r.gd[a] > 0.0 {
-                1.0
-            } else if r.gd[a] < 0.0 {
-                -1.0
-            } else {
-                0.0
-            }
-        });
-        Axis {
-            g0: lanes(rays, |r| r.g0[a]),
-            gd: lanes(rays, |r| r.gd[a]),
-            // Lanes that do not move along the axis never use their crossing parameter
-            // (it is blended away), so any finite value will do.
-            inv: lanes(rays, |r| if r.gd[a] != 0.0 { r.inv[a] } else { 0.0 }),
-            step,
-            ahead: _mm256_max_pd(step, _mm256_setzero_pd()),
+    packet_kernel!("avx2,fma", 4, __m256d, __m256d, {
+        #[inline]
+        #[target_feature(enable = "avx2,fma")]
+        fn splat(x: f64) -> V {
+            _mm256_set1_pd(x)
         }
-    }
-
-    /// Voxel index along an axis at parameter `t`, clamped into the grid.
-    #[inline]
-    #[target_feature(enable = "avx2,fma")]
-    fn index_at(ax: &Axis, o: &Other, t: __m256d) -> __m256d {
-        let p = _mm256_floor_pd(_mm256_fmadd_pd(t, ax.gd, ax.g0));
-        _mm256_min_pd(_mm256_max_pd(p, _mm256_setzero_pd()), o.last)
-    }
-
-    /// For one other axis in one layer, from the index `a` at the entry: the parameter
-    /// where the index changes (`t_b` if it does not) and the change of linear voxel index.
-    #[inline]
-    #[target_feature(enable = "avx2,fma")]
-    fn cross(ax: &Axis, o: &Other, a: __m256d, t_a: __m256d, t_b: __m256d) -> (__m256d, __m256d) {
-        let zero = _mm256_setzero_pd();
-        let b = index_at(ax, o, t_b);
-        let moved = _mm256_min_pd(
-            _mm256_max_pd(_mm256_mul_pd(_mm256_sub_pd(b, a), ax.step), zero),
-            _mm256_set1_pd(1.0),
-        );
-        let t_c = _mm256_mul_pd(_mm256_sub_pd(_mm256_add_pd(a, ax.ahead), ax.g0), ax.inv);
-        let t_c = _mm256_min_pd(_mm256_max_pd(t_c, t_a), t_b);
-        let t_c = _mm256_blendv_pd(t_b, t_c, _mm256_cmp_pd::<_CMP_GT_OQ>(moved, zero));
-        (t_c, _mm256_mul_pd(_mm256_mul_pd(moved, ax.step), o.stride))
-    }
-
-    #[inline]
-    #[target_feature(enable = "avx2,fma")]
-    fn gather(mu: &[f32], index: __m256d) -> __m256d {
-        let idx = _mm256_cvtpd_epi32(index);
-        // SAFETY: every index is j·stride_m + a1·stride_1 + a2·stride_2 (+ one step of an
-        // axis that stays in the grid) with each index clamped into the grid, so it is
-        // below mu.len() < 2³¹.
-        unsafe { _mm256_cvtps_pd(_mm_i32gather_ps::<4>(mu.as_ptr(), idx)) }
-    }
-
-    /// One packet's contribution from voxel layer `j` (entry plane `p_a`, exit `p_b`).
-    #[inline]
-    #[target_feature(enable = "avx2,fma")]
-    fn layer(
-        mu: &[f32],
-        p: &Packet,
-        o1: &Other,
-        o2: &Other,
-        p_a: __m256d,
-        p_b: __m256d,
-        base_m: __m256d,
-    ) -> __m256d {
-        let clamp_t = |t: __m256d| _mm256_min_pd(_mm256_max_pd(t, p.t_in), p.t_out);
-        let t_a = clamp_t(_mm256_mul_pd(_mm256_sub_pd(p_a, p.g0m), p.invm));
-        let t_b = clamp_t(_mm256_mul_pd(_mm256_sub_pd(p_b, p.g0m), p.invm));
-        let a1 = index_at(&p.ax1, o1, t_a);
-        let a2 = index_at(&p.ax2, o2, t_a);
-        let (c1, d1) = cross(&p.ax1, o1, a1, t_a, t_b);
-        let (c2, d2) = cross(&p.ax2, o2, a2, t_a, t_b);
-        let base = _mm256_fmadd_pd(a1, o1.stride, _mm256_fmadd_pd(a2, o2.stride, base_m));
-        let zero = _mm256_setzero_pd();
-        let moved = _mm256_or_pd(
-            _mm256_cmp_pd::<_CMP_NEQ_OQ>(d1, zero),
-            _mm256_cmp_pd::<_CMP_NEQ_OQ>(d2, zero),
-        );
-        if _mm256_movemask_pd(moved) == 0 {
-            // No lane leaves its voxel inside this layer: one segment per lane.
-            return _mm256_mul_pd(gather(mu, base), _mm256_sub_pd(t_b, t_a));
+        #[inline]
+        #[target_feature(enable = "avx2,fma")]
+        fn zero() -> V {
+            _mm256_setzero_pd()
         }
-        let (ca, cb) = (_mm256_min_pd(c1, c2), _mm256_max_pd(c1, c2));
-        let va = _mm256_add_pd(
-            base,
-            _mm256_blendv_pd(d2, d1, _mm256_cmp_pd::<_CMP_LE_OQ>(c1, c2)),
-        );
-        let vb = _mm256_add_pd(base, _mm256_add_pd(d1, d2));
-        let s = _mm256_mul_pd(gather(mu, base), _mm256_sub_pd(ca, t_a));
-        let s = _mm256_fmadd_pd(gather(mu, va), _mm256_sub_pd(cb, ca), s);
-        _mm256_fmadd_pd(gather(mu, vb), _mm256_sub_pd(t_b, cb), s)
-    }
-
-    #[target_feature(enable = "avx2,fma")]
-    pub(super) fn trace_row(
-        mu: &[f32],
-        dims: [usize; 3],
-        rays: &[Option<GridRay>],
-        min_crossings: f64,
-        out: &mut [f64],
-        handled: &mut [bool],
-    ) {
-        let strides = [1usize, dims[0], dims[0] * dims[1]];
-        // Packets of four neighbouring rays, grouped by shared dominant axis and direction.
-        let chunks: Vec<(usize, Option<(usize, bool)>)> = rays
-            .chunks(4)
-            .enumerate()
-            .map(|(i, c)| (i * 4, packet_key(c, min_crossings)))
-            .collect();
-        for m in 0..3 {
-            for positive in [true, false] {
-                let members: Vec<usize> = chunks
-                    .iter()
-                    .filter(|(_, k)| *k == Some((m, positive)))
-                    .map(|(start, _)| *start)
-                    .collect();
-                if members.is_empty() {
-                    continue;
-                }
-                let (o1, o2) = ((m + 1) % 3, (m + 2) % 3);
-                let other = |a: usize| Other {
-                    last: _mm256_set1_pd((dims[a] - 1) as f64),
-                    stride: _mm256_set1_pd(strides[a] as f64),
-                };
-                let (oth1, oth2) = (other(o1), other(o2));
-                let packets: Vec<Packet> = members
-                    .iter()
-                    .map(|&s| {
-                        let r = &rays[s..(s + 4).min(rays.len())];
-                        Packet {
-                            g0m: lanes(r, |g| g.g0[m]),
-                            invm: lanes(r, |g| g.inv[m]),
-                            t_in: lanes(r, |g| g.t_enter),
-                            t_out: lanes(r, |g| g.t_exit),
-                            ax1: axis(r, o1),
-                            ax2: axis(r, o2),
-                        }
-                    })
-                    .collect();
-                // Voxel layers along m that any ray of the group touches.
-                let n_m = dims[m] as i64;
-                let (mut lo, mut hi) = (n_m, -1i64);
-                for &s in &members {
-                    for r in rays[s..(s + 4).min(rays.len())].iter().flatten() {
-                        for t in [r.t_enter, r.t_exit] {
-                            let l = ((r.g0[m] + t * r.gd[m]).floor() as i64).clamp(0, n_m - 1);
-                            lo = lo.min(l);
-                            hi = hi.max(l);
-                        }
-                    }
-                }
-                let (first, last, dir) = if positive {
-                    (lo, hi, 1i64)
-                } else {
-                    (hi, lo, -1i64)
-                };
-                let entry_plane = |j: i64| (if positive { j } else { j + 1 }) as f64;
-                let mut sums = vec![_mm256_setzero_pd(); packets.len()];
-                let mut j = first;
-                loop {
-                    let p_a = _mm256_set1_pd(entry_plane(j));
-                    let p_b = _mm256_set1_pd(entry_plane(j + dir));
-                    let base_m = _mm256_set1_pd((j as usize * strides[m]) as f64);
-                    for (p, sum) in packets.iter().zip(sums.iter_mut()) {
-                        *sum = _mm256_add_pd(*sum, layer(mu, p, &oth1, &oth2, p_a, p_b, base_m));
-                    }
-                    if j == last {
-                        break;
-                    }
-                    j += dir;
-                }
-                for (&s, sum) in members.iter().zip(&sums) {
-                    let mut v = [0.0f64; 4];
-                    // SAFETY: writing four f64 into a local array.
-                    unsafe { _mm256_storeu_pd(v.as_mut_ptr(), *sum) };
-                    for l in 0..(rays.len() - s).min(4) {
-                        out[s + l] = if rays[s + l].is_some() { v[l] } else { 0.0 };
-                        handled[s + l] = true;
-                    }
-                }
+        #[inline]
+        #[target_feature(enable = "avx2,fma")]
+        fn min(a: V, b: V) -> V {
+            _mm256_min_pd(a, b)
+        }
+        #[inline]
+        #[target_feature(enable = "avx2,fma")]
+        fn max(a: V, b: V) -> V {
+            _mm256_max_pd(a, b)
+        }
+        #[inline]
+        #[target_feature(enable = "avx2,fma")]
+        fn add(a: V, b: V) -> V {
+            _mm256_add_pd(a, b)
+        }
+        #[inline]
+        #[target_feature(enable = "avx2,fma")]
+        fn sub(a: V, b: V) -> V {
+            _mm256_sub_pd(a, b)
+        }
+        #[inline]
+        #[target_feature(enable = "avx2,fma")]
+        fn mul(a: V, b: V) -> V {
+            _mm256_mul_pd(a, b)
+        }
+        #[inline]
+        #[target_feature(enable = "avx2,fma")]
+        fn fmadd(a: V, b: V, c: V) -> V {
+            _mm256_fmadd_pd(a, b, c)
+        }
+        #[inline]
+        #[target_feature(enable = "avx2,fma")]
+        fn floor(a: V) -> V {
+            _mm256_floor_pd(a)
+        }
+        #[inline]
+        #[target_feature(enable = "avx2,fma")]
+        fn gt(a: V, b: V) -> M {
+            _mm256_cmp_pd::<_CMP_GT_OQ>(a, b)
+        }
+        #[inline]
+        #[target_feature(enable = "avx2,fma")]
+        fn le(a: V, b: V) -> M {
+            _mm256_cmp_pd::<_CMP_LE_OQ>(a, b)
+        }
+        #[inline]
+        #[target_feature(enable = "avx2,fma")]
+        fn ne(a: V, b: V) -> M {
+            _mm256_cmp_pd::<_CMP_NEQ_OQ>(a, b)
+        }
+        #[inline]
+        #[target_feature(enable = "avx2,fma")]
+        fn or(a: M, b: M) -> M {
+            _mm256_or_pd(a, b)
+        }
+        #[inline]
+        #[target_feature(enable = "avx2,fma")]
+        fn none(m: M) -> bool {
+            _mm256_movemask_pd(m) == 0
+        }
+        #[inline]
+        #[target_feature(enable = "avx2,fma")]
+        fn select(m: M, a: V, b: V) -> V {
+            _mm256_blendv_pd(b, a, m)
+        }
+        #[inline]
+        #[target_feature(enable = "avx2,fma")]
+        fn load(v: [f64; LANES]) -> V {
+            _mm256_setr_pd(v[0], v[1], v[2], v[3])
+        }
+        #[inline]
+        #[target_feature(enable = "avx2,fma")]
+        fn store(a: V) -> [f64; LANES] {
+            let mut v = [0.0; LANES];
+            // SAFETY: LANES f64 into a local array of that size.
+            unsafe { _mm256_storeu_pd(v.as_mut_ptr(), a) };
+            v
+        }
+        #[inline]
+        #[target_feature(enable = "avx2,fma")]
+        fn gather(mu: &[f32], index: V) -> V {
+            // SAFETY: every index is a sum of clamped in-grid voxel indices times strides,
+            // so below mu.len() < 2³¹ (checked by `trace_row`).
+            unsafe {
+                _mm256_cvtps_pd(_mm_i32gather_ps::<4>(
+                    mu.as_ptr(),
+                    _mm256_cvtpd_epi32(index),
+                ))
             }
         }
-        // Packets whose rays all miss: nothing to add.
-        for (start, key) in &chunks {
-            if key.is_none()
-                && rays[*start..(*start + 4).min(rays.len())]
-                    .iter()
-                    .all(Option::is_none)
-            {
-                for l in *start..(*start + 4).min(rays.len()) {
-                    out[l] = 0.0;
-                    handled[l] = true;
-                }
+    });
+}
+
+/// Eight lanes of f64 (AVX-512F; its masks are bit masks).
+#[cfg(target_arch = "x86_64")]
+mod avx512 {
+    packet_kernel!("avx512f,avx2,fma", 8, __m512d, __mmask8, {
+        #[inline]
+        #[target_feature(enable = "avx512f,avx2,fma")]
+        fn splat(x: f64) -> V {
+            _mm512_set1_pd(x)
+        }
+        #[inline]
+        #[target_feature(enable = "avx512f,avx2,fma")]
+        fn zero() -> V {
+            _mm512_setzero_pd()
+        }
+        #[inline]
+        #[target_feature(enable = "avx512f,avx2,fma")]
+        fn min(a: V, b: V) -> V {
+            _mm512_min_pd(a, b)
+        }
+        #[inline]
+        #[target_feature(enable = "avx512f,avx2,fma")]
+        fn max(a: V, b: V) -> V {
+            _mm512_max_pd(a, b)
+        }
+        #[inline]
+        #[target_feature(enable = "avx512f,avx2,fma")]
+        fn add(a: V, b: V) -> V {
+            _mm512_add_pd(a, b)
+        }
+        #[inline]
+        #[target_feature(enable = "avx512f,avx2,fma")]
+        fn sub(a: V, b: V) -> V {
+            _mm512_sub_pd(a, b)
+        }
+        #[inline]
+        #[target_feature(enable = "avx512f,avx2,fma")]
+        fn mul(a: V, b: V) -> V {
+            _mm512_mul_pd(a, b)
+        }
+        #[inline]
+        #[target_feature(enable = "avx512f,avx2,fma")]
+        fn fmadd(a: V, b: V, c: V) -> V {
+            _mm512_fmadd_pd(a, b, c)
+        }
+        // Round towards −∞, exceptions suppressed.
+        #[inline]
+        #[target_feature(enable = "avx512f,avx2,fma")]
+        fn floor(a: V) -> V {
+            _mm512_roundscale_pd::<0x09>(a)
+        }
+        #[inline]
+        #[target_feature(enable = "avx512f,avx2,fma")]
+        fn gt(a: V, b: V) -> M {
+            _mm512_cmp_pd_mask::<_CMP_GT_OQ>(a, b)
+        }
+        #[inline]
+        #[target_feature(enable = "avx512f,avx2,fma")]
+        fn le(a: V, b: V) -> M {
+            _mm512_cmp_pd_mask::<_CMP_LE_OQ>(a, b)
+        }
+        #[inline]
+        #[target_feature(enable = "avx512f,avx2,fma")]
+        fn ne(a: V, b: V) -> M {
+            _mm512_cmp_pd_mask::<_CMP_NEQ_OQ>(a, b)
+        }
+        #[inline]
+        #[target_feature(enable = "avx512f,avx2,fma")]
+        fn or(a: M, b: M) -> M {
+            a | b
+        }
+        #[inline]
+        #[target_feature(enable = "avx512f,avx2,fma")]
+        fn none(m: M) -> bool {
+            m == 0
+        }
+        #[inline]
+        #[target_feature(enable = "avx512f,avx2,fma")]
+        fn select(m: M, a: V, b: V) -> V {
+            _mm512_mask_blend_pd(m, b, a)
+        }
+        #[inline]
+        #[target_feature(enable = "avx512f,avx2,fma")]
+        fn load(v: [f64; LANES]) -> V {
+            // SAFETY: LANES f64 from a local array of that size.
+            unsafe { _mm512_loadu_pd(v.as_ptr()) }
+        }
+        #[inline]
+        #[target_feature(enable = "avx512f,avx2,fma")]
+        fn store(a: V) -> [f64; LANES] {
+            let mut v = [0.0; LANES];
+            // SAFETY: LANES f64 into a local array of that size.
+            unsafe { _mm512_storeu_pd(v.as_mut_ptr(), a) };
+            v
+        }
+        #[inline]
+        #[target_feature(enable = "avx512f,avx2,fma")]
+        fn gather(mu: &[f32], index: V) -> V {
+            // SAFETY: as for AVX2: every index is inside `mu`.
+            unsafe {
+                _mm512_cvtps_pd(_mm256_i32gather_ps::<4>(
+                    mu.as_ptr(),
+                    _mm512_cvtpd_epi32(index),
+                ))
             }
         }
-    }
+    });
 }
