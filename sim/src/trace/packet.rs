@@ -241,31 +241,47 @@ macro_rules! packet_kernel {
             min(max(floor(fmadd(t, ax.gd, ax.g0)), zero()), o.last)
         }
 
-        /// For one other axis in one layer, from the index `a` at the entry: the parameter
-        /// where the index changes (`t_b` if it does not) and the change of linear index.
+        /// For one other axis in one layer, from the index `a` at the entry: the index at
+        /// the exit, the parameter where the index changes (`t_b` if it does not) and the
+        /// change of linear index.
         #[inline]
         #[target_feature(enable = $features)]
-        fn cross(ax: &Axis, o: &Other, a: V, t_a: V, t_b: V) -> (V, V) {
+        fn cross(ax: &Axis, o: &Other, a: V, t_a: V, t_b: V) -> (V, V, V) {
             let b = index_at(ax, o, t_b);
             let moved = min(max(mul(sub(b, a), ax.step), zero()), splat(1.0));
             let t_c = mul(sub(add(a, ax.ahead), ax.g0), ax.inv);
             let t_c = min(max(t_c, t_a), t_b);
-            (select(gt(moved, zero()), t_c, t_b), mul(mul(moved, ax.step), o.stride))
+            (b, select(gt(moved, zero()), t_c, t_b), mul(mul(moved, ax.step), o.stride))
         }
 
-        /// One packet's contribution from the voxel layer between planes `p_a` and `p_b`
-        /// (`base_m`: the layer's part of the linear voxel index).
+        /// Where a packet stands at a layer's entry plane: the (clamped) parameter and the
+        /// other axes' voxel indices there.
+        #[derive(Clone, Copy)]
+        struct Entry {
+            t: V,
+            a1: V,
+            a2: V,
+        }
+
         #[inline]
         #[target_feature(enable = $features)]
-        fn layer(mu: &[f32], p: &Packet, o1: &Other, o2: &Other, p_a: V, p_b: V, base_m: V) -> V {
-            let clamp_t = |t: V| min(max(t, p.t_in), p.t_out);
-            let t_a = clamp_t(mul(sub(p_a, p.g0m), p.invm));
-            let t_b = clamp_t(mul(sub(p_b, p.g0m), p.invm));
-            let a1 = index_at(&p.ax1, o1, t_a);
-            let a2 = index_at(&p.ax2, o2, t_a);
-            let (c1, d1) = cross(&p.ax1, o1, a1, t_a, t_b);
-            let (c2, d2) = cross(&p.ax2, o2, a2, t_a, t_b);
-            let base = fmadd(a1, o1.stride, fmadd(a2, o2.stride, base_m));
+        fn entry(p: &Packet, o1: &Other, o2: &Other, plane: V) -> Entry {
+            let t = min(max(mul(sub(plane, p.g0m), p.invm), p.t_in), p.t_out);
+            Entry { t, a1: index_at(&p.ax1, o1, t), a2: index_at(&p.ax2, o2, t) }
+        }
+
+        /// One packet's contribution from the voxel layer entered at `e` and left at plane
+        /// `p_b` (`base_m`: the layer's part of the linear voxel index); `e` becomes the
+        /// next layer's entry (the same values a fresh [`entry`] would compute).
+        #[inline]
+        #[target_feature(enable = $features)]
+        fn layer(mu: &[f32], p: &Packet, o1: &Other, o2: &Other, e: &mut Entry, p_b: V, base_m: V) -> V {
+            let t_a = e.t;
+            let t_b = min(max(mul(sub(p_b, p.g0m), p.invm), p.t_in), p.t_out);
+            let (b1, c1, d1) = cross(&p.ax1, o1, e.a1, t_a, t_b);
+            let (b2, c2, d2) = cross(&p.ax2, o2, e.a2, t_a, t_b);
+            let base = fmadd(e.a1, o1.stride, fmadd(e.a2, o2.stride, base_m));
+            *e = Entry { t: t_b, a1: b1, a2: b2 };
             if none(or(ne(d1, zero()), ne(d2, zero()))) {
                 // No lane leaves its voxel inside this layer: one segment per lane.
                 return mul(gather(mu, base), sub(t_b, t_a));
@@ -340,13 +356,15 @@ macro_rules! packet_kernel {
                     let (first, last, dir) = if positive { (lo, hi, 1i64) } else { (hi, lo, -1i64) };
                     let entry_plane = |j: i64| (if positive { j } else { j + 1 }) as f64;
                     let mut sums = vec![zero(); packets.len()];
+                    let start = splat(entry_plane(first));
+                    let mut entries: Vec<Entry> =
+                        packets.iter().map(|p| entry(p, &oth1, &oth2, start)).collect();
                     let mut j = first;
                     loop {
-                        let p_a = splat(entry_plane(j));
                         let p_b = splat(entry_plane(j + dir));
                         let base_m = splat((j as usize * strides[m]) as f64);
-                        for (p, sum) in packets.iter().zip(sums.iter_mut()) {
-                            *sum = add(*sum, layer(mu, p, &oth1, &oth2, p_a, p_b, base_m));
+                        for ((p, sum), e) in packets.iter().zip(sums.iter_mut()).zip(entries.iter_mut()) {
+                            *sum = add(*sum, layer(mu, p, &oth1, &oth2, e, p_b, base_m));
                         }
                         if j == last {
                             break;
