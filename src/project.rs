@@ -213,16 +213,16 @@ pub fn load_mu(scene: &Scene) -> Result<(Volume, VolumeSource)> {
         }
         other => bail!("unknown units '{other}': use hu (Hounsfield) or mu (mm⁻¹)"),
     };
-    let mu = attenuation.to_mu(&vol)?;
-    let d = vol.direction();
+    let mu = attenuation.to_mu(vol)?;
+    let d = mu.direction();
     let source = VolumeSource {
         path: v.path.clone(),
         phantom,
         units,
         attenuation,
-        dims: vol.dims(),
-        spacing_mm: vol.spacing().to_array(),
-        origin_mm: vol.origin().to_array(),
+        dims: mu.dims(),
+        spacing_mm: mu.spacing().to_array(),
+        origin_mm: mu.origin().to_array(),
         direction: [
             d.x_axis.to_array(),
             d.y_axis.to_array(),

@@ -15,7 +15,7 @@ fn projectors(c: &mut Criterion) {
         .unwrap();
     let mu = Attenuation::hounsfield_at_kev(60.0)
         .unwrap()
-        .to_mu(&hu)
+        .to_mu(hu)
         .unwrap();
     let view = Geometry {
         beam: Beam::Cone {

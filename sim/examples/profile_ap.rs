@@ -10,7 +10,7 @@ fn main() {
         .unwrap();
     let mu = Attenuation::hounsfield_at_kev(60.0)
         .unwrap()
-        .to_mu(&hu)
+        .to_mu(hu)
         .unwrap();
     let theta: f64 = std::env::args()
         .nth(1)

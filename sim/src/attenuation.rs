@@ -75,8 +75,8 @@ impl Attenuation {
         })
     }
 
-    /// Converts a volume of input values into linear attenuation (mm⁻¹).
-    pub fn to_mu(&self, volume: &Volume) -> Result<Volume> {
+    /// Converts a volume of input values into linear attenuation (mm⁻¹), in place.
+    pub fn to_mu(&self, volume: Volume) -> Result<Volume> {
         match *self {
             Self::Hounsfield { mu_water_per_mm } => {
                 if !(mu_water_per_mm.is_finite() && mu_water_per_mm > 0.0) {
@@ -84,7 +84,7 @@ impl Attenuation {
                         "mu_water = {mu_water_per_mm} mm⁻¹; it must be finite and > 0"
                     )));
                 }
-                volume.map(|hu| hu_to_mu(hu, mu_water_per_mm))
+                volume.map_in_place(|hu| hu_to_mu(hu, mu_water_per_mm))
             }
             Self::LinearPerMm => {
                 if let Some(p) = volume.data().iter().position(|&v| v < 0.0) {
@@ -93,7 +93,7 @@ impl Attenuation {
                         volume.data()[p]
                     )));
                 }
-                Ok(volume.clone())
+                Ok(volume)
             }
         }
     }

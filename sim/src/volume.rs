@@ -147,10 +147,24 @@ impl Volume {
     pub fn into_data(self) -> Vec<f32> {
         self.data
     }
-    /// Replaces every value with `f(value)`; the result must stay finite.
+    /// A copy with every value replaced by `f(value)`; the result must stay finite.
     pub fn map(&self, f: impl Fn(f32) -> f32 + Sync) -> Result<Self> {
-        let data = self.data.iter().map(|&v| f(v)).collect();
-        Self::new(self.dims, self.spacing, self.origin, self.direction, data)
+        self.clone().map_in_place(f)
+    }
+    /// Replaces every value with `f(value)` without copying; the result must stay finite.
+    pub fn map_in_place(mut self, f: impl Fn(f32) -> f32 + Sync) -> Result<Self> {
+        use rayon::prelude::*;
+        self.data.par_iter_mut().for_each(|v| *v = f(*v));
+        if let Some(pos) = self.data.iter().position(|v| !v.is_finite()) {
+            let [i, j, k] = unravel(pos, self.dims);
+            return Err(SimError::NonFiniteVoxel {
+                i,
+                j,
+                k,
+                value: self.data[pos].to_string(),
+            });
+        }
+        Ok(self)
     }
     /// Number of voxels.
     pub fn len(&self) -> usize {
@@ -211,20 +225,23 @@ impl Volume {
     pub fn occupied(&self) -> Option<GridBox> {
         use rayon::prelude::*;
         let [nx, ny, _] = self.dims;
-        let slice = nx * ny;
         self.data
-            .par_chunks(slice)
+            .par_chunks(nx * ny)
             .enumerate()
             .filter_map(|(k, plane)| {
                 let mut b: Option<GridBox> = None;
-                for (n, _) in plane.iter().enumerate().filter(|(_, v)| **v != 0.0) {
-                    let (i, j) = (n % nx, n / nx);
+                for (j, row) in plane.chunks(nx).enumerate() {
+                    let Some(first) = row.iter().position(|&v| v != 0.0) else {
+                        continue;
+                    };
+                    let last = row.iter().rposition(|&v| v != 0.0).unwrap_or(first);
                     let e = b.get_or_insert(GridBox {
-                        lo: [i, j, k],
-                        hi: [i + 1, j + 1, k + 1],
+                        lo: [first, j, k],
+                        hi: [last + 1, j + 1, k + 1],
                     });
-                    e.lo = [e.lo[0].min(i), e.lo[1].min(j), k];
-                    e.hi = [e.hi[0].max(i + 1), e.hi[1].max(j + 1), k + 1];
+                    e.lo[0] = e.lo[0].min(first);
+                    e.hi[0] = e.hi[0].max(last + 1);
+                    e.hi[1] = j + 1;
                 }
                 b
             })
