@@ -23,7 +23,7 @@ pub struct BenchArgs {
     #[arg(long)]
     pub quick: bool,
     /// Renders per measurement (the median is reported).
-    #[arg(long, default_value_t = 5)]
+    #[arg(long, default_value_t = 9)]
     pub repeats: usize,
     /// Also write the markdown here (e.g. docs/benchmarks.md).
     #[arg(long)]
