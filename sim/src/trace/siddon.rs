@@ -64,8 +64,19 @@ pub fn trace_strided<A: PathAccumulator>(
             next[a] = plane_t(next_plane(ijk[a], step[a]), g0[a], inv[a]);
         }
     }
-    let mut voxel = ijk[0] * strides[0] + ijk[1] * strides[1] + ijk[2] * strides[2];
-    let mut t = ray.t_enter;
+    let mut st = Walk {
+        ijk,
+        next,
+        voxel: ijk[0] * strides[0] + ijk[1] * strides[1] + ijk[2] * strides[2],
+        t: ray.t_enter,
+    };
+    let fixed = Fixed {
+        g0,
+        inv,
+        step,
+        strides,
+        t_end,
+    };
 
     // Dominant axis m (largest |gd|: at most one crossing of each other axis per slab).
     let m = ray.dominant_axis();
@@ -73,18 +84,10 @@ pub fn trace_strided<A: PathAccumulator>(
 
     // 1. Plain incremental steps up to the first m-plane (the partial first slab).
     loop {
-        let a = first_crossing(&next);
-        if next[a] >= t_end {
-            acc.segment(voxel as usize, (t_end - t).max(0.0));
-            return;
-        }
-        acc.segment(voxel as usize, (next[a] - t).max(0.0));
-        t = next[a];
-        ijk[a] += step[a];
-        voxel += step[a] * strides[a];
-        next[a] = plane_t(next_plane(ijk[a], step[a]), g0[a], inv[a]);
-        if a == m {
-            break;
+        match st.plain_step(&fixed, acc) {
+            None => return,
+            Some(a) if a == m => break,
+            Some(_) => {}
         }
     }
 
@@ -103,15 +106,15 @@ pub fn trace_strided<A: PathAccumulator>(
     let (fm, f1, f2) = (step[m] as f64, step[o1] as f64, step[o2] as f64);
     let (g0m, g01, g02) = (g0[m], g0[o1], g0[o2]);
     let (im, i1, i2) = (inv[m], inv[o1], inv[o2]);
-    let mut plane_m = next_plane(ijk[m], step[m]);
-    let mut plane_1 = next_plane(ijk[o1], step[o1]);
-    let mut plane_2 = next_plane(ijk[o2], step[o2]);
-    let (mut next_m, mut next_1, mut next_2) = (next[m], next[o1], next[o2]);
+    let mut plane_m = next_plane(st.ijk[m], step[m]);
+    let mut plane_1 = next_plane(st.ijk[o1], step[o1]);
+    let mut plane_2 = next_plane(st.ijk[o2], step[o2]);
+    let (mut next_m, mut next_1, mut next_2) = (st.next[m], st.next[o1], st.next[o2]);
     // Planes of m strictly inside the grid still ahead.
     let mut inside = if step[m] > 0 {
-        n[m] - 1 - ijk[m]
+        n[m] - 1 - st.ijk[m]
     } else {
-        ijk[m]
+        st.ijk[m]
     };
     while next_m < t_end {
         // Whole slabs before the next crossing of another axis (or the exit): counted from
@@ -120,18 +123,18 @@ pub fn trace_strided<A: PathAccumulator>(
         // crossing that lies a hair before the slab start). `inside` keeps the walk in
         // the grid whatever the rounding.
         let gap = next_1.min(next_2).min(t_end);
-        let k = (((gap - t) * grid_per_mm) as i64).min(inside);
+        let k = (((gap - st.t) * grid_per_mm) as i64).min(inside);
         if k >= 2 {
             let lowest = if step[m] > 0 {
-                voxel
+                st.voxel
             } else {
-                voxel - (k - 1) * strides[m]
+                st.voxel - (k - 1) * strides[m]
             };
             acc.run(lowest as usize, strides[m] as usize, k as usize, slab);
-            voxel += k * dm;
+            st.voxel += k * dm;
             inside -= k;
             plane_m += (k - 1) as f64 * fm;
-            t = plane_t(plane_m, g0m, im);
+            st.t = plane_t(plane_m, g0m, im);
             plane_m += fm;
             next_m = plane_t(plane_m, g0m, im);
             if next_m >= t_end {
@@ -143,44 +146,70 @@ pub fn trace_strided<A: PathAccumulator>(
         let t_slab_end = next_m;
         let (c1, c2) = (next_1, next_2);
         let (x1, x2) = (c1 < t_slab_end, c2 < t_slab_end);
-        let ca = c1.min(c2).max(t).min(t_slab_end);
-        let cb = c1.max(c2).max(t).min(t_slab_end);
-        let after_1 = voxel + if x1 { d1 } else { 0 };
-        let after_2 = voxel + if x2 { d2 } else { 0 };
+        let ca = c1.min(c2).max(st.t).min(t_slab_end);
+        let cb = c1.max(c2).max(st.t).min(t_slab_end);
+        let after_1 = st.voxel + if x1 { d1 } else { 0 };
+        let after_2 = st.voxel + if x2 { d2 } else { 0 };
         let va = if c1 <= c2 { after_1 } else { after_2 };
-        let vb = after_1 + after_2 - voxel;
+        let vb = after_1 + after_2 - st.voxel;
         acc.segments3(
-            [voxel as usize, va as usize, vb as usize],
-            [ca - t, cb - ca, t_slab_end - cb],
+            [st.voxel as usize, va as usize, vb as usize],
+            [ca - st.t, cb - ca, t_slab_end - cb],
         );
         plane_1 += if x1 { f1 } else { 0.0 };
         plane_2 += if x2 { f2 } else { 0.0 };
         next_1 = if x1 { plane_t(plane_1, g01, i1) } else { c1 };
         next_2 = if x2 { plane_t(plane_2, g02, i2) } else { c2 };
-        t = t_slab_end;
-        voxel = vb + dm;
+        st.t = t_slab_end;
+        st.voxel = vb + dm;
         inside -= 1;
         plane_m += fm;
         next_m = plane_t(plane_m, g0m, im);
     }
     // Back to integer indices for the last partial slab.
-    ijk[m] = plane_m as i64 - if step[m] > 0 { 1 } else { 0 };
-    ijk[o1] = index_before(plane_1, step[o1], ijk[o1]);
-    ijk[o2] = index_before(plane_2, step[o2], ijk[o2]);
-    (next[m], next[o1], next[o2]) = (next_m, next_1, next_2);
+    st.ijk[m] = plane_m as i64 - if step[m] > 0 { 1 } else { 0 };
+    st.ijk[o1] = index_before(plane_1, step[o1], st.ijk[o1]);
+    st.ijk[o2] = index_before(plane_2, step[o2], st.ijk[o2]);
+    (st.next[m], st.next[o1], st.next[o2]) = (next_m, next_1, next_2);
 
     // 3. The partial last slab: plain incremental steps to the exit.
-    loop {
-        let a = first_crossing(&next);
-        if next[a] >= t_end {
-            acc.segment(voxel as usize, (t_end - t).max(0.0));
-            return;
+    while st.plain_step(&fixed, acc).is_some() {}
+}
+
+/// Per-ray constants of the walk.
+struct Fixed {
+    g0: [f64; 3],
+    inv: [f64; 3],
+    step: [i64; 3],
+    strides: [i64; 3],
+    t_end: f64,
+}
+
+/// Where the walk stands: voxel indices, next plane crossing per axis, linear voxel index
+/// and the parameter reached.
+struct Walk {
+    ijk: [i64; 3],
+    next: [f64; 3],
+    voxel: i64,
+    t: f64,
+}
+
+impl Walk {
+    /// One plain incremental step: reports the segment up to the next plane crossing (or
+    /// to the exit) and crosses that plane. Returns the axis crossed, `None` at the exit.
+    #[inline(always)]
+    fn plain_step<A: PathAccumulator>(&mut self, f: &Fixed, acc: &mut A) -> Option<usize> {
+        let a = first_crossing(&self.next);
+        if self.next[a] >= f.t_end {
+            acc.segment(self.voxel as usize, (f.t_end - self.t).max(0.0));
+            return None;
         }
-        acc.segment(voxel as usize, (next[a] - t).max(0.0));
-        t = next[a];
-        ijk[a] += step[a];
-        voxel += step[a] * strides[a];
-        next[a] = plane_t(next_plane(ijk[a], step[a]), g0[a], inv[a]);
+        acc.segment(self.voxel as usize, (self.next[a] - self.t).max(0.0));
+        self.t = self.next[a];
+        self.ijk[a] += f.step[a];
+        self.voxel += f.step[a] * f.strides[a];
+        self.next[a] = plane_t(next_plane(self.ijk[a], f.step[a]), f.g0[a], f.inv[a]);
+        Some(a)
     }
 }
 
