@@ -26,6 +26,8 @@ enum Command {
     Phantom(project::PhantomArgs),
     /// Measure projector speed and accuracy and write the figures as markdown.
     Bench(bench::BenchArgs),
+    /// List the DICOM series under a folder tree (e.g. LIDC-IDRI).
+    Scan(project::ScanArgs),
 }
 
 fn main() {
@@ -47,5 +49,6 @@ fn run(cli: Cli) -> Result<()> {
         Command::Project(args) => project::run(*args),
         Command::Phantom(args) => project::write_phantom(args),
         Command::Bench(args) => bench::run(args),
+        Command::Scan(args) => project::scan(args),
     }
 }

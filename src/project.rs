@@ -23,8 +23,12 @@ pub const PHANTOM_SPACING: [f64; 3] = [1.4, 1.4, 2.5];
 
 #[derive(Debug, Args)]
 pub struct ProjectArgs {
-    /// CT volume (.nii or .nii.gz). Omit to render the built-in thorax phantom.
+    /// CT volume: a NIfTI file (.nii, .nii.gz) or a folder holding one DICOM series.
+    /// Omit to render the built-in thorax phantom.
     pub input: Option<PathBuf>,
+    /// Accept DICOM series whose modality is not CT.
+    #[arg(long)]
+    pub allow_non_ct: bool,
     /// TOML scene file; flags given here override its fields.
     #[arg(long)]
     pub scene: Option<PathBuf>,
@@ -98,9 +102,12 @@ pub struct ProjectArgs {
 
 #[derive(Debug, Args)]
 pub struct PhantomArgs {
-    /// Output NIfTI file (.nii or .nii.gz).
+    /// Output NIfTI file (.nii or .nii.gz), or with --dicom a folder for a DICOM CT series.
     #[arg(short, long)]
     pub output: PathBuf,
+    /// Write a DICOM CT series (one int16 slice per file, HU rounded) instead of NIfTI.
+    #[arg(long)]
+    pub dicom: bool,
     /// Grid NX,NY,NZ [default: 256,256,133].
     #[arg(long, value_parser = parse3)]
     pub dims: Option<[f64; 3]>,
@@ -160,8 +167,17 @@ pub fn write_phantom(args: PhantomArgs) -> Result<()> {
         .transpose()?
         .unwrap_or(PHANTOM_DIMS);
     let vol = phantom_volume(dims, args.spacing.unwrap_or(PHANTOM_SPACING))?;
-    tomograf_datasets::nifti::write_nifti(&args.output, &vol)
-        .with_context(|| format!("writing {}", args.output.display()))?;
+    if args.dicom {
+        // A fixed UID under the "2.25" (UUID-derived) root: the phantom is the same every time.
+        tomograf_datasets::dicom::write_dicom_series(
+            &args.output,
+            &vol,
+            "2.25.3141592653589793238462643383279",
+        )?;
+    } else {
+        tomograf_datasets::nifti::write_nifti(&args.output, &vol)
+            .with_context(|| format!("writing {}", args.output.display()))?;
+    }
     eprintln!(
         "wrote {} ({}×{}×{} voxels, HU)",
         args.output.display(),
@@ -194,7 +210,7 @@ pub fn load_mu(scene: &Scene) -> Result<(Volume, VolumeSource)> {
         .unwrap_or_else(|| "hu".into())
         .to_ascii_lowercase();
     let (vol, phantom) = match &v.path {
-        Some(p) => (read_volume(p)?, None),
+        Some(p) => (read_volume(p, v.allow_non_ct.unwrap_or(false))?, None),
         None => (
             phantom_volume(
                 v.phantom_dims.unwrap_or(PHANTOM_DIMS),
@@ -232,16 +248,47 @@ pub fn load_mu(scene: &Scene) -> Result<(Volume, VolumeSource)> {
     Ok((mu, source))
 }
 
-fn read_volume(path: &std::path::Path) -> Result<Volume> {
+fn read_volume(path: &std::path::Path, allow_non_ct: bool) -> Result<Volume> {
     let name = path.to_string_lossy().to_ascii_lowercase();
-    if name.ends_with(".nii") || name.ends_with(".nii.gz") {
+    if path.is_dir() {
+        Ok(tomograf_datasets::dicom::read_dicom_series(
+            path,
+            allow_non_ct,
+        )?)
+    } else if name.ends_with(".nii") || name.ends_with(".nii.gz") {
         Ok(tomograf_datasets::nifti::read_nifti(path)?)
     } else {
         bail!(
-            "cannot read {}: only NIfTI volumes (.nii, .nii.gz) are supported so far",
+            "cannot read {}: give a NIfTI volume (.nii, .nii.gz) or a folder holding one DICOM series",
             path.display()
         )
     }
+}
+
+#[derive(Debug, Args)]
+pub struct ScanArgs {
+    /// Root of a folder tree of DICOM series (e.g. LIDC-IDRI's patient/study/series layout).
+    pub root: PathBuf,
+}
+
+/// Lists the DICOM series under a folder tree, one per line.
+pub fn scan(args: ScanArgs) -> Result<()> {
+    let series = tomograf_datasets::dicom::scan_dicom_tree(&args.root)?;
+    println!("modality\tfiles\trows×cols\tseries UID\tdescription\tfolder");
+    for s in &series {
+        println!(
+            "{}\t{}\t{}×{}\t{}\t{}\t{}",
+            s.modality,
+            s.files,
+            s.rows,
+            s.cols,
+            s.series_uid,
+            s.description,
+            s.folder.display()
+        );
+    }
+    eprintln!("{} series under {}", series.len(), args.root.display());
+    Ok(())
 }
 
 /// Merges command-line flags into the scene (flags win).
@@ -259,6 +306,9 @@ fn merge(args: &ProjectArgs) -> Result<Scene> {
     }
     set!(s.volume.path, args.input);
     set!(s.volume.units, args.units);
+    if args.allow_non_ct {
+        s.volume.allow_non_ct = Some(true);
+    }
     set!(s.volume.energy_kev, args.energy_kev);
     if let Some(d) = args.phantom_dims {
         s.volume.phantom_dims = Some(grid_dims(d)?);

@@ -5,7 +5,7 @@
 //!
 //! ```toml
 //! [volume]
-//! path = "ct.nii.gz"          # omit to render the built-in thorax phantom
+//! path = "ct.nii.gz"          # or a DICOM series folder; omit for the built-in phantom
 //! units = "hu"                # "hu" or "mu" (mm⁻¹)
 //! energy_kev = 60.0           # effective energy for HU → mu
 //!
@@ -76,6 +76,7 @@ pub struct Scene {
 #[serde(deny_unknown_fields)]
 pub struct VolumeSection {
     pub path: Option<PathBuf>,
+    pub allow_non_ct: Option<bool>,
     pub units: Option<String>,
     pub energy_kev: Option<f64>,
     pub phantom_dims: Option<[usize; 3]>,

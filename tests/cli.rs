@@ -144,6 +144,64 @@ fn nifti_round_trip_renders_the_same_image() {
 }
 
 #[test]
+fn dicom_series_renders_like_the_phantom_and_is_listed() {
+    // Phantom → DICOM series (LPS, int16) → render: the same image as the in-memory phantom
+    // (its HU are whole numbers, so nothing is lost in the int16 slices).
+    let dir = tempfile::tempdir().unwrap();
+    let series = dir.path().join("patient").join("study").join("series");
+    ok(&tomograf(&[
+        "phantom",
+        "--dicom",
+        "-o",
+        series.to_str().unwrap(),
+        "--dims",
+        "64,64,40",
+        "--spacing",
+        "5.6,5.6,8.3",
+    ]));
+    let (a, b) = (dir.path().join("a"), dir.path().join("b"));
+    let mut args = vec![
+        "project",
+        "-o",
+        a.to_str().unwrap(),
+        "--format",
+        "npy",
+        "--view",
+        "30,10",
+    ];
+    args.extend(SMALL);
+    ok(&tomograf(&args));
+    ok(&tomograf(&[
+        "project",
+        series.to_str().unwrap(),
+        "-o",
+        b.to_str().unwrap(),
+        "--format",
+        "npy",
+        "--view",
+        "30,10",
+        "--rows",
+        "64",
+        "--cols",
+        "64",
+    ]));
+    let (x, y) = (
+        read_npy(&a.join("drr.npy")).1,
+        read_npy(&b.join("drr.npy")).1,
+    );
+    let worst = x
+        .iter()
+        .zip(&y)
+        .map(|(p, q)| (p - q).abs() / p.abs().max(1.0))
+        .fold(0.0f32, f32::max);
+    assert!(worst < 1e-4, "largest relative difference {worst}");
+    let out = tomograf(&["scan", dir.path().to_str().unwrap()]);
+    ok(&out);
+    let listing = String::from_utf8_lossy(&out.stdout);
+    assert!(listing.contains("CT\t40\t64×64"), "{listing}");
+}
+
+#[test]
 fn same_bytes_whatever_the_thread_count_and_scene_equals_flags() {
     let dir = tempfile::tempdir().unwrap();
     let run = |name: &str, extra: &[&str]| {
@@ -242,10 +300,13 @@ fn bad_input_is_a_clear_error() {
     // Missing and corrupt volumes.
     let bad = dir.path().join("bad.nii");
     std::fs::write(&bad, b"not a nifti file at all").unwrap();
+    let empty_dir = dir.path().join("empty-series");
+    std::fs::create_dir(&empty_dir).unwrap();
     for (path, msg) in [
         (bad.to_str().unwrap(), "bad.nii"),
         ("/nonexistent/ct.nii.gz", "ct.nii.gz"),
-        ("ct.mha", "only NIfTI"),
+        ("ct.mha", "a folder holding one DICOM series"),
+        (empty_dir.to_str().unwrap(), "empty-series"),
     ] {
         let out = tomograf(&["project", path, "-o", d]);
         let err = String::from_utf8_lossy(&out.stderr);

@@ -63,6 +63,16 @@ pub enum DatasetError {
         #[source]
         source: SimError,
     },
+    /// A folder of DICOM files does not make one usable series: no DICOM files, several
+    /// series, slices that disagree (orientation, size, spacing), missing or duplicate
+    /// slices, a tilted stack…
+    #[error("{folder}: {reason}")]
+    Series {
+        /// The folder concerned.
+        folder: PathBuf,
+        /// What is wrong, naming the files involved.
+        reason: String,
+    },
     /// The caller asked to write something impossible (empty image, shape that does not
     /// match the data, empty display window…). Nothing was written.
     #[error("cannot write {path}: {reason}")]
@@ -104,6 +114,13 @@ impl DatasetError {
     pub(crate) fn unsupported(path: &Path, reason: impl Into<String>) -> Self {
         Self::Unsupported {
             path: path.to_owned(),
+            reason: reason.into(),
+        }
+    }
+    /// A [`DatasetError::Series`] for `folder`.
+    pub(crate) fn series(folder: &Path, reason: impl Into<String>) -> Self {
+        Self::Series {
+            folder: folder.to_owned(),
             reason: reason.into(),
         }
     }

@@ -2,6 +2,9 @@
 //!
 //! * [`nifti`]: CT volumes from/to NIfTI-1 (`.nii`, `.nii.gz`) through the `nifti` crate,
 //!   converted between NIfTI's RAS frame and tomograf's LPS world frame (mm).
+//! * [`dicom`]: CT series (a folder of single-frame DICOM slices, uncompressed) to
+//!   [`tomograf_sim::Volume`]; DICOM's patient frame is LPS already. [`dicom::scan_dicom_tree`]
+//!   lists the series of a patient/study/series folder tree.
 //! * [`image`]: projection images to OpenEXR, TIFF (32-bit float), NPY (`<f4`) and 8-bit
 //!   PNG (windowed, for viewing). Images are `rows × cols`, row 0 at the top.
 //! * [`atomic`]: every file is written atomically (through [`atomic::write_atomic`], or
@@ -14,6 +17,7 @@
 #![warn(missing_docs)]
 
 pub mod atomic;
+pub mod dicom;
 pub mod error;
 pub mod image;
 pub mod nifti;
