@@ -1,6 +1,7 @@
 //! `tomograf` — X-ray projections (DRRs) of CT volumes with exact ray tracing.
 
 mod bench;
+mod dataset;
 mod output;
 mod project;
 mod scene;
@@ -28,6 +29,8 @@ enum Command {
     Bench(bench::BenchArgs),
     /// List the DICOM series under a folder tree (e.g. LIDC-IDRI).
     Scan(project::ScanArgs),
+    /// Make a training or test set: normalised CTs and their projections, with a manifest.
+    Dataset(dataset::DatasetArgs),
 }
 
 fn main() {
@@ -50,5 +53,6 @@ fn run(cli: Cli) -> Result<()> {
         Command::Phantom(args) => project::write_phantom(args),
         Command::Bench(args) => bench::run(args),
         Command::Scan(args) => project::scan(args),
+        Command::Dataset(args) => dataset::run(args),
     }
 }

@@ -210,7 +210,7 @@ pub fn load_mu(scene: &Scene) -> Result<(Volume, VolumeSource)> {
         .unwrap_or_else(|| "hu".into())
         .to_ascii_lowercase();
     let (vol, phantom) = match &v.path {
-        Some(p) => (read_volume(p, v.allow_non_ct.unwrap_or(false))?, None),
+        Some(p) => (load_volume_file(p, v.allow_non_ct.unwrap_or(false))?, None),
         None => (
             phantom_volume(
                 v.phantom_dims.unwrap_or(PHANTOM_DIMS),
@@ -248,7 +248,8 @@ pub fn load_mu(scene: &Scene) -> Result<(Volume, VolumeSource)> {
     Ok((mu, source))
 }
 
-fn read_volume(path: &std::path::Path, allow_non_ct: bool) -> Result<Volume> {
+/// Reads a CT volume: a NIfTI file or a folder holding one DICOM series.
+pub fn load_volume_file(path: &std::path::Path, allow_non_ct: bool) -> Result<Volume> {
     let name = path.to_string_lossy().to_ascii_lowercase();
     if path.is_dir() {
         Ok(tomograf_datasets::dicom::read_dicom_series(
@@ -403,7 +404,7 @@ pub fn resolve(scene: &Scene, mu: &Volume) -> Result<Job> {
     let pitch = match d.pitch_mm {
         Some(p) => p,
         None => {
-            let p = fit_pitch(&geometry, &poses, mu)?;
+            let p = geometry.fit_pitch(&poses, mu)?;
             [p, p]
         }
     };
@@ -475,39 +476,6 @@ fn explicit_view(e: &ExplicitView) -> Result<View> {
     };
     v.validate()?;
     Ok(v)
-}
-
-/// The square pixel pitch (mm) at which every corner of the volume projects onto the
-/// panel in every view, with a 2 % margin.
-fn fit_pitch(geometry: &Geometry, poses: &[Pose], vol: &Volume) -> Result<f64> {
-    let mut unit = *geometry;
-    unit.detector.pitch_u_mm = 1.0;
-    unit.detector.pitch_v_mm = 1.0;
-    let d = unit.detector;
-    let mut pitch: f64 = 0.0;
-    for &pose in poses {
-        let view = unit.view(pose)?;
-        for c in vol.world_corners() {
-            if let ViewBeam::Cone { source } = view.beam {
-                // Corners behind the source cannot be fitted: the source is inside the volume.
-                let to_det = view
-                    .pixel_centre((d.rows as f64 - 1.0) / 2.0, (d.cols as f64 - 1.0) / 2.0)
-                    - source;
-                if (c - source).dot(to_det) <= 0.0 {
-                    continue;
-                }
-            }
-            if let Some((r, col)) = view.project_point(c) {
-                let dr = (r - (d.rows as f64 - 1.0) / 2.0).abs() / (d.rows as f64 / 2.0);
-                let dc = (col - (d.cols as f64 - 1.0) / 2.0).abs() / (d.cols as f64 / 2.0);
-                pitch = pitch.max(dr).max(dc);
-            }
-        }
-    }
-    if !(pitch.is_finite() && pitch > 0.0) {
-        bail!("cannot fit the volume on the detector; give --pitch");
-    }
-    Ok(pitch * 1.02)
 }
 
 pub fn run(args: ProjectArgs) -> Result<()> {

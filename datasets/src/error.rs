@@ -82,6 +82,11 @@ pub enum DatasetError {
         /// Why.
         reason: String,
     },
+    /// An in-memory operation (preprocessing: cropping, resampling, padding, windowing)
+    /// was given arguments it cannot honour; the message names the operation and says
+    /// what is wrong.
+    #[error("{0}")]
+    Invalid(String),
 }
 
 /// Result alias for this crate.

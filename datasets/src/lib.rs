@@ -21,5 +21,6 @@ pub mod dicom;
 pub mod error;
 pub mod image;
 pub mod nifti;
+pub mod preprocess;
 
 pub use error::{DatasetError, Result};

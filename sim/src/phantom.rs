@@ -250,6 +250,81 @@ impl Phantom {
         }
     }
 
+    /// A seeded variant of [`Phantom::thorax`]: body size ±15 % in-plane and ±10 % in
+    /// length, lung size (breathing) ±12 %, heart position ±10 mm, and 0–3 lung nodules of
+    /// 3–12 mm radius (+800 HU over lung) at random places inside the lungs. The same seed
+    /// always gives the same phantom. A stand-in for patient-to-patient variation until the
+    /// procedural anatomy generator exists; it has no ribs, vessels or arms.
+    pub fn thorax_variant(seed: u64) -> Self {
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+        let mut p = Self::thorax();
+        let (sxy, sz) = (rng.random_range(0.85..1.15), rng.random_range(0.9..1.1));
+        let lung = rng.random_range(0.88..1.12);
+        let heart = DVec3::new(
+            rng.random_range(-10.0..10.0),
+            rng.random_range(-10.0..10.0),
+            rng.random_range(-10.0..10.0),
+        );
+        let scale = DVec3::new(sxy, sxy, sz);
+        for c in &mut p.components {
+            let extra = if c.name.contains("lung") { lung } else { 1.0 };
+            match &mut c.shape {
+                Shape::Ellipsoid {
+                    centre, semi_axes, ..
+                } => {
+                    *centre *= scale;
+                    *semi_axes *= scale * extra;
+                    if c.name == "heart" {
+                        *centre += heart;
+                    }
+                }
+                Shape::Cylinder {
+                    centre,
+                    semi_axes,
+                    half_height,
+                    ..
+                } => {
+                    *centre *= scale;
+                    semi_axes[0] *= sxy * extra;
+                    semi_axes[1] *= sxy * extra;
+                    *half_height *= sz;
+                }
+            }
+        }
+        p.components.retain(|c| c.name != "nodule");
+        let lungs: Vec<(DVec3, DVec3)> = p
+            .components
+            .iter()
+            .filter_map(|c| match c.shape {
+                Shape::Ellipsoid {
+                    centre, semi_axes, ..
+                } if c.name.contains("lung") => Some((centre, semi_axes)),
+                _ => None,
+            })
+            .collect();
+        for _ in 0..rng.random_range(0..=3) {
+            let (centre, semi) = lungs[rng.random_range(0..lungs.len())];
+            let radius = rng.random_range(3.0..12.0);
+            // A point well inside the lung: within 60 % of each semi-axis.
+            let u = DVec3::new(
+                rng.random_range(-0.6..0.6),
+                rng.random_range(-0.6..0.6),
+                rng.random_range(-0.6..0.6),
+            );
+            p.components.push(Component {
+                name: "nodule",
+                shape: Shape::Ellipsoid {
+                    centre: centre + u * semi * 0.8,
+                    semi_axes: DVec3::splat(radius),
+                    rotation_z_deg: 0.0,
+                },
+                delta_hu: 800.0,
+            });
+        }
+        p
+    }
+
     /// HU at world point `p`.
     pub fn value_hu(&self, p: DVec3) -> f64 {
         self.background_hu
@@ -340,6 +415,19 @@ mod tests {
         assert!((cyl.chord(&ray) - 20.0).abs() < 1e-12);
         let ray = Ray::segment(DVec3::new(0.0, 0.0, -50.0), DVec3::new(0.0, 0.0, 50.0));
         assert!((cyl.chord(&ray) - 6.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn variants_are_seeded_and_differ() {
+        assert_eq!(Phantom::thorax_variant(7), Phantom::thorax_variant(7));
+        assert_ne!(Phantom::thorax_variant(7), Phantom::thorax_variant(8));
+        for seed in 0..20 {
+            let v = Phantom::thorax_variant(seed)
+                .voxelize([48, 48, 40], DVec3::new(8.0, 8.0, 9.0), DVec3::ZERO)
+                .unwrap();
+            let (lo, hi) = v.min_max();
+            assert!(lo >= -1000.0 && hi < 2100.0, "seed {seed}: {lo} {hi}");
+        }
     }
 
     #[test]

@@ -3,6 +3,7 @@
 
 use super::{Detector, Pose, View, ViewBeam};
 use crate::error::{Result, SimError};
+use crate::volume::Volume;
 use glam::DVec3;
 use serde::{Deserialize, Serialize};
 
@@ -103,6 +104,39 @@ impl Geometry {
     /// Views for several poses.
     pub fn views(&self, poses: &[Pose]) -> Result<Vec<View>> {
         poses.iter().map(|&p| self.view(p)).collect()
+    }
+
+    /// The square pixel pitch (mm) at which every corner of `volume` projects onto the
+    /// panel in every pose, with a 2 % margin (this geometry's own pitch is ignored).
+    /// Corners behind a cone-beam source (a source inside the volume) are skipped.
+    pub fn fit_pitch(&self, poses: &[Pose], volume: &Volume) -> Result<f64> {
+        let mut unit = *self;
+        unit.detector.pitch_u_mm = 1.0;
+        unit.detector.pitch_v_mm = 1.0;
+        let d = unit.detector;
+        let (mid_r, mid_c) = ((d.rows as f64 - 1.0) / 2.0, (d.cols as f64 - 1.0) / 2.0);
+        let mut pitch: f64 = 0.0;
+        for &pose in poses {
+            let view = unit.view(pose)?;
+            for c in volume.world_corners() {
+                if let ViewBeam::Cone { source } = view.beam
+                    && (c - source).dot(view.pixel_centre(mid_r, mid_c) - source) <= 0.0
+                {
+                    continue;
+                }
+                if let Some((r, col)) = view.project_point(c) {
+                    pitch = pitch
+                        .max((r - mid_r).abs() / (d.rows as f64 / 2.0))
+                        .max((col - mid_c).abs() / (d.cols as f64 / 2.0));
+                }
+            }
+        }
+        if !(pitch.is_finite() && pitch > 0.0) {
+            return Err(SimError::InvalidGeometry(
+                "cannot fit the volume on the detector; give the pixel pitch".into(),
+            ));
+        }
+        Ok(pitch * 1.02)
     }
 }
 

@@ -1,0 +1,332 @@
+//! `tomograf dataset`: training or test sets as in the TomoGRAF paper.
+//!
+//! Per item (a CT file or folder, or a seeded phantom): the black-border-cropped CT resampled
+//! to `size³` and normalised to [0, 1] over an HU window (`ct.nii.gz`, whose affine keeps
+//! the world frame), and `views` projections every 360/`views` degrees plus AP and lateral
+//! at `size²` (`projections.npy`, line integrals, shape views × rows × cols), rendered with
+//! exact Siddon from the cropped full-resolution volume, with the geometry of every view in
+//! `views.json`. `item.json` is written last and marks the item finished; `manifest.jsonl`
+//! (one line per finished item, in item order) is rebuilt at the end of every run.
+//!
+//! Resumable: a re-run skips finished items; every file is written to a temporary name and
+//! renamed, so a killed run leaves no half-written file. `--shard i/n` takes items
+//! `i, i+n, i+2n, …`; items are independent, so shards produce the same bytes as one run.
+
+use crate::project::{PHANTOM_SPACING, load_volume_file};
+use anyhow::{Context, Result, bail};
+use clap::Args;
+use glam::DVec3;
+use indicatif::{ProgressBar, ProgressStyle};
+use serde::{Deserialize, Serialize};
+use sha2::{Digest, Sha256};
+use std::path::{Path, PathBuf};
+use tomograf_datasets::preprocess::{HuWindow, crop_black_border, resample};
+use tomograf_datasets::{atomic, image, nifti};
+use tomograf_sim::attenuation::Attenuation;
+use tomograf_sim::geometry::angles;
+use tomograf_sim::phantom::Phantom;
+use tomograf_sim::{Beam, Detector, Geometry, Pose, Projector, Renderer, View};
+
+#[derive(Debug, Args)]
+pub struct DatasetArgs {
+    /// CT volumes: NIfTI files or DICOM series folders (a folder of such is expanded).
+    pub inputs: Vec<PathBuf>,
+    /// Output folder.
+    #[arg(short, long)]
+    pub output: PathBuf,
+    /// Generate this many seeded thorax phantoms instead of (or after) the inputs.
+    #[arg(long, default_value_t = 0)]
+    pub phantoms: usize,
+    /// Seed of the first phantom; phantom n uses seed + n.
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    /// Projections per full rotation (every 360/views degrees), besides AP and lateral.
+    #[arg(long, default_value_t = 72)]
+    pub views: usize,
+    /// CT grid (size³) and detector (size²).
+    #[arg(long, default_value_t = 128)]
+    pub size: usize,
+    /// HU window mapped to [0, 1], LOW,HIGH [default: -1024,2048].
+    #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
+    pub hu_window: Vec<f32>,
+    /// Black-border crop threshold, HU: voxels at or below it count as border.
+    #[arg(long, default_value_t = -900.0, allow_hyphen_values = true)]
+    pub crop_hu: f32,
+    /// Effective energy for HU → mu, keV.
+    #[arg(long, default_value_t = 60.0)]
+    pub energy_kev: f64,
+    /// Source-to-isocentre and source-to-detector distances, mm.
+    #[arg(long, default_value_t = 1000.0)]
+    pub sad: f64,
+    #[arg(long, default_value_t = 1500.0)]
+    pub sid: f64,
+    /// Name of the split this set belongs to (e.g. the institution: "lidc", "in-house").
+    #[arg(long, default_value = "train")]
+    pub split: String,
+    /// Take only items i, i+n, … of the job: I/N (0-based), for running across machines.
+    #[arg(long)]
+    pub shard: Option<String>,
+}
+
+/// Where an item comes from.
+#[derive(Debug, Clone, Serialize)]
+#[serde(tag = "kind", rename_all = "kebab-case")]
+enum Source {
+    File { path: PathBuf },
+    Phantom { profile: &'static str, seed: u64 },
+}
+
+/// The record `item.json` holds and `manifest.jsonl` lists.
+#[derive(Debug, Serialize, Deserialize)]
+struct ItemRecord {
+    index: usize,
+    id: String,
+    split: String,
+    source: serde_json::Value,
+    source_sha256: String,
+    hu_window: HuWindow,
+    energy_kev: f64,
+    ct: String,
+    ct_dims: [usize; 3],
+    projections: String,
+    projection_quantity: String,
+    views: String,
+    angles_deg: Vec<[f64; 2]>,
+}
+
+fn parse_shard(text: &str) -> Result<(usize, usize)> {
+    let bad = || anyhow::anyhow!("--shard '{text}' must be I/N with 0 ≤ I < N, e.g. 0/4");
+    let (i, n) = text.split_once('/').ok_or_else(bad)?;
+    let (i, n): (usize, usize) = (
+        i.trim().parse().map_err(|_| bad())?,
+        n.trim().parse().map_err(|_| bad())?,
+    );
+    if n == 0 || i >= n {
+        return Err(bad());
+    }
+    Ok((i, n))
+}
+
+/// Inputs expanded: files as given; a folder with DICOM files is one series, any other
+/// folder contributes its NIfTI files and series sub-folders, sorted by path.
+fn expand(inputs: &[PathBuf]) -> Result<Vec<PathBuf>> {
+    let mut out = Vec::new();
+    for p in inputs {
+        if p.is_dir()
+            && !tomograf_datasets::dicom::scan_dicom_tree(p)?
+                .iter()
+                .any(|s| s.folder == *p)
+        {
+            let mut nii: Vec<PathBuf> = std::fs::read_dir(p)
+                .with_context(|| format!("cannot list {}", p.display()))?
+                .filter_map(|e| e.ok().map(|e| e.path()))
+                .filter(|f| {
+                    let n = f.to_string_lossy().to_ascii_lowercase();
+                    n.ends_with(".nii") || n.ends_with(".nii.gz")
+                })
+                .collect();
+            nii.sort();
+            out.extend(nii);
+            out.extend(
+                tomograf_datasets::dicom::scan_dicom_tree(p)?
+                    .into_iter()
+                    .map(|s| s.folder),
+            );
+        } else {
+            out.push(p.clone());
+        }
+    }
+    Ok(out)
+}
+
+/// SHA-256 of a file, or of a folder's files (sorted names and contents).
+fn sha256_of(path: &Path) -> Result<String> {
+    let mut h = Sha256::new();
+    if path.is_dir() {
+        let mut files: Vec<PathBuf> = std::fs::read_dir(path)?
+            .filter_map(|e| e.ok().map(|e| e.path()))
+            .filter(|f| f.is_file())
+            .collect();
+        files.sort();
+        for f in files {
+            h.update(f.file_name().unwrap_or_default().as_encoded_bytes());
+            h.update(std::fs::read(&f).with_context(|| format!("cannot read {}", f.display()))?);
+        }
+    } else {
+        h.update(std::fs::read(path).with_context(|| format!("cannot read {}", path.display()))?);
+    }
+    Ok(format!("{:x}", h.finalize()))
+}
+
+pub fn run(args: DatasetArgs) -> Result<()> {
+    let window = match args.hu_window.as_slice() {
+        [] => HuWindow::CHEST,
+        [lo, hi] => HuWindow::new(*lo, *hi)?,
+        _ => bail!("--hu-window takes LOW,HIGH"),
+    };
+    if args.size < 2 || args.views == 0 {
+        bail!("--size must be at least 2 and --views at least 1");
+    }
+    let (shard, shards) = args
+        .shard
+        .as_deref()
+        .map(parse_shard)
+        .transpose()?
+        .unwrap_or((0, 1));
+    let mut sources: Vec<Source> = expand(&args.inputs)?
+        .into_iter()
+        .map(|path| Source::File { path })
+        .collect();
+    sources.extend((0..args.phantoms).map(|n| Source::Phantom {
+        profile: "thorax",
+        seed: args.seed + n as u64,
+    }));
+    if sources.is_empty() {
+        bail!("nothing to do: give CT inputs or --phantoms N");
+    }
+    std::fs::create_dir_all(&args.output)
+        .with_context(|| format!("cannot create {}", args.output.display()))?;
+
+    let mine: Vec<usize> = (0..sources.len()).filter(|i| i % shards == shard).collect();
+    let bar = ProgressBar::new(mine.len() as u64).with_style(
+        ProgressStyle::with_template(
+            "{spinner} item {pos}/{len} [{bar:30}] {elapsed} (eta {eta}) {msg}",
+        )
+        .expect("valid template")
+        .progress_chars("=> "),
+    );
+    let (mut made, mut skipped) = (0, 0);
+    for &index in &mine {
+        let dir = args.output.join(format!("{index:05}"));
+        if finished(&dir) {
+            skipped += 1;
+        } else {
+            bar.set_message(format!("{index:05}"));
+            make_item(&args, window, index, &sources[index], &dir)
+                .with_context(|| format!("item {index:05}"))?;
+            made += 1;
+        }
+        bar.inc(1);
+    }
+    bar.finish_and_clear();
+    let listed = write_manifest(&args.output, sources.len())?;
+    eprintln!(
+        "{made} item(s) made, {skipped} already finished (shard {shard}/{shards}); manifest lists {listed} of {} item(s): {}",
+        sources.len(),
+        args.output.join("manifest.jsonl").display()
+    );
+    Ok(())
+}
+
+/// An item is finished when its `item.json` exists and parses (it is written last).
+fn finished(dir: &Path) -> bool {
+    std::fs::read(dir.join("item.json"))
+        .ok()
+        .and_then(|b| serde_json::from_slice::<ItemRecord>(&b).ok())
+        .is_some()
+}
+
+fn make_item(
+    args: &DatasetArgs,
+    window: HuWindow,
+    index: usize,
+    source: &Source,
+    dir: &Path,
+) -> Result<()> {
+    // The CT in HU, and what identifies it.
+    let (hu, sha) = match source {
+        Source::File { path } => (load_volume_file(path, false)?, sha256_of(path)?),
+        Source::Phantom { seed, .. } => {
+            let phantom = Phantom::thorax_variant(*seed);
+            let dims = [256, 256, 134];
+            let v = phantom.voxelize(dims, DVec3::from(PHANTOM_SPACING), DVec3::ZERO)?;
+            let sha = format!(
+                "{:x}",
+                Sha256::digest(format!("{phantom:?}{dims:?}{PHANTOM_SPACING:?}").as_bytes())
+            );
+            (v, sha)
+        }
+    };
+    let cropped = crop_black_border(&hu, args.crop_hu)?;
+
+    // Projections from the cropped full-resolution volume.
+    let mu = Attenuation::hounsfield_at_kev(args.energy_kev)?.to_mu(cropped.clone())?;
+    let mut poses = angles::arc(0.0, 360.0 / args.views as f64, args.views, 0.0)?;
+    poses.extend([Pose::AP, Pose::LATERAL]);
+    let mut geometry = Geometry {
+        beam: Beam::Cone {
+            sad_mm: args.sad,
+            sid_mm: args.sid,
+        },
+        detector: Detector::new(args.size, args.size, 1.0),
+        isocentre: mu.centre(),
+    };
+    let pitch = geometry.fit_pitch(&poses, &mu)?;
+    geometry.detector.pitch_u_mm = pitch;
+    geometry.detector.pitch_v_mm = pitch;
+    let views: Vec<View> = geometry.views(&poses)?;
+    let renderer = Renderer::new(&mu, Projector::Siddon)?;
+    let mut stack = Vec::with_capacity(views.len() * args.size * args.size);
+    for v in &views {
+        stack.extend(renderer.render(v)?.data);
+    }
+
+    // The CT on the training grid, normalised.
+    let ct = window.normalize(&resample(&cropped, [args.size; 3])?)?;
+
+    std::fs::create_dir_all(dir)?;
+    nifti::write_nifti(&dir.join("ct.nii.gz"), &ct)?;
+    image::write_npy(
+        &dir.join("projections.npy"),
+        &stack,
+        &[views.len(), args.size, args.size],
+    )?;
+    let views_json = serde_json::json!({
+        "conventions": "World frame DICOM LPS, mm. Pixel (r, c) centre = detector_origin + c*u + r*v; cone rays run from source to pixel centre.",
+        "geometry": geometry,
+        "poses": poses,
+        "views": views,
+    });
+    write_json(&dir.join("views.json"), &views_json)?;
+    let record = ItemRecord {
+        index,
+        id: format!("{index:05}"),
+        split: args.split.clone(),
+        source: serde_json::to_value(source)?,
+        source_sha256: sha,
+        hu_window: window,
+        energy_kev: args.energy_kev,
+        ct: "ct.nii.gz".into(),
+        ct_dims: ct.dims(),
+        projections: "projections.npy".into(),
+        projection_quantity: "line integral ∫mu ds (mu at the effective energy)".into(),
+        views: "views.json".into(),
+        angles_deg: poses.iter().map(|p| [p.theta_deg, p.phi_deg]).collect(),
+    };
+    write_json(&dir.join("item.json"), &serde_json::to_value(&record)?)
+}
+
+fn write_json(path: &Path, value: &serde_json::Value) -> Result<()> {
+    let text = serde_json::to_string_pretty(value)? + "\n";
+    atomic::write_atomic(path, |w| std::io::Write::write_all(w, text.as_bytes()))?;
+    Ok(())
+}
+
+/// Rewrites `manifest.jsonl` from the finished items, in item order; returns their count.
+fn write_manifest(out: &Path, items: usize) -> Result<usize> {
+    let mut lines = String::new();
+    let mut n = 0;
+    for index in 0..items {
+        let Ok(bytes) = std::fs::read(out.join(format!("{index:05}")).join("item.json")) else {
+            continue;
+        };
+        let record: ItemRecord = serde_json::from_slice(&bytes)?;
+        lines += &serde_json::to_string(&record)?;
+        lines.push('\n');
+        n += 1;
+    }
+    atomic::write_atomic(&out.join("manifest.jsonl"), |w| {
+        std::io::Write::write_all(w, lines.as_bytes())
+    })?;
+    Ok(n)
+}
