@@ -1,9 +1,19 @@
-//! Renders the chest-sized AP view repeatedly, for profiling. Not part of the test suite.
+//! Renders the chest-sized case (512×512×133 voxels of 0.7×0.7×2.5 mm, 256² detector,
+//! SAD 1000 / SID 1500) repeatedly at gantry angle θ (first argument, degrees), for
+//! profiling and tuning; not part of the test suite.
+//!
+//! * `TG_PACKET_THRESHOLD=x` — crossings per layer from which the SIMD tracer is used
+//!   (`inf`: scalar only), as used to choose `packet::default_threshold`.
+//! * `COUNT=1` — also print what the scalar tracer reports per ray (segments, runs).
+//!
+//! `cargo run --release -p tomograf-sim --example profile_ap -- 30`
 use glam::DVec3;
 use std::time::Instant;
 use tomograf_sim::attenuation::Attenuation;
 use tomograf_sim::phantom::Phantom;
+use tomograf_sim::trace::{PathAccumulator, siddon};
 use tomograf_sim::*;
+
 fn main() {
     let hu = Phantom::thorax()
         .voxelize([512, 512, 133], DVec3::new(0.7, 0.7, 2.5), DVec3::ZERO)
@@ -42,75 +52,21 @@ fn main() {
         "θ={theta}: {:.2} ms",
         t.elapsed().as_secs_f64() * 1e3 / n as f64
     );
-    if let Ok(p) = std::env::var("PAD") {
-        let [x, y]: [usize; 2] = p
-            .split(',')
-            .map(|v| v.parse().unwrap())
-            .collect::<Vec<_>>()
-            .try_into()
-            .unwrap();
-        println!(
-            "θ={theta} scalar through a copy padded to {x}×{y}: {:.2} ms",
-            padded(&mu, &v, x, y)
-        );
-    }
     if std::env::var_os("COUNT").is_some() {
         count(&mu, &v);
     }
-    if std::env::var_os("TRANSPOSED").is_some() {
-        println!(
-            "θ={theta} through a y-fastest copy: {:.2} ms",
-            transposed(&mu, &v)
-        );
-    }
 }
 
-/// Experiment: the same view traced through a y-fastest copy of the volume.
-#[allow(dead_code)]
-pub fn transposed(mu: &Volume, v: &View) -> f64 {
-    use rayon::prelude::*;
-    use tomograf_sim::trace::{LineIntegral, siddon};
-    let [nx, ny, nz] = mu.dims();
-    let mut t = vec![0f32; mu.len()];
-    for k in 0..nz {
-        for j in 0..ny {
-            for i in 0..nx {
-                t[j + ny * (i + nx * k)] = mu.get(i, j, k);
-            }
-        }
-    }
-    let strides = [ny, 1, nx * ny];
-    let run = || -> Vec<f32> {
-        (0..v.rows)
-            .into_par_iter()
-            .flat_map_iter(|r| (0..v.cols).map(move |c| (r, c)))
-            .map(|(r, c)| {
-                let Some(g) = GridRay::clip(mu, &v.ray(r as f64, c as f64)) else {
-                    return 0.0;
-                };
-                let mut acc = LineIntegral::new(&t);
-                siddon::trace_strided(mu.dims(), strides, &g, &mut acc);
-                acc.value() as f32
-            })
-            .collect()
-    };
-    let _ = run();
-    let t0 = Instant::now();
-    for _ in 0..20 {
-        std::hint::black_box(run());
-    }
-    t0.elapsed().as_secs_f64() * 1e3 / 20.0
-}
-
-/// Counts what the tracer reports per ray.
+/// Counts what the scalar tracer reports per ray.
 #[derive(Default)]
-pub struct Counts {
-    pub segments: u64,
-    pub triples: u64,
-    pub runs: u64,
-    pub run_voxels: u64,
+struct Counts {
+    segments: u64,
+    triples: u64,
+    runs: u64,
+    run_voxels: u64,
 }
-impl tomograf_sim::trace::PathAccumulator for Counts {
+
+impl PathAccumulator for Counts {
     fn segment(&mut self, _: usize, _: f64) {
         self.segments += 1;
     }
@@ -123,14 +79,13 @@ impl tomograf_sim::trace::PathAccumulator for Counts {
     }
 }
 
-#[allow(dead_code)]
-pub fn count(mu: &Volume, v: &View) {
+fn count(mu: &Volume, v: &View) {
     let mut c = Counts::default();
     let mut rays = 0;
     for r in 0..v.rows {
         for col in 0..v.cols {
             if let Some(g) = GridRay::clip(mu, &v.ray(r as f64, col as f64)) {
-                tomograf_sim::trace::siddon::trace(mu.dims(), &g, &mut c);
+                siddon::trace(mu.dims(), &g, &mut c);
                 rays += 1;
             }
         }
@@ -143,41 +98,4 @@ pub fn count(mu: &Volume, v: &View) {
         f(c.runs),
         f(c.run_voxels)
     );
-}
-
-/// Experiment: the same view traced (scalar) through a copy whose rows are padded to
-/// `pad_x` voxels and slices to `pad_y` rows, so strides are not powers of two.
-#[allow(dead_code)]
-pub fn padded(mu: &Volume, v: &View, pad_x: usize, pad_y: usize) -> f64 {
-    use rayon::prelude::*;
-    use tomograf_sim::trace::{LineIntegral, siddon};
-    let [nx, ny, nz] = mu.dims();
-    let strides = [1, pad_x, pad_x * pad_y];
-    let mut t = vec![0f32; pad_x * pad_y * nz];
-    for k in 0..nz {
-        for j in 0..ny {
-            for i in 0..nx {
-                t[i + pad_x * j + pad_x * pad_y * k] = mu.get(i, j, k);
-            }
-        }
-    }
-    let run = || -> Vec<f32> {
-        let mut out = vec![0f32; v.rows * v.cols];
-        out.par_chunks_mut(v.cols).enumerate().for_each(|(r, row)| {
-            for (c, px) in row.iter_mut().enumerate() {
-                *px = GridRay::clip(mu, &v.ray(r as f64, c as f64)).map_or(0.0, |g| {
-                    let mut acc = LineIntegral::new(&t);
-                    siddon::trace_strided(mu.dims(), strides, &g, &mut acc);
-                    acc.value() as f32
-                });
-            }
-        });
-        out
-    };
-    let _ = run();
-    let t0 = Instant::now();
-    for _ in 0..20 {
-        std::hint::black_box(run());
-    }
-    t0.elapsed().as_secs_f64() * 1e3 / 20.0
 }
