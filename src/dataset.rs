@@ -12,6 +12,7 @@
 //! renamed, so a killed run leaves no half-written file. `--shard i/n` takes items
 //! `i, i+n, i+2n, …`; items are independent, so shards produce the same bytes as one run.
 
+use crate::output::write_json;
 use crate::project::{PHANTOM_SPACING, load_volume_file};
 use anyhow::{Context, Result, bail};
 use clap::Args;
@@ -304,12 +305,6 @@ fn make_item(
         angles_deg: poses.iter().map(|p| [p.theta_deg, p.phi_deg]).collect(),
     };
     write_json(&dir.join("item.json"), &serde_json::to_value(&record)?)
-}
-
-fn write_json(path: &Path, value: &serde_json::Value) -> Result<()> {
-    let text = serde_json::to_string_pretty(value)? + "\n";
-    atomic::write_atomic(path, |w| std::io::Write::write_all(w, text.as_bytes()))?;
-    Ok(())
 }
 
 /// Rewrites `manifest.jsonl` from the finished items, in item order; returns their count.

@@ -135,7 +135,8 @@ impl Outputs {
     }
 }
 
-fn write_json(path: &Path, value: &serde_json::Value) -> Result<()> {
+/// Writes pretty JSON (and a final newline) atomically.
+pub fn write_json(path: &Path, value: &serde_json::Value) -> Result<()> {
     atomic::write_atomic(path, |w| {
         serde_json::to_writer_pretty(&mut *w, value).map_err(std::io::Error::other)?;
         std::io::Write::write_all(w, b"\n")
