@@ -13,19 +13,18 @@
 //! `i, i+n, i+2n, …`; items are independent, so shards produce the same bytes as one run.
 
 use crate::output::write_json;
-use crate::project::{PHANTOM_SPACING, load_volume_file};
+use crate::project::load_volume_file;
 use anyhow::{Context, Result, bail};
 use clap::Args;
-use glam::DVec3;
 use indicatif::{ProgressBar, ProgressStyle};
 use serde::{Deserialize, Serialize};
 use sha2::{Digest, Sha256};
 use std::path::{Path, PathBuf};
+use tomograf_datasets::anatomy::{self, AnatomySpec, Profile};
 use tomograf_datasets::preprocess::{HuWindow, crop_black_border, resample};
 use tomograf_datasets::{atomic, image, nifti};
 use tomograf_sim::attenuation::Attenuation;
 use tomograf_sim::geometry::angles;
-use tomograf_sim::phantom::Phantom;
 use tomograf_sim::{Beam, Detector, Geometry, Pose, Projector, Renderer, View};
 
 #[derive(Debug, Args)]
@@ -41,6 +40,16 @@ pub struct DatasetArgs {
     /// Seed of the first phantom; phantom n uses seed + n.
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
+    /// Phantom population: lidc (cropped to the thorax, like LIDC-IDRI) or full-chest (arms,
+    /// neck, whole chest wall, like the paper's in-house test set).
+    #[arg(long, default_value = "lidc")]
+    pub profile: String,
+    /// Put the phantoms on a patient table.
+    #[arg(long)]
+    pub table: bool,
+    /// Give the phantoms a pacemaker with leads.
+    #[arg(long)]
+    pub pacemaker: bool,
     /// Projections per full rotation (every 360/views degrees), besides AP and lateral.
     #[arg(long, default_value_t = 72)]
     pub views: usize,
@@ -74,7 +83,7 @@ pub struct DatasetArgs {
 #[serde(tag = "kind", rename_all = "kebab-case")]
 enum Source {
     File { path: PathBuf },
-    Phantom { profile: &'static str, seed: u64 },
+    Phantom { spec: AnatomySpec },
 }
 
 /// The record `item.json` holds and `manifest.jsonl` lists.
@@ -178,9 +187,17 @@ pub fn run(args: DatasetArgs) -> Result<()> {
         .into_iter()
         .map(|path| Source::File { path })
         .collect();
-    sources.extend((0..args.phantoms).map(|n| Source::Phantom {
-        profile: "thorax",
-        seed: args.seed + n as u64,
+    let profile = Profile::parse(&args.profile)?;
+    sources.extend((0..args.phantoms).map(|n| {
+        // Grids large enough for the profile's field of view, at about CT resolution.
+        let (dims, spacing) = match profile {
+            Profile::LidcCropped => ([200, 200, 128], [2.0, 2.0, 2.5]),
+            Profile::FullChest => ([256, 256, 200], [2.2, 2.2, 2.5]),
+        };
+        let mut spec = AnatomySpec::new(args.seed + n as u64, profile, dims, spacing);
+        spec.table = args.table;
+        spec.pacemaker = args.pacemaker;
+        Source::Phantom { spec }
     }));
     if sources.is_empty() {
         bail!("nothing to do: give CT inputs or --phantoms N");
@@ -237,15 +254,12 @@ fn make_item(
     // The CT in HU, and what identifies it.
     let (hu, sha) = match source {
         Source::File { path } => (load_volume_file(path, false)?, sha256_of(path)?),
-        Source::Phantom { seed, .. } => {
-            let phantom = Phantom::thorax_variant(*seed);
-            let dims = [256, 256, 134];
-            let v = phantom.voxelize(dims, DVec3::from(PHANTOM_SPACING), DVec3::ZERO)?;
+        Source::Phantom { spec } => {
             let sha = format!(
                 "{:x}",
-                Sha256::digest(format!("{phantom:?}{dims:?}{PHANTOM_SPACING:?}").as_bytes())
+                Sha256::digest(serde_json::to_string(spec)?.as_bytes())
             );
-            (v, sha)
+            (anatomy::generate(spec)?, sha)
         }
     };
     let cropped = crop_black_border(&hu, args.crop_hu)?;

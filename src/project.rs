@@ -8,6 +8,7 @@ use glam::DVec3;
 use indicatif::{ProgressBar, ProgressStyle};
 use std::path::PathBuf;
 use std::time::Instant;
+use tomograf_datasets::anatomy::{self, AnatomySpec, Profile};
 use tomograf_sim::attenuation::Attenuation;
 use tomograf_sim::geometry::angles;
 use tomograf_sim::phantom::Phantom;
@@ -108,6 +109,19 @@ pub struct PhantomArgs {
     /// Write a DICOM CT series (one int16 slice per file, HU rounded) instead of NIfTI.
     #[arg(long)]
     pub dicom: bool,
+    /// A procedural patient instead of the analytic thorax: lidc (cropped to the thorax,
+    /// like LIDC-IDRI) or full-chest (arms, neck, whole chest wall).
+    #[arg(long)]
+    pub profile: Option<String>,
+    /// Seed of the procedural patient.
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    /// Add a patient table under the procedural patient.
+    #[arg(long)]
+    pub table: bool,
+    /// Add a pacemaker with leads to the procedural patient.
+    #[arg(long)]
+    pub pacemaker: bool,
     /// Grid NX,NY,NZ [default: 256,256,133].
     #[arg(long, value_parser = parse3)]
     pub dims: Option<[f64; 3]>,
@@ -166,7 +180,23 @@ pub fn write_phantom(args: PhantomArgs) -> Result<()> {
         .map(grid_dims)
         .transpose()?
         .unwrap_or(PHANTOM_DIMS);
-    let vol = phantom_volume(dims, args.spacing.unwrap_or(PHANTOM_SPACING))?;
+    let spacing = args.spacing.unwrap_or(PHANTOM_SPACING);
+    let vol = match &args.profile {
+        Some(profile) => {
+            let mut spec = AnatomySpec::new(args.seed, Profile::parse(profile)?, dims, spacing);
+            spec.table = args.table;
+            spec.pacemaker = args.pacemaker;
+            anatomy::generate(&spec)?
+        }
+        None => {
+            if args.table || args.pacemaker {
+                bail!(
+                    "--table and --pacemaker need a procedural patient: give --profile lidc or full-chest"
+                );
+            }
+            phantom_volume(dims, spacing)?
+        }
+    };
     if args.dicom {
         // A fixed UID under the "2.25" (UUID-derived) root: the phantom is the same every time.
         tomograf_datasets::dicom::write_dicom_series(

@@ -54,7 +54,8 @@ fn makes_items_with_manifest_and_normalised_ct() {
         .map(|l| serde_json::from_str(l).unwrap())
         .collect();
     assert_eq!(lines.len(), 3);
-    assert_eq!(lines[2]["source"]["seed"], 2);
+    assert_eq!(lines[2]["source"]["spec"]["seed"], 2);
+    assert_eq!(lines[2]["source"]["spec"]["profile"], "lidc-cropped");
     assert_eq!(
         lines[0]["angles_deg"].as_array().unwrap().len(),
         8,

@@ -16,6 +16,7 @@
 
 #![warn(missing_docs)]
 
+pub mod anatomy;
 pub mod atomic;
 pub mod dicom;
 pub mod error;
