@@ -160,9 +160,11 @@ fn dicom_series_renders_like_the_phantom_and_is_listed() {
 #[test]
 fn same_bytes_whatever_the_thread_count_and_scene_equals_flags() {
     let dir = tempfile::tempdir().unwrap();
-    let run = |name: &str, extra: &[&str]| {
+    // `global`: options before the subcommand (e.g. --threads 1).
+    let run = |name: &str, global: &[&str]| {
         let out = dir.path().join(name);
-        let mut args = vec![
+        let mut args = global.to_vec();
+        args.extend([
             "project",
             "-o",
             out.to_str().unwrap(),
@@ -170,29 +172,12 @@ fn same_bytes_whatever_the_thread_count_and_scene_equals_flags() {
             "npy",
             "--arc",
             "0:40:3",
-        ];
-        args.extend(SMALL);
-        args.extend(extra);
-        ok(&tomograf(&args));
-        std::fs::read(out.join("drr.npy")).unwrap()
-    };
-    let one = {
-        let out = dir.path().join("t1");
-        let mut args = vec![
-            "--threads",
-            "1",
-            "project",
-            "-o",
-            out.to_str().unwrap(),
-            "--format",
-            "npy",
-            "--arc",
-            "0:40:3",
-        ];
+        ]);
         args.extend(SMALL);
         ok(&tomograf(&args));
         std::fs::read(out.join("drr.npy")).unwrap()
     };
+    let one = run("t1", &["--threads", "1"]);
     assert_eq!(one, run("t2", &[]));
     // The same job from a scene file.
     let scene = dir.path().join("scene.toml");
