@@ -36,7 +36,15 @@ enum Command {
 fn main() {
     let cli = Cli::parse();
     if let Err(e) = run(cli) {
-        eprintln!("error: {e:#}");
+        // The error and its causes, skipping a cause whose text a message already holds.
+        let mut text = e.to_string();
+        for cause in e.chain().skip(1) {
+            let c = cause.to_string();
+            if !text.contains(&c) {
+                text = format!("{text}: {c}");
+            }
+        }
+        eprintln!("error: {text}");
         std::process::exit(1);
     }
 }

@@ -30,25 +30,8 @@ use crate::trace::PathAccumulator;
 /// Walks `ray` through a grid of `dims` voxels stored with the native layout
 /// (`i + nx·(j + ny·k)`), reporting every crossed voxel with its path length (mm) to `acc`.
 pub fn trace<A: PathAccumulator>(dims: [usize; 3], ray: &GridRay, acc: &mut A) {
-    trace_strided(dims, native_strides(dims), ray, acc)
-}
-
-/// Linear-index strides of the native layout (i fastest).
-pub fn native_strides(dims: [usize; 3]) -> [usize; 3] {
-    [1, dims[0], dims[0] * dims[1]]
-}
-
-/// As [`trace`], for values stored with arbitrary `strides` per axis (voxel `(i, j, k)` at
-/// `i·strides[0] + j·strides[1] + k·strides[2]`), e.g. a copy transposed so that the
-/// view's dominant axis is contiguous in memory.
-pub fn trace_strided<A: PathAccumulator>(
-    dims: [usize; 3],
-    strides: [usize; 3],
-    ray: &GridRay,
-    acc: &mut A,
-) {
     let n = dims.map(|d| d as i64);
-    let strides = strides.map(|s| s as i64);
+    let strides = [1, n[0], n[0] * n[1]];
     let (g0, gd, inv) = (ray.g0, ray.gd, ray.inv);
     let t_end = ray.t_exit;
 
