@@ -4,10 +4,11 @@
 //! Each pixel is computed independently from the same inputs, so images are bit-identical
 //! whatever the number of threads.
 
+use crate::composition::Composition;
 use crate::error::{Result, SimError};
 use crate::geometry::View;
 use crate::ray::{GridBox, GridRay, Ray};
-use crate::trace::{LineIntegral, packet, siddon, trilinear};
+use crate::trace::{LineIntegral, MaterialPaths, packet, siddon, trilinear};
 use crate::volume::Volume;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
@@ -96,10 +97,38 @@ impl Projection {
     }
 }
 
-/// Renders line integrals of an attenuation volume (mm⁻¹).
+/// Per-pixel mass thickness of each material of a [`Composition`]: ∫ρ_m ds in g/cm²,
+/// the input of polychromatic integration (`crate::polychromatic`).
+#[derive(Debug, Clone, PartialEq)]
+pub struct MassThickness {
+    /// Image height.
+    pub rows: usize,
+    /// Image width.
+    pub cols: usize,
+    /// Material names, by index (as in the composition).
+    pub materials: Vec<String>,
+    /// `materials.len()` values per pixel, pixel-major: material `m` of pixel `(r, c)` at
+    /// `(r·cols + c)·materials.len() + m`; g/cm².
+    pub data: Vec<f64>,
+}
+
+impl MassThickness {
+    /// The mass thicknesses (g/cm²) of every material at pixel `(row, col)`.
+    pub fn at(&self, row: usize, col: usize) -> &[f64] {
+        let k = self.materials.len();
+        let p = row * self.cols + col;
+        &self.data[p * k..(p + 1) * k]
+    }
+}
+
+/// Renders line integrals of an attenuation volume (mm⁻¹), or per-material mass
+/// thicknesses of a [`Composition`].
 #[derive(Debug, Clone, Copy)]
 pub struct Renderer<'a> {
+    /// mu (mm⁻¹), or a packed composition when `materials > 0`.
     mu: &'a Volume,
+    /// Number of materials of a composition; 0 for an attenuation volume.
+    materials: usize,
     projector: Projector,
     packet_threshold: f64,
     /// Where rays are clipped: for Siddon the box of non-zero mu (air adds exactly
@@ -124,10 +153,21 @@ impl<'a> Renderer<'a> {
         };
         Ok(Self {
             mu,
+            materials: 0,
             projector,
             packet_threshold: packet::default_threshold(),
             bounds,
         })
+    }
+
+    /// A renderer of per-material mass thickness over `composition`
+    /// ([`Renderer::mass_thickness`]). Both projectors apply: exact Siddon over the
+    /// nearest-neighbour material grid, and trilinear marching of each material's partial
+    /// density field.
+    pub fn for_composition(composition: &'a Composition, projector: Projector) -> Result<Self> {
+        let mut r = Self::new(composition.packed(), projector)?;
+        r.materials = composition.materials().len();
+        Ok(r)
     }
 
     /// Sets the crossings per voxel layer from which exact Siddon traces a packet of rays
@@ -172,42 +212,106 @@ impl<'a> Renderer<'a> {
 
     /// Line-integral image of one view.
     pub fn render(&self, view: &View) -> Result<Projection> {
-        view.validate()?;
-        let mut data = vec![0.0f32; view.rows * view.cols];
-        let packets = self.projector == Projector::Siddon && packet::available();
-        data.par_chunks_mut(view.cols)
-            .enumerate()
-            .for_each(|(r, row)| {
-                let r = r as f64;
-                let rays: Vec<Option<GridRay>> = (0..row.len())
-                    .map(|c| self.clip(&view.ray(r, c as f64)))
-                    .collect();
-                let mut values = vec![0.0f64; row.len()];
-                let mut handled = vec![false; row.len()];
-                if packets {
-                    // The whole row through the SIMD tracer where its rays allow.
-                    packet::trace_row(
-                        self.mu.data(),
-                        self.mu.dims(),
-                        &rays,
-                        self.packet_threshold,
-                        &mut values,
-                        &mut handled,
-                    );
-                }
-                for (c, px) in row.iter_mut().enumerate() {
-                    let v = if handled[c] {
-                        values[c]
-                    } else {
-                        self.clipped_integral(rays[c].as_ref())
-                    };
-                    *px = v as f32;
-                }
-            });
+        if self.materials > 0 {
+            return Err(SimError::OutOfRange(
+                "this renderer traces a material composition: ask it for mass_thickness, \
+                 not line integrals"
+                    .into(),
+            ));
+        }
+        let sums = self.trace(view, 1)?;
         Ok(Projection {
             rows: view.rows,
             cols: view.cols,
+            data: sums.into_iter().map(|v| v as f32).collect(),
+        })
+    }
+
+    /// Per-material mass thickness image of one view (a renderer made with
+    /// [`Renderer::for_composition`]).
+    pub fn mass_thickness(&self, view: &View, materials: &[String]) -> Result<MassThickness> {
+        if self.materials == 0 || materials.len() != self.materials {
+            return Err(SimError::OutOfRange(format!(
+                "mass thickness needs a renderer over a composition of {} materials; this one \
+                 has {}",
+                materials.len(),
+                self.materials
+            )));
+        }
+        let mut data = self.trace(view, self.materials)?;
+        // g/cm³ · mm → g/cm².
+        data.iter_mut().for_each(|v| *v *= 0.1);
+        Ok(MassThickness {
+            rows: view.rows,
+            cols: view.cols,
+            materials: materials.to_vec(),
             data,
         })
+    }
+
+    /// `k` sums per pixel (pixel-major): the line integral (`k` = 1, attenuation) or Σρ·ℓ
+    /// per material (g/cm³ · mm, composition).
+    fn trace(&self, view: &View, k: usize) -> Result<Vec<f64>> {
+        view.validate()?;
+        let mut data = vec![0.0f64; view.rows * view.cols * k];
+        let packets = self.projector == Projector::Siddon && packet::available();
+        let packed = self.materials > 0;
+        data.par_chunks_mut(view.cols * k)
+            .enumerate()
+            .for_each(|(r, row)| {
+                let r = r as f64;
+                let rays: Vec<Option<GridRay>> = (0..view.cols)
+                    .map(|c| self.clip(&view.ray(r, c as f64)))
+                    .collect();
+                let mut handled = vec![false; view.cols];
+                if let (true, Some(kernel)) = (packets, packet::kernel()) {
+                    // The whole row through the SIMD tracer where its rays allow.
+                    let (field, dims, t) = (self.mu.data(), self.mu.dims(), self.packet_threshold);
+                    if packed {
+                        packet::trace_row_materials_with(
+                            kernel,
+                            field,
+                            dims,
+                            &rays,
+                            t,
+                            k,
+                            row,
+                            &mut handled,
+                        );
+                    } else {
+                        packet::trace_row_with(kernel, field, dims, &rays, t, row, &mut handled);
+                    }
+                }
+                for (c, px) in row.chunks_mut(k).enumerate() {
+                    if handled[c] {
+                        continue;
+                    }
+                    if packed {
+                        self.clipped_materials(rays[c].as_ref(), px);
+                    } else {
+                        px[0] = self.clipped_integral(rays[c].as_ref());
+                    }
+                }
+            });
+        Ok(data)
+    }
+
+    /// Σρ·ℓ per material (g/cm³ · mm) along a clipped ray into `out` (zeros when it misses).
+    fn clipped_materials(&self, g: Option<&GridRay>, out: &mut [f64]) {
+        out.fill(0.0);
+        let Some(g) = g else {
+            return;
+        };
+        let (field, dims) = (self.mu.data(), self.mu.dims());
+        match self.projector {
+            Projector::Siddon => {
+                let mut acc = MaterialPaths::new(field);
+                siddon::trace(dims, g, &mut acc);
+                out.copy_from_slice(&acc.sums()[..out.len()]);
+            }
+            Projector::Trilinear { step_voxels } => {
+                trilinear::march_materials(field, dims, g, step_voxels, out);
+            }
+        }
     }
 }

@@ -6,6 +6,8 @@
 //! attenuation field today; per-material path lengths or a differentiable renderer's
 //! weights later, with no change to the tracer.
 
+use crate::composition::{MAX_MATERIALS, unpack};
+
 /// Receives the path of one ray through the grid. Voxel indices are linear
 /// (`i + nx·(j + ny·k)`); lengths are in mm and never negative by more than rounding.
 pub trait PathAccumulator {
@@ -88,6 +90,38 @@ impl PathAccumulator for LineIntegral<'_> {
             acc[0] += f64::from(span[m * stride]);
         }
         self.sum += ((acc[0] + acc[1]) + (acc[2] + acc[3])) * length_mm;
+    }
+}
+
+/// Sums `density · length` per material along the ray, over a packed
+/// [`crate::composition::Composition`] grid: Σρ_m·ℓ for each material m, in g/cm³ · mm
+/// (divide by 10 for mass thickness in g/cm²). Sums are f64, as for [`LineIntegral`].
+#[derive(Debug)]
+pub struct MaterialPaths<'a> {
+    packed: &'a [f32],
+    sums: [f64; MAX_MATERIALS],
+}
+
+impl<'a> MaterialPaths<'a> {
+    /// Accumulates over the packed grid values, indexed as the grid is.
+    pub fn new(packed: &'a [f32]) -> Self {
+        Self {
+            packed,
+            sums: [0.0; MAX_MATERIALS],
+        }
+    }
+
+    /// Σρ·ℓ per material index so far (g/cm³ · mm).
+    pub fn sums(&self) -> &[f64; MAX_MATERIALS] {
+        &self.sums
+    }
+}
+
+impl PathAccumulator for MaterialPaths<'_> {
+    #[inline(always)]
+    fn segment(&mut self, voxel: usize, length_mm: f64) {
+        let (rho, m) = unpack(self.packed[voxel]);
+        self.sums[m] += f64::from(rho) * length_mm;
     }
 }
 

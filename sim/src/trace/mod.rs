@@ -12,4 +12,4 @@ pub mod packet;
 pub mod siddon;
 pub mod trilinear;
 
-pub use accumulate::{LineIntegral, PathAccumulator};
+pub use accumulate::{LineIntegral, MaterialPaths, PathAccumulator};

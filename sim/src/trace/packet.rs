@@ -72,16 +72,53 @@ pub fn trace_row_with(
     out: &mut [f64],
     handled: &mut [bool],
 ) {
+    dispatch::<false>(kernel, mu, dims, rays, min_crossings, 1, out, handled);
+}
+
+/// Per-material sums of ρ·ℓ (g/cm³ · mm) over a packed composition grid
+/// ([`crate::composition`]) for the rays of one row, with `kernel`: materials `0..k` of ray
+/// `n` go to `out[n·k..(n+1)·k]`. Which rays are handled follows the rules of
+/// [`trace_row`]; the grid is visited once whatever `k` is.
+#[allow(clippy::too_many_arguments)]
+pub fn trace_row_materials_with(
+    kernel: Kernel,
+    packed: &[f32],
+    dims: [usize; 3],
+    rays: &[Option<GridRay>],
+    min_crossings: f64,
+    k: usize,
+    out: &mut [f64],
+    handled: &mut [bool],
+) {
+    dispatch::<true>(kernel, packed, dims, rays, min_crossings, k, out, handled);
+}
+
+#[allow(clippy::too_many_arguments)]
+fn dispatch<const PACKED: bool>(
+    kernel: Kernel,
+    field: &[f32],
+    dims: [usize; 3],
+    rays: &[Option<GridRay>],
+    min_crossings: f64,
+    k: usize,
+    out: &mut [f64],
+    handled: &mut [bool],
+) {
     handled.fill(false);
-    if mu.len() >= (1 << 31) || !supported().contains(&kernel) {
+    assert_eq!(out.len(), rays.len() * k, "one output per ray and material");
+    if field.len() >= (1 << 31) || !supported().contains(&kernel) {
         return;
     }
     #[cfg(target_arch = "x86_64")]
     // SAFETY: the kernel's CPU features were detected (`supported`).
     unsafe {
         match kernel {
-            Kernel::Avx512 => avx512::trace_row(mu, dims, rays, min_crossings, out, handled),
-            Kernel::Avx2 => avx2::trace_row(mu, dims, rays, min_crossings, out, handled),
+            Kernel::Avx512 => {
+                avx512::trace_row::<PACKED>(field, dims, rays, min_crossings, k, out, handled)
+            }
+            Kernel::Avx2 => {
+                avx2::trace_row::<PACKED>(field, dims, rays, min_crossings, k, out, handled)
+            }
         }
     }
 }
@@ -164,12 +201,16 @@ fn packet_key(rays: &[Option<GridRay>], threshold: f64) -> Option<(usize, bool)>
 /// mask types, the lane count and the primitives (all `#[inline]` with the set's target
 /// features): `splat`, `zero`, `min`, `max`, `add`, `sub`, `mul`, `fmadd` (a·b + c),
 /// `floor`, `gt`, `le`, `ne` (lane masks), `or` (of masks), `none` (no lane set),
-/// `select` (mask ? a : b), `load`/`store` (from/to `[f64; LANES]`), and `gather` (f32
-/// values at f64-valued indices, widened to f64).
+/// `select` (mask ? a : b), `load`/`store` (from/to `[f64; LANES]`), `gather` (f32
+/// values at f64-valued indices, widened to f64), and for compositions `gather_packed`
+/// (density and material index of packed values), `eq` and `add_where` (s + w where the
+/// mask is set).
 #[cfg(target_arch = "x86_64")]
 macro_rules! packet_kernel {
     ($features:literal, $lanes:literal, $vec:ty, $mask:ty, { $($prims:item)* }) => {
         use super::packet_key;
+        /// The label bits of a packed composition value (`crate::composition`).
+        const LABEL_MASK: i32 = crate::composition::MAX_MATERIALS as i32 - 1;
         use crate::ray::GridRay;
         #[allow(unused_imports)]
         use std::arch::x86_64::*;
@@ -270,12 +311,24 @@ macro_rules! packet_kernel {
             Entry { t, a1: index_at(&p.ax1, o1, t), a2: index_at(&p.ax2, o2, t) }
         }
 
-        /// One packet's contribution from the voxel layer entered at `e` and left at plane
-        /// `p_b` (`base_m`: the layer's part of the linear voxel index); `e` becomes the
-        /// next layer's entry (the same values a fresh [`entry`] would compute).
+        /// Adds one packet's contribution from the voxel layer entered at `e` and left at
+        /// plane `p_b` (`base_m`: the layer's part of the linear voxel index) to `sums`; `e`
+        /// becomes the next layer's entry (the same values a fresh [`entry`] would compute).
+        /// `PACKED`: `field` is a packed composition and `sums` holds one sum of ρ·ℓ per
+        /// material; otherwise `field` is mu and `sums[0]` the line integral.
         #[inline]
         #[target_feature(enable = $features)]
-        fn layer(mu: &[f32], p: &Packet, o1: &Other, o2: &Other, e: &mut Entry, p_b: V, base_m: V) -> V {
+        #[allow(clippy::too_many_arguments)]
+        fn layer<const PACKED: bool>(
+            field: &[f32],
+            p: &Packet,
+            o1: &Other,
+            o2: &Other,
+            e: &mut Entry,
+            p_b: V,
+            base_m: V,
+            sums: &mut [V],
+        ) {
             let t_a = e.t;
             let t_b = min(max(mul(sub(p_b, p.g0m), p.invm), p.t_in), p.t_out);
             let (b1, c1, d1) = cross(&p.ax1, o1, e.a1, t_a, t_b);
@@ -284,22 +337,48 @@ macro_rules! packet_kernel {
             *e = Entry { t: t_b, a1: b1, a2: b2 };
             if none(or(ne(d1, zero()), ne(d2, zero()))) {
                 // No lane leaves its voxel inside this layer: one segment per lane.
-                return mul(gather(mu, base), sub(t_b, t_a));
+                let len = sub(t_b, t_a);
+                if PACKED {
+                    let (rho, label) = gather_packed(field, base);
+                    let w = mul(rho, len);
+                    for (m, s) in sums.iter_mut().enumerate() {
+                        *s = add_where(eq(label, splat(m as f64)), *s, w);
+                    }
+                } else {
+                    sums[0] = add(sums[0], mul(gather(field, base), len));
+                }
+                return;
             }
             let (ca, cb) = (min(c1, c2), max(c1, c2));
             let va = add(base, select(le(c1, c2), d1, d2));
             let vb = add(base, add(d1, d2));
-            let s = mul(gather(mu, base), sub(ca, t_a));
-            let s = fmadd(gather(mu, va), sub(cb, ca), s);
-            fmadd(gather(mu, vb), sub(t_b, cb), s)
+            let (l0, l1, l2) = (sub(ca, t_a), sub(cb, ca), sub(t_b, cb));
+            if PACKED {
+                let (r0, m0) = gather_packed(field, base);
+                let (r1, m1) = gather_packed(field, va);
+                let (r2, m2) = gather_packed(field, vb);
+                let (w0, w1, w2) = (mul(r0, l0), mul(r1, l1), mul(r2, l2));
+                for (m, s) in sums.iter_mut().enumerate() {
+                    let k = splat(m as f64);
+                    let a = add_where(eq(m0, k), *s, w0);
+                    let a = add_where(eq(m1, k), a, w1);
+                    *s = add_where(eq(m2, k), a, w2);
+                }
+            } else {
+                let v = mul(gather(field, base), l0);
+                let v = fmadd(gather(field, va), l1, v);
+                sums[0] = add(sums[0], fmadd(gather(field, vb), l2, v));
+            }
         }
 
+        /// Traces a row: `k` sums per ray into `out[n·k..(n+1)·k]` (see [`layer`]).
         #[target_feature(enable = $features)]
-        pub(super) fn trace_row(
-            mu: &[f32],
+        pub(super) fn trace_row<const PACKED: bool>(
+            field: &[f32],
             dims: [usize; 3],
             rays: &[Option<GridRay>],
             min_crossings: f64,
+            k: usize,
             out: &mut [f64],
             handled: &mut [bool],
         ) {
@@ -355,7 +434,7 @@ macro_rules! packet_kernel {
                     }
                     let (first, last, dir) = if positive { (lo, hi, 1i64) } else { (hi, lo, -1i64) };
                     let entry_plane = |j: i64| (if positive { j } else { j + 1 }) as f64;
-                    let mut sums = vec![zero(); packets.len()];
+                    let mut sums = vec![zero(); packets.len() * k];
                     let start = splat(entry_plane(first));
                     let mut entries: Vec<Entry> =
                         packets.iter().map(|p| entry(p, &oth1, &oth2, start)).collect();
@@ -363,18 +442,22 @@ macro_rules! packet_kernel {
                     loop {
                         let p_b = splat(entry_plane(j + dir));
                         let base_m = splat((j as usize * strides[m]) as f64);
-                        for ((p, sum), e) in packets.iter().zip(sums.iter_mut()).zip(entries.iter_mut()) {
-                            *sum = add(*sum, layer(mu, p, &oth1, &oth2, e, p_b, base_m));
+                        for ((p, sum), e) in packets.iter().zip(sums.chunks_mut(k)).zip(entries.iter_mut()) {
+                            layer::<PACKED>(field, p, &oth1, &oth2, e, p_b, base_m, sum);
                         }
                         if j == last {
                             break;
                         }
                         j += dir;
                     }
-                    for (&s, sum) in members.iter().zip(&sums) {
-                        let v = store(*sum);
+                    for (&s, sum) in members.iter().zip(sums.chunks(k)) {
+                        for (m, sum) in sum.iter().enumerate() {
+                            let v = store(*sum);
+                            for n in span(s) {
+                                out[n * k + m] = if rays[n].is_some() { v[n - s] } else { 0.0 };
+                            }
+                        }
                         for n in span(s) {
-                            out[n] = if rays[n].is_some() { v[n - s] } else { 0.0 };
                             handled[n] = true;
                         }
                     }
@@ -384,7 +467,7 @@ macro_rules! packet_kernel {
             for (start, key) in &chunks {
                 if key.is_none() && rays[span(*start)].iter().all(Option::is_none) {
                     for n in span(*start) {
-                        out[n] = 0.0;
+                        out[n * k..(n + 1) * k].fill(0.0);
                         handled[n] = true;
                     }
                 }
@@ -459,6 +542,16 @@ mod avx2 {
         }
         #[inline]
         #[target_feature(enable = "avx2,fma")]
+        fn eq(a: V, b: V) -> M {
+            _mm256_cmp_pd::<_CMP_EQ_OQ>(a, b)
+        }
+        #[inline]
+        #[target_feature(enable = "avx2,fma")]
+        fn add_where(m: M, s: V, w: V) -> V {
+            _mm256_add_pd(s, _mm256_and_pd(m, w))
+        }
+        #[inline]
+        #[target_feature(enable = "avx2,fma")]
         fn or(a: M, b: M) -> M {
             _mm256_or_pd(a, b)
         }
@@ -496,6 +589,20 @@ mod avx2 {
                     _mm256_cvtpd_epi32(index),
                 ))
             }
+        }
+        #[inline]
+        #[target_feature(enable = "avx2,fma")]
+        fn gather_packed(field: &[f32], index: V) -> (V, V) {
+            // SAFETY: as for `gather`.
+            let g = unsafe {
+                _mm_i32gather_epi32::<4>(field.as_ptr().cast(), _mm256_cvtpd_epi32(index))
+            };
+            let mask = _mm_set1_epi32(LABEL_MASK);
+            let rho = _mm_castsi128_ps(_mm_andnot_si128(mask, g));
+            (
+                _mm256_cvtps_pd(rho),
+                _mm256_cvtepi32_pd(_mm_and_si128(mask, g)),
+            )
         }
     });
 }
@@ -567,6 +674,16 @@ mod avx512 {
         }
         #[inline]
         #[target_feature(enable = "avx512f,avx2,fma")]
+        fn eq(a: V, b: V) -> M {
+            _mm512_cmp_pd_mask::<_CMP_EQ_OQ>(a, b)
+        }
+        #[inline]
+        #[target_feature(enable = "avx512f,avx2,fma")]
+        fn add_where(m: M, s: V, w: V) -> V {
+            _mm512_mask_add_pd(s, m, s, w)
+        }
+        #[inline]
+        #[target_feature(enable = "avx512f,avx2,fma")]
         fn or(a: M, b: M) -> M {
             a | b
         }
@@ -604,6 +721,20 @@ mod avx512 {
                     _mm512_cvtpd_epi32(index),
                 ))
             }
+        }
+        #[inline]
+        #[target_feature(enable = "avx512f,avx2,fma")]
+        fn gather_packed(field: &[f32], index: V) -> (V, V) {
+            // SAFETY: as for `gather`.
+            let g = unsafe {
+                _mm256_i32gather_epi32::<4>(field.as_ptr().cast(), _mm512_cvtpd_epi32(index))
+            };
+            let mask = _mm256_set1_epi32(LABEL_MASK);
+            let rho = _mm256_castsi256_ps(_mm256_andnot_si256(mask, g));
+            (
+                _mm512_cvtps_pd(rho),
+                _mm512_cvtepi32_pd(_mm256_and_si256(mask, g)),
+            )
         }
     });
 }
