@@ -10,6 +10,7 @@
 //! degrees. World frame: DICOM LPS (+x patient left, +y posterior, +z head).
 
 pub mod attenuation;
+pub mod detector;
 pub mod error;
 pub mod geometry;
 pub mod phantom;
