@@ -11,6 +11,7 @@
 
 pub mod attenuation;
 pub mod composition;
+pub mod detector;
 pub mod error;
 pub mod geometry;
 pub mod phantom;
