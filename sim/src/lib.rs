@@ -12,6 +12,7 @@
 pub mod attenuation;
 pub mod error;
 pub mod geometry;
+pub mod material;
 pub mod phantom;
 pub mod ray;
 pub mod render;
