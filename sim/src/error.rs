@@ -27,6 +27,18 @@ pub enum SimError {
     /// A physical parameter is outside the range the model or its data tables cover.
     #[error("out of range: {0}")]
     OutOfRange(String),
+    /// A material name that the library does not know (the message lists the known ones).
+    #[error("unknown material: {0}")]
+    UnknownMaterial(String),
+    /// A material definition is impossible (bad element, mass fractions or density).
+    #[error("invalid material: {0}")]
+    InvalidMaterial(String),
+    /// An X-ray spectrum is impossible or a spectrum file is malformed.
+    #[error("invalid spectrum: {0}")]
+    InvalidSpectrum(String),
+    /// A data table shipped with the crate failed to parse (a build or packaging fault).
+    #[error("corrupt built-in data table: {0}")]
+    DataTable(String),
 }
 
 /// Result alias for this crate.

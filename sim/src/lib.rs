@@ -14,6 +14,7 @@ pub mod composition;
 pub mod detector;
 pub mod error;
 pub mod geometry;
+pub mod material;
 pub mod phantom;
 pub mod ray;
 pub mod render;
