@@ -16,8 +16,10 @@ pub mod error;
 pub mod geometry;
 pub mod material;
 pub mod phantom;
+pub mod polychromatic;
 pub mod ray;
 pub mod render;
+pub mod tissue;
 pub mod trace;
 pub mod volume;
 
