@@ -16,6 +16,7 @@ pub mod material;
 pub mod phantom;
 pub mod ray;
 pub mod render;
+pub mod spectrum;
 pub mod trace;
 pub mod volume;
 
