@@ -19,6 +19,7 @@ pub mod phantom;
 pub mod polychromatic;
 pub mod ray;
 pub mod render;
+pub mod spectrum;
 pub mod tissue;
 pub mod trace;
 pub mod volume;
