@@ -209,6 +209,23 @@ impl Spectrum {
         self.kvp
     }
 
+    /// Photons per mm² per bin for an exposure of `mas` mAs at `distance_mm` from the focal
+    /// spot (inverse-square law from the 1 m reference): `fluence · mas · (1000 / d)²`.
+    pub fn photons_per_mm2(&self, mas: f64, distance_mm: f64) -> Result<Vec<f64>> {
+        if !(mas.is_finite() && mas >= 0.0) {
+            return Err(SimError::InvalidSpectrum(format!(
+                "exposure {mas} mAs must be a finite number ≥ 0"
+            )));
+        }
+        if !(distance_mm.is_finite() && distance_mm > 0.0) {
+            return Err(SimError::InvalidSpectrum(format!(
+                "distance from the focal spot {distance_mm} mm must be positive"
+            )));
+        }
+        let k = mas * (1000.0 / distance_mm).powi(2);
+        Ok(self.fluence.iter().map(|f| f * k).collect())
+    }
+
     /// Total photons per mAs per mm² at 1 m.
     pub fn total_fluence(&self) -> f64 {
         self.fluence.iter().sum()
@@ -324,6 +341,15 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(e.contains("stops every photon"), "{e}");
+    }
+
+    #[test]
+    fn photons_follow_mas_and_the_inverse_square_law() {
+        let s = Spectrum::monoenergetic(60.0, 1000.0).unwrap();
+        assert_eq!(s.photons_per_mm2(2.0, 1000.0).unwrap(), vec![2000.0]);
+        assert_eq!(s.photons_per_mm2(1.0, 2000.0).unwrap(), vec![250.0]);
+        assert!(s.photons_per_mm2(-1.0, 1000.0).is_err());
+        assert!(s.photons_per_mm2(1.0, 0.0).is_err());
     }
 
     #[test]
