@@ -209,6 +209,23 @@ impl Spectrum {
         self.kvp
     }
 
+    /// Photons per mm² per bin for an exposure of `mas` mAs at `distance_mm` from the focal
+    /// spot (inverse-square law from the 1 m reference): `fluence · mas · (1000 / d)²`.
+    pub fn photons_per_mm2(&self, mas: f64, distance_mm: f64) -> Result<Vec<f64>> {
+        if !(mas.is_finite() && mas >= 0.0) {
+            return Err(SimError::InvalidSpectrum(format!(
+                "exposure {mas} mAs must be a finite number ≥ 0"
+            )));
+        }
+        if !(distance_mm.is_finite() && distance_mm > 0.0) {
+            return Err(SimError::InvalidSpectrum(format!(
+                "distance from the focal spot {distance_mm} mm must be positive"
+            )));
+        }
+        let k = mas * (1000.0 / distance_mm).powi(2);
+        Ok(self.fluence.iter().map(|f| f * k).collect())
+    }
+
     /// Total photons per mAs per mm² at 1 m.
     pub fn total_fluence(&self) -> f64 {
         self.fluence.iter().sum()
@@ -281,6 +298,46 @@ impl Spectrum {
         self.attenuating_thickness_mm(material, 0.5)
     }
 
+    /// Thickness (mm) of `filter_material` to add so that the first HVL in `hvl_material`
+    /// reaches `target_hvl_mm` — how standard beam qualities (e.g. IEC 61267 RQR) are set up.
+    /// Errors if the beam is already harder than the target, or if 100 mm of filter do not
+    /// get there.
+    pub fn filtration_for_hvl_mm(
+        &self,
+        filter_material: &Material,
+        hvl_material: &Material,
+        target_hvl_mm: f64,
+    ) -> Result<f64> {
+        let hvl_with = |t: f64| -> Result<f64> {
+            self.filtered(&Filter::new(filter_material.clone(), t)?)?
+                .half_value_layer_mm(hvl_material)
+        };
+        let h0 = self.half_value_layer_mm(hvl_material)?;
+        if !(target_hvl_mm.is_finite() && target_hvl_mm >= h0) {
+            return Err(SimError::InvalidSpectrum(format!(
+                "target HVL {target_hvl_mm} mm of '{}' is below the unfiltered beam's {h0:.4} mm",
+                hvl_material.name()
+            )));
+        }
+        let (mut a, mut b) = (0.0, 100.0);
+        if hvl_with(b)? < target_hvl_mm {
+            return Err(SimError::InvalidSpectrum(format!(
+                "100 mm of '{}' do not harden the beam to an HVL of {target_hvl_mm} mm",
+                filter_material.name()
+            )));
+        }
+        // The HVL grows monotonically with added filtration: bisect.
+        while b - a > 1e-7 * b.max(1e-3) {
+            let m = 0.5 * (a + b);
+            if hvl_with(m)? < target_hvl_mm {
+                a = m;
+            } else {
+                b = m;
+            }
+        }
+        Ok(0.5 * (a + b))
+    }
+
     /// Second half-value layer, mm: from half to a quarter of the air kerma.
     pub fn second_half_value_layer_mm(&self, material: &Material) -> Result<f64> {
         Ok(self.attenuating_thickness_mm(material, 0.25)? - self.half_value_layer_mm(material)?)
@@ -324,6 +381,15 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(e.contains("stops every photon"), "{e}");
+    }
+
+    #[test]
+    fn photons_follow_mas_and_the_inverse_square_law() {
+        let s = Spectrum::monoenergetic(60.0, 1000.0).unwrap();
+        assert_eq!(s.photons_per_mm2(2.0, 1000.0).unwrap(), vec![2000.0]);
+        assert_eq!(s.photons_per_mm2(1.0, 2000.0).unwrap(), vec![250.0]);
+        assert!(s.photons_per_mm2(-1.0, 1000.0).is_err());
+        assert!(s.photons_per_mm2(1.0, 0.0).is_err());
     }
 
     #[test]
