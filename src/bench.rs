@@ -28,6 +28,10 @@ pub struct BenchArgs {
     /// Also write the markdown here (e.g. docs/benchmarks.md).
     #[arg(long)]
     pub out: Option<PathBuf>,
+    /// Measure the polychromatic physics and detector instead (e.g. with
+    /// `--out docs/physics-benchmarks.md`).
+    #[arg(long)]
+    pub physics: bool,
 }
 
 /// Counts voxels with positive path length.
@@ -101,6 +105,10 @@ fn rms_rel(a: &Projection, reference: &Projection) -> (f64, f64) {
 }
 
 pub fn run(args: BenchArgs) -> Result<()> {
+    if args.physics {
+        let md = crate::bench_physics::section(args.quick, args.repeats)?;
+        return write_page("Physics benchmarks", &md, args.out.as_deref());
+    }
     let threads = rayon::current_num_threads();
     let cpu = std::fs::read_to_string("/proc/cpuinfo")
         .ok()
@@ -261,10 +269,15 @@ pub fn run(args: BenchArgs) -> Result<()> {
         orders.join(", ")
     )?;
 
+    write_page("Projector benchmarks", &md, args.out.as_deref())
+}
+
+/// Prints the markdown and, when asked, writes it (atomically) under a title.
+fn write_page(title: &str, md: &str, out: Option<&std::path::Path>) -> Result<()> {
     println!("{md}");
-    if let Some(path) = args.out {
-        let text = format!("# Projector benchmarks\n\n{md}");
-        tomograf_datasets::atomic::write_atomic(&path, |w| {
+    if let Some(path) = out {
+        let text = format!("# {title}\n\n{md}");
+        tomograf_datasets::atomic::write_atomic(path, |w| {
             std::io::Write::write_all(w, text.as_bytes())
         })?;
         eprintln!("wrote {}", path.display());

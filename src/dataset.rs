@@ -13,6 +13,7 @@
 //! `i, i+n, i+2n, …`; items are independent, so shards produce the same bytes as one run.
 
 use crate::output::write_json;
+use crate::physics::{self, PhysicsArgs};
 use crate::project::load_volume_file;
 use anyhow::{Context, Result, bail};
 use clap::Args;
@@ -76,6 +77,10 @@ pub struct DatasetArgs {
     /// Take only items i, i+n, … of the job: I/N (0-based), for running across machines.
     #[arg(long)]
     pub shard: Option<String>,
+    /// Real detector physics instead of ideal DRRs (item i's noise is seeded from the
+    /// noise seed and i, so shards give the same bytes).
+    #[command(flatten)]
+    pub physics: PhysicsArgs,
 }
 
 /// Where an item comes from.
@@ -100,6 +105,8 @@ struct ItemRecord {
     ct_dims: [usize; 3],
     projections: String,
     projection_quantity: String,
+    #[serde(default)]
+    acquisition: serde_json::Value,
     views: String,
     angles_deg: Vec<[f64; 2]>,
 }
@@ -265,7 +272,11 @@ fn make_item(
     let cropped = crop_black_border(&hu, args.crop_hu)?;
 
     // Projections from the cropped full-resolution volume.
-    let mu = Attenuation::hounsfield_at_kev(args.energy_kev)?.to_mu(cropped.clone())?;
+    let acquisition = physics::from_args(&args.physics)?;
+    let mu = match &acquisition {
+        None => Attenuation::hounsfield_at_kev(args.energy_kev)?.to_mu(cropped.clone())?,
+        Some(_) => cropped.clone(), // classified into tissues below, in HU
+    };
     let mut poses = angles::arc(0.0, 360.0 / args.views as f64, args.views, 0.0)?;
     poses.extend([Pose::AP, Pose::LATERAL]);
     let mut geometry = Geometry {
@@ -280,11 +291,26 @@ fn make_item(
     geometry.detector.pitch_u_mm = pitch;
     geometry.detector.pitch_v_mm = pitch;
     let views: Vec<View> = geometry.views(&poses)?;
-    let renderer = Renderer::new(&mu, Projector::Siddon)?;
     let mut stack = Vec::with_capacity(views.len() * args.size * args.size);
-    for v in &views {
-        stack.extend(renderer.render(v)?.data);
-    }
+    let quantity = match &acquisition {
+        None => {
+            let renderer = Renderer::new(&mu, Projector::Siddon)?;
+            for v in &views {
+                stack.extend(renderer.render(v)?.data);
+            }
+            "line integral ∫mu ds (mu at the effective energy)".to_string()
+        }
+        Some((acq, seed)) => {
+            if acq.detector.channels() != 1 {
+                bail!("data sets hold one image per view: use a one-channel detector");
+            }
+            let prepared = acq.prepare(&mu, physics::item_seed(*seed, index))?;
+            for (i, v) in views.iter().enumerate() {
+                stack.extend(prepared.acquire(Projector::Siddon, v, i)?.remove(0).data);
+            }
+            format!("detector signal: {:?} (see acquisition)", acq.output)
+        }
+    };
 
     // The CT on the training grid, normalised.
     let ct = window.normalize(&resample(&cropped, [args.size; 3])?)?;
@@ -314,7 +340,11 @@ fn make_item(
         ct: "ct.nii.gz".into(),
         ct_dims: ct.dims(),
         projections: "projections.npy".into(),
-        projection_quantity: "line integral ∫mu ds (mu at the effective energy)".into(),
+        projection_quantity: quantity,
+        acquisition: acquisition
+            .as_ref()
+            .map(|(a, s)| serde_json::json!({"settings": a, "noise_seed": s}))
+            .unwrap_or(serde_json::Value::Null),
         views: "views.json".into(),
         angles_deg: poses.iter().map(|p| [p.theta_deg, p.phi_deg]).collect(),
     };

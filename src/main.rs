@@ -1,8 +1,10 @@
 //! `tomograf` — X-ray projections (DRRs) of CT volumes with exact ray tracing.
 
 mod bench;
+mod bench_physics;
 mod dataset;
 mod output;
+mod physics;
 mod project;
 mod scene;
 

@@ -103,8 +103,24 @@ impl Outputs {
         Ok(())
     }
 
-    /// Writes the NPY stack and the sidecar; returns the number of files written in all.
-    pub fn finish(&self, images: &[Projection], sidecar: &Sidecar) -> Result<usize> {
+    /// The outputs of detector channel `c` of `n`: the same, with `_ch{c}` added to the
+    /// prefix when there is more than one channel.
+    pub fn for_channel(&self, c: usize, n: usize) -> Self {
+        Self {
+            dir: self.dir.clone(),
+            prefix: if n > 1 {
+                format!("{}_ch{c}", self.prefix)
+            } else {
+                self.prefix.clone()
+            },
+            formats: self.formats.clone(),
+            window: self.window,
+        }
+    }
+
+    /// Writes the NPY stack and the sidecar (JSON of a [`Sidecar`], possibly extended);
+    /// returns the number of files written in all.
+    pub fn finish(&self, images: &[Projection], mut sidecar: serde_json::Value) -> Result<usize> {
         let per_view = self.formats.iter().filter(|f| **f != Format::Npy).count();
         let mut files = per_view * images.len();
         if self.formats.contains(&Format::Npy) && !images.is_empty() {
@@ -122,7 +138,6 @@ impl Outputs {
             )?;
             files += 1;
         }
-        let mut sidecar = serde_json::to_value(sidecar)?;
         sidecar["files"] = serde_json::json!({
             "formats": self.formats,
             "per_view": format!("{}_NNN.<ext> (NNN = view index)", self.prefix),

@@ -1,6 +1,7 @@
 //! `tomograf project`: resolve a scene (file + flags), render every view, write outputs.
 
 use crate::output::{self, Format, Outputs};
+use crate::physics::{self, PhysicsArgs};
 use crate::scene::{ExplicitView, Scene};
 use anyhow::{Context, Result, bail};
 use clap::Args;
@@ -13,7 +14,8 @@ use tomograf_sim::attenuation::Attenuation;
 use tomograf_sim::geometry::angles;
 use tomograf_sim::phantom::Phantom;
 use tomograf_sim::{
-    Beam, Detector, Geometry, Pose, Projector, Quantity, Renderer, View, ViewBeam, Volume,
+    Beam, Detector, Geometry, Pose, Projection, Projector, Quantity, Renderer, View, ViewBeam,
+    Volume,
 };
 
 /// Default grid of the built-in phantom when rendered directly: 256 × 256 × 133 voxels of
@@ -99,6 +101,8 @@ pub struct ProjectArgs {
     /// Voxel size of the built-in phantom, mm [default: 1.4,1.4,2.5].
     #[arg(long, value_parser = parse3)]
     pub phantom_spacing: Option<[f64; 3]>,
+    #[command(flatten)]
+    pub physics: PhysicsArgs,
 }
 
 #[derive(Debug, Args)]
@@ -233,6 +237,17 @@ pub struct VolumeSource {
 
 /// Loads the input volume (or phantom) and converts it to mu (mm⁻¹).
 pub fn load_mu(scene: &Scene) -> Result<(Volume, VolumeSource)> {
+    load(scene, None)
+}
+
+/// Loads the input volume (or phantom) in HU, for real detector physics whose tissue
+/// model is calibrated at `calibration_kev` (recorded as the volume's HU → mu energy).
+pub fn load_hu(scene: &Scene, calibration_kev: f64) -> Result<(Volume, VolumeSource)> {
+    load(scene, Some(calibration_kev))
+}
+
+/// Loads the input; converts HU to mu unless `keep_hu` (the calibration energy) is given.
+fn load(scene: &Scene, keep_hu: Option<f64>) -> Result<(Volume, VolumeSource)> {
     let v = &scene.volume;
     let units = v
         .units
@@ -249,17 +264,33 @@ pub fn load_mu(scene: &Scene) -> Result<(Volume, VolumeSource)> {
             Some("thorax"),
         ),
     };
-    let attenuation = match units.as_str() {
-        "hu" => Attenuation::hounsfield_at_kev(v.energy_kev.unwrap_or(60.0))?,
-        "mu" => {
+    let attenuation = match (units.as_str(), keep_hu) {
+        ("hu", Some(e)) => {
+            if v.energy_kev.is_some() {
+                bail!(
+                    "--energy-kev is the monochromatic DRR's energy; with a spectrum the CT's \
+                     energy is [materials] calibration_kev"
+                );
+            }
+            Attenuation::hounsfield_at_kev(e)?
+        }
+        (_, Some(_)) => bail!(
+            "real detector physics classifies tissues by CT number: the input must be in HU \
+             (--units hu)"
+        ),
+        ("hu", None) => Attenuation::hounsfield_at_kev(v.energy_kev.unwrap_or(60.0))?,
+        ("mu", None) => {
             if v.energy_kev.is_some() {
                 bail!("--energy-kev only applies to HU input (--units hu)");
             }
             Attenuation::LinearPerMm
         }
-        other => bail!("unknown units '{other}': use hu (Hounsfield) or mu (mm⁻¹)"),
+        (other, None) => bail!("unknown units '{other}': use hu (Hounsfield) or mu (mm⁻¹)"),
     };
-    let mu = attenuation.to_mu(vol)?;
+    let mu = match keep_hu {
+        Some(_) => vol,
+        None => attenuation.to_mu(vol)?,
+    };
     let d = mu.direction();
     let source = VolumeSource {
         path: v.path.clone(),
@@ -370,6 +401,7 @@ fn merge(args: &ProjectArgs) -> Result<Scene> {
     if let Some([lo, hi]) = args.window {
         s.output.window = Some([lo as f32, hi as f32]);
     }
+    args.physics.merge_into(&mut s)?;
     Ok(s)
 }
 
@@ -508,14 +540,39 @@ fn explicit_view(e: &ExplicitView) -> Result<View> {
     Ok(v)
 }
 
+/// Renders view number `i`: one image per detector channel.
+type RenderView<'a> = dyn Fn(usize, &View) -> Result<Vec<Projection>> + 'a;
+
 pub fn run(args: ProjectArgs) -> Result<()> {
     let t0 = Instant::now();
     let scene = merge(&args)?;
     let outputs = Outputs::from_scene(&scene)?;
-    let (mu, source) = load_mu(&scene)?;
+    let acquisition = physics::acquisition(&scene)?;
+    let (vol, source) = match &acquisition {
+        None => load_mu(&scene)?,
+        Some((acq, _)) => load_hu(&scene, acq.materials.calibration_kev)?,
+    };
     let t_load = t0.elapsed();
-    let job = resolve(&scene, &mu)?;
-    let renderer = Renderer::new(&mu, job.projector)?;
+    let job = resolve(&scene, &vol)?;
+    // One view → one image per detector channel.
+    let prepared;
+    let renderer;
+    let render: Box<RenderView> = match &acquisition {
+        None => {
+            renderer = Renderer::new(&vol, job.projector)?;
+            Box::new(|_, view| Ok(vec![renderer.render(view)?.to_quantity(job.quantity)]))
+        }
+        Some((acq, seed)) => {
+            if scene.output.quantity.is_some() || scene.output.i0.is_some() {
+                bail!(
+                    "--quantity and --i0 are for the ideal DRR; with real detector physics the \
+                     image is the detector's --signal (raw, flat-field or log-line-integral)"
+                );
+            }
+            prepared = acq.prepare(&vol, *seed)?;
+            Box::new(|i, view| Ok(prepared.acquire(job.projector, view, i)?))
+        }
+    };
     outputs.prepare()?;
 
     let bar = ProgressBar::new(job.views.len() as u64).with_style(
@@ -529,17 +586,42 @@ pub fn run(args: ProjectArgs) -> Result<()> {
         bar.set_draw_target(indicatif::ProgressDrawTarget::hidden());
     }
     let mut render_time = std::time::Duration::ZERO;
-    let mut images = Vec::with_capacity(job.views.len());
+    let mut channels: Vec<Vec<Projection>> = Vec::new();
+    let mut channel_outputs: Vec<Outputs> = Vec::new();
     for (i, view) in job.views.iter().enumerate() {
         let t = Instant::now();
-        let img = renderer.render(view)?.to_quantity(job.quantity);
+        let images = render(i, view)?;
         render_time += t.elapsed();
-        outputs.write_view(i, &img)?;
-        images.push(img);
+        if channel_outputs.is_empty() {
+            channel_outputs = (0..images.len())
+                .map(|c| outputs.for_channel(c, images.len()))
+                .collect();
+            channels = vec![Vec::with_capacity(job.views.len()); images.len()];
+        }
+        for ((img, out), stack) in images.into_iter().zip(&channel_outputs).zip(&mut channels) {
+            out.write_view(i, &img)?;
+            stack.push(img);
+        }
         bar.inc(1);
     }
     bar.finish_and_clear();
-    let files = outputs.finish(&images, &output::Sidecar::new(&source, &job))?;
+    let mut sidecar = serde_json::to_value(output::Sidecar::new(&source, &job))?;
+    if let Some((acq, seed)) = &acquisition {
+        sidecar["quantity"] = serde_json::json!("detector signal (see acquisition)");
+        sidecar["acquisition"] = serde_json::to_value(acq)?;
+        sidecar["acquisition"]["seed"] = serde_json::json!(seed);
+        sidecar["acquisition"]["frame_seeds"] = serde_json::json!(
+            "view i: SplitMix64(seed ^ (i+1)·0x9E3779B97F4A7C15); calibration: frame 0"
+        );
+    }
+    let mut files = 0;
+    for (c, (out, images)) in channel_outputs.iter().zip(&channels).enumerate() {
+        let mut sc = sidecar.clone();
+        if channel_outputs.len() > 1 {
+            sc["channel"] = serde_json::json!(c);
+        }
+        files += out.finish(images, sc)?;
+    }
     eprintln!(
         "rendered {} view(s) of {}×{} in {:.1} ms ({:.1} ms per view; loading {:.0} ms); wrote {} file(s) to {}",
         job.views.len(),

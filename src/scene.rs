@@ -38,6 +38,29 @@
 //! window = [0.0, 8.0]         # PNG grey window; default: each image's min..max
 //! ```
 //!
+//! Real detector physics (polychromatic beam, tissues, detector; `docs/physics.md`):
+//!
+//! ```toml
+//! [acquisition]
+//! preset = "kv-flat-panel-120kvp"   # or "cbct-100kvp"; "ideal-drr" = the DRR above
+//! seed = 7                          # detector noise
+//! signal = "log-line-integral"      # or "raw", "flat-field"
+//!
+//! [spectrum]                        # replaces the preset's beam
+//! kvp = 120                         # or energy_kev = 60, or file = "spectrum.csv"
+//! filtration = [{ material = "al", thickness_mm = 2.5 }, { material = "cu", thickness_mm = 0.1 }]
+//! bins = 20                         # rebin (default: 1 keV)
+//! mas = 2.0
+//!
+//! [materials]
+//! model = "schneider"               # or "five-tissue", "water"
+//! calibration_kev = 70.0
+//!
+//! [detector]                        # besides rows/cols/pitch_mm/offset_mm
+//! model = "kv-flat-panel"           # or "ideal", "cbct", "photon-counting"
+//! thresholds_kev = [20.0, 50.0]     # photon-counting only
+//! ```
+//!
 //! Views may also be given in the general form, one table each:
 //!
 //! ```toml
@@ -53,6 +76,9 @@
 use anyhow::{Context, Result};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
+use tomograf_sim::acquisition::SpectrumSpec;
+use tomograf_sim::detector::DetectorModel;
+use tomograf_sim::tissue::TissueBin;
 
 /// A scene file: every section optional.
 #[derive(Debug, Clone, Default, Serialize, Deserialize)]
@@ -70,6 +96,35 @@ pub struct Scene {
     pub projector: ProjectorSection,
     #[serde(default)]
     pub output: OutputSection,
+    #[serde(default)]
+    pub acquisition: AcquisitionSection,
+    pub spectrum: Option<SpectrumSpec>,
+    pub materials: Option<MaterialsSection>,
+}
+
+/// Which physics between the traced paths and the image (see `crate::physics`).
+#[derive(Debug, Clone, Default, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct AcquisitionSection {
+    /// "ideal-drr" (the monochromatic projector; the default), or a preset of
+    /// `tomograf_sim::acquisition::PRESETS`.
+    pub preset: Option<String>,
+    /// Seed of the detector noise (view i uses a seed derived from it and i).
+    pub seed: Option<u64>,
+    /// raw, flat-field or log-line-integral.
+    pub signal: Option<String>,
+}
+
+/// HU → materials: a named model, or explicit HU intervals.
+#[derive(Debug, Clone, Default, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MaterialsSection {
+    /// schneider, five-tissue or water.
+    pub model: Option<String>,
+    /// Effective energy of the CT scan, keV (where densities are calibrated).
+    pub calibration_kev: Option<f64>,
+    /// Explicit HU intervals (replace the model's).
+    pub bins: Option<Vec<TissueBin>>,
 }
 
 #[derive(Debug, Clone, Default, Serialize, Deserialize)]
@@ -99,6 +154,12 @@ pub struct DetectorSection {
     pub cols: Option<usize>,
     pub pitch_mm: Option<[f64; 2]>,
     pub offset_mm: Option<[f64; 2]>,
+    /// Detector physics preset: ideal, kv-flat-panel, cbct or photon-counting.
+    pub model: Option<String>,
+    /// Energy thresholds (keV) of the photon-counting model.
+    pub thresholds_kev: Option<Vec<f64>>,
+    /// The detector physics in full (replaces `model`).
+    pub response: Option<DetectorModel>,
 }
 
 #[derive(Debug, Clone, Default, Serialize, Deserialize)]
@@ -148,10 +209,18 @@ impl Scene {
             .with_context(|| format!("cannot read scene file {}", path.display()))?;
         let mut scene: Scene = toml::from_str(&text)
             .with_context(|| format!("scene file {} is not valid", path.display()))?;
-        if let (Some(p), Some(dir)) = (&scene.volume.path, path.parent())
-            && p.is_relative()
-        {
-            scene.volume.path = Some(dir.join(p));
+        if let Some(dir) = path.parent() {
+            for p in [
+                scene.volume.path.as_mut(),
+                scene.spectrum.as_mut().and_then(|s| s.file.as_mut()),
+            ]
+            .into_iter()
+            .flatten()
+            {
+                if p.is_relative() {
+                    *p = dir.join(&*p);
+                }
+            }
         }
         Ok(scene)
     }

@@ -26,7 +26,7 @@ use serde::{Deserialize, Serialize};
 /// One HU interval: every CT number below `below_hu` (and at or above the previous
 /// interval's bound) is `material`, or the mass mixture `mix` when given.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(rename_all = "kebab-case", deny_unknown_fields)]
+#[serde(rename_all = "snake_case", deny_unknown_fields)]
 pub struct TissueBin {
     /// Upper bound, HU (exclusive); the last bin's is ignored (it takes everything above).
     pub below_hu: f64,
@@ -39,7 +39,7 @@ pub struct TissueBin {
 
 /// A piecewise HU → material model with its calibration energy.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(rename_all = "kebab-case", deny_unknown_fields)]
+#[serde(rename_all = "snake_case", deny_unknown_fields)]
 pub struct TissueModel {
     /// Effective energy of the CT scan the HU come from (keV): where densities are
     /// calibrated.

@@ -30,7 +30,7 @@ use serde::{Deserialize, Serialize};
 
 /// The light-spread PSF (see the module docs). All zero: no blur.
 #[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
-#[serde(rename_all = "kebab-case", deny_unknown_fields)]
+#[serde(rename_all = "snake_case", deny_unknown_fields)]
 pub struct Blur {
     /// Standard deviation of the Gaussian core, mm; ≥ 0 (0: no core spread).
     #[serde(default)]

@@ -16,7 +16,7 @@ use serde::{Deserialize, Serialize};
 
 /// How flat and dark fields are acquired.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
-#[serde(rename_all = "kebab-case", deny_unknown_fields)]
+#[serde(rename_all = "snake_case", deny_unknown_fields)]
 pub struct Calibration {
     /// Open-beam frames averaged into the flat field; 0: the noiseless expectation.
     #[serde(default)]

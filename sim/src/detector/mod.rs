@@ -168,9 +168,9 @@ impl ExpectedImage {
     }
 }
 
-/// The detector physics, configurable from a scene's `[detector]` table (kebab-case keys).
+/// The detector physics, configurable from a scene's `[detector]` table (snake_case keys, kebab-case values).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(rename_all = "kebab-case", deny_unknown_fields)]
+#[serde(rename_all = "snake_case", deny_unknown_fields)]
 pub struct DetectorModel {
     /// Energy response.
     #[serde(default = "default_mode")]

@@ -19,7 +19,7 @@ use serde::{Deserialize, Serialize};
 
 /// Readout parameters (signal units: ADU for energy integration, counts for counting).
 #[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
-#[serde(rename_all = "kebab-case", deny_unknown_fields)]
+#[serde(rename_all = "snake_case", deny_unknown_fields)]
 pub struct Readout {
     /// Half-width x of the per-pixel gain spread, gain uniform in [1 − x, 1 + x];
     /// in [0, 0.5]. 0: unit gain everywhere.

@@ -26,7 +26,7 @@ use serde::{Deserialize, Serialize};
 #[serde(
     tag = "kind",
     rename_all = "kebab-case",
-    rename_all_fields = "kebab-case",
+    rename_all_fields = "snake_case",
     deny_unknown_fields
 )]
 pub enum Mode {
@@ -133,7 +133,7 @@ pub fn absorption_efficiency(mu_per_mm: f64, thickness_mm: f64) -> f64 {
 /// caller turns μ(E) into η(E) with [`Scintillator::absorption`] and passes η to
 /// [`channel_weights`].
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(rename_all = "kebab-case", deny_unknown_fields)]
+#[serde(rename_all = "snake_case", deny_unknown_fields)]
 pub struct Scintillator {
     /// Material name as the materials tables know it (e.g. "CsI", "Gd2O2S").
     pub material: String,

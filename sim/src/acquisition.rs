@@ -1,0 +1,291 @@
+//! An X-ray acquisition: everything between the traced paths and the recorded image — the
+//! beam's spectrum and exposure, what the voxels are made of, and the detector.
+//!
+//! Data flow of one view: CT (HU) → [`crate::tissue`] composition (once per volume) →
+//! per-material mass thickness ([`crate::render::Renderer::mass_thickness`], one trace)
+//! → [`crate::polychromatic`] expected signal per detector channel → [`crate::detector`]
+//! (noise, blur, readout, flat/dark correction, −log) → images.
+//!
+//! A scene asks only for what it needs: the `ideal-drr` preset is not an acquisition at
+//! all but the monochromatic projector itself (see the CLI), and materials that do not
+//! occur in the volume are dropped before tracing.
+
+use crate::composition::Composition;
+use crate::detector::{DetectorModel, ExpectedImage, FlatField, Output};
+use crate::error::{Result, SimError};
+use crate::geometry::View;
+use crate::material::{self, Material};
+use crate::polychromatic::SpectralIntegrator;
+use crate::render::{MassThickness, Projection, Projector, Renderer};
+use crate::spectrum::{Filter, Spectrum};
+use crate::tissue::TissueModel;
+use crate::volume::Volume;
+use serde::{Deserialize, Serialize};
+use std::sync::Mutex;
+
+/// Where the beam's spectrum comes from (a scene's `[spectrum]` table).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case", deny_unknown_fields)]
+pub struct SpectrumSpec {
+    /// Tube voltage of a tungsten-anode spectrum (kVp, 40–150). Exclusive with
+    /// `energy-kev` and `file`.
+    #[serde(default)]
+    pub kvp: Option<f64>,
+    /// A monoenergetic beam at this energy (keV).
+    #[serde(default)]
+    pub energy_kev: Option<f64>,
+    /// A user spectrum file (keV, photons per mAs per mm² at 1 m; see
+    /// [`Spectrum::from_file`]).
+    #[serde(default)]
+    pub file: Option<std::path::PathBuf>,
+    /// Added filtration, applied in order.
+    #[serde(default)]
+    pub filtration: Vec<FilterSpec>,
+    /// Rebin to this many energy bins (fewer bins: faster, less exact; see
+    /// docs/physics.md for the trade). Default: the table's 1 keV bins.
+    #[serde(default)]
+    pub bins: Option<usize>,
+    /// Tube current–time product (mA·s) per view.
+    #[serde(default = "default_mas")]
+    pub mas: f64,
+}
+
+fn default_mas() -> f64 {
+    1.0
+}
+
+/// One added filter: a material name and its thickness (mm).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case", deny_unknown_fields)]
+pub struct FilterSpec {
+    /// Material name ([`material::by_name`]), e.g. "al", "cu".
+    pub material: String,
+    /// Thickness, mm.
+    pub thickness_mm: f64,
+}
+
+impl SpectrumSpec {
+    /// A tungsten spectrum at `kvp` with added filtration (material, mm).
+    pub fn tungsten(kvp: f64, filtration: &[(&str, f64)], mas: f64) -> Self {
+        Self {
+            kvp: Some(kvp),
+            energy_kev: None,
+            file: None,
+            filtration: filtration
+                .iter()
+                .map(|(m, t)| FilterSpec {
+                    material: m.to_string(),
+                    thickness_mm: *t,
+                })
+                .collect(),
+            bins: None,
+            mas,
+        }
+    }
+
+    /// The spectrum this describes (photons per bin per mAs per mm² at 1 m).
+    pub fn spectrum(&self) -> Result<Spectrum> {
+        let base = match (self.kvp, self.energy_kev, &self.file) {
+            (Some(kvp), None, None) => Spectrum::tungsten(kvp, &[])?,
+            (None, Some(e), None) => Spectrum::monoenergetic(e, 1.0)?,
+            (None, None, Some(path)) => Spectrum::from_file(path)?,
+            _ => {
+                return Err(SimError::OutOfRange(
+                    "[spectrum] needs exactly one of kvp, energy-kev or file".into(),
+                ));
+            }
+        };
+        let mut s = base;
+        for f in &self.filtration {
+            s = s.filtered(&Filter::named(&f.material, f.thickness_mm)?)?;
+        }
+        if let Some(n) = self.bins {
+            if n == 0 {
+                return Err(SimError::OutOfRange("[spectrum] bins = 0; give ≥ 1".into()));
+            }
+            s = s.rebinned(n);
+        }
+        if !(self.mas.is_finite() && self.mas > 0.0) {
+            return Err(SimError::OutOfRange(format!(
+                "[spectrum] mas = {}; it must be finite and > 0",
+                self.mas
+            )));
+        }
+        Ok(s)
+    }
+}
+
+/// A complete acquisition: spectrum, tissue model, detector and what to output.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case", deny_unknown_fields)]
+pub struct Acquisition {
+    /// The beam.
+    pub spectrum: SpectrumSpec,
+    /// HU → materials.
+    pub materials: TissueModel,
+    /// The detector.
+    pub detector: DetectorModel,
+    /// What the image holds: raw signal, flat-field-corrected transmission, or −log.
+    #[serde(default)]
+    pub output: Output,
+}
+
+/// Names of the acquisition presets ([`Acquisition::preset`]); `ideal-drr` is the
+/// monochromatic projector and has no acquisition.
+pub const PRESETS: &[&str] = &["ideal-drr", "kv-flat-panel-120kvp", "cbct-100kvp"];
+
+impl Acquisition {
+    /// A named preset:
+    /// * `kv-flat-panel-120kvp` — chest radiography: 120 kVp, 2.5 mm Al + 0.1 mm Cu added,
+    ///   2 mAs, Schneider tissues, indirect CsI flat panel, −log output;
+    /// * `cbct-100kvp` — a linac/C-arm CBCT projection: 100 kVp, 2.5 mm Al + 0.2 mm Cu
+    ///   (bow-tie not modelled), 0.4 mAs, Schneider tissues, CBCT panel, −log output.
+    pub fn preset(name: &str) -> Result<Self> {
+        match name {
+            "kv-flat-panel-120kvp" => Ok(Self {
+                spectrum: SpectrumSpec::tungsten(120.0, &[("al", 2.5), ("cu", 0.1)], 2.0),
+                materials: TissueModel::schneider(),
+                detector: DetectorModel::kv_flat_panel(),
+                output: Output::LogLineIntegral,
+            }),
+            "cbct-100kvp" => Ok(Self {
+                spectrum: SpectrumSpec::tungsten(100.0, &[("al", 2.5), ("cu", 0.2)], 0.4),
+                materials: TissueModel::schneider(),
+                detector: DetectorModel::cbct(),
+                output: Output::LogLineIntegral,
+            }),
+            "ideal-drr" => Err(SimError::OutOfRange(
+                "'ideal-drr' is the monochromatic projector itself, not an acquisition".into(),
+            )),
+            _ => Err(SimError::OutOfRange(format!(
+                "unknown acquisition preset '{name}'; presets are {}",
+                PRESETS.join(", ")
+            ))),
+        }
+    }
+
+    /// Resolves the spectrum, materials and detector for a CT volume (HU): classifies the
+    /// voxels (once) and tabulates every present material's attenuation and the
+    /// detector's response at the spectrum's energies. `seed` seeds the detector noise:
+    /// view `i`'s frame and the calibration frames each get a stream derived from it.
+    pub fn prepare(&self, hu: &Volume, seed: u64) -> Result<Prepared> {
+        self.detector.validate()?;
+        let spectrum = self.spectrum.spectrum()?;
+        let (composition, materials) = self.materials.composition(hu)?;
+        let energies = spectrum.energies_kev().to_vec();
+        let table = |m: &Material| {
+            energies
+                .iter()
+                .map(|&e| m.mass_attenuation(e))
+                .collect::<Result<Vec<f64>>>()
+        };
+        let attenuation = materials
+            .iter()
+            .map(|m| Ok((m.name().to_string(), table(m)?)))
+            .collect::<Result<Vec<_>>>()?;
+        let absorption = match &self.detector.scintillator {
+            Some(s) => {
+                let m = material::by_name(&s.material)?;
+                let mu: Vec<f64> = table(&m)?.iter().map(|a| a * m.density() / 10.0).collect();
+                s.absorption(&mu)?
+            }
+            None => vec![1.0; energies.len()],
+        };
+        let weights = self.detector.channel_weights(&energies, &absorption)?;
+        let integrator =
+            SpectralIntegrator::new(energies, spectrum.fluence(), attenuation, &weights)?;
+        Ok(Prepared {
+            composition,
+            integrator,
+            detector: self.detector.clone(),
+            output: self.output,
+            mas: self.spectrum.mas,
+            seed,
+            flat: Mutex::new(None),
+        })
+    }
+}
+
+/// An acquisition resolved for one volume: render views with [`Prepared::acquire`].
+#[derive(Debug)]
+pub struct Prepared {
+    composition: Composition,
+    integrator: SpectralIntegrator,
+    detector: DetectorModel,
+    output: Output,
+    mas: f64,
+    seed: u64,
+    /// The last flat/dark calibration and the open field it was made for: views whose
+    /// open field is the same (every view of a circular orbit) share one calibration, as
+    /// on a real system.
+    flat: Mutex<Option<(Vec<f64>, FlatField)>>,
+}
+
+impl Prepared {
+    /// The volume's material composition.
+    pub fn composition(&self) -> &Composition {
+        &self.composition
+    }
+
+    /// The spectral model.
+    pub fn integrator(&self) -> &SpectralIntegrator {
+        &self.integrator
+    }
+
+    /// Per-material mass thickness of one view.
+    pub fn mass_thickness(&self, projector: Projector, view: &View) -> Result<MassThickness> {
+        Renderer::for_composition(&self.composition, projector)?
+            .mass_thickness(view, self.composition.materials())
+    }
+
+    /// The expected (noiseless) signal of a view, and of the same view without the object
+    /// (for flat fields).
+    pub fn expected(
+        &self,
+        projector: Projector,
+        view: &View,
+    ) -> Result<(ExpectedImage, ExpectedImage)> {
+        let t = self.mass_thickness(projector, view)?;
+        let object = self.integrator.expected(&t, view, self.mas)?;
+        let open = self.integrator.open(view, self.mas)?;
+        Ok((object, open))
+    }
+
+    /// Acquired view number `index`: one image per detector channel, as the acquisition's
+    /// output says. Its noise stream is derived from the seed and `index` alone, and the
+    /// flat/dark calibration (when the output needs one) from the seed alone, so the bytes
+    /// do not depend on the order views are acquired in or on the thread count.
+    pub fn acquire(
+        &self,
+        projector: Projector,
+        view: &View,
+        index: usize,
+    ) -> Result<Vec<Projection>> {
+        let t = self.mass_thickness(projector, view)?;
+        let object = self.integrator.expected(&t, view, self.mas)?;
+        let raw = self
+            .detector
+            .record(&object, frame_seed(self.seed, index as u64 + 1))?;
+        if self.output == Output::Raw {
+            return Ok(raw);
+        }
+        let open = self.integrator.open(view, self.mas)?;
+        let mut cache = self.flat.lock().unwrap_or_else(|e| e.into_inner());
+        let fresh = !matches!(&*cache, Some((mean, _)) if *mean == open.mean);
+        if fresh {
+            let flat = self.detector.calibrate(&open, frame_seed(self.seed, 0))?;
+            *cache = Some((open.mean, flat));
+        }
+        let (_, flat) = cache.as_ref().expect("calibrated above");
+        flat.apply(&raw, self.output)
+    }
+}
+
+/// The noise seed of frame `frame` (0: calibration, i + 1: view i) from an acquisition seed:
+/// SplitMix64 of the pair, so neighbouring seeds and frames give unrelated streams.
+pub fn frame_seed(seed: u64, frame: u64) -> u64 {
+    let mut z = seed ^ frame.wrapping_mul(0x9E37_79B9_7F4A_7C15);
+    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+    z ^ (z >> 31)
+}

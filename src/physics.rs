@@ -1,0 +1,179 @@
+//! Real detector physics on the command line: the scene's `[acquisition]`, `[spectrum]`,
+//! `[materials]` and detector-model fields (and their flags) resolved into a
+//! [`tomograf_sim::acquisition::Acquisition`]. A scene that asks for none of it renders the
+//! ideal DRR with the monochromatic projector and pays for nothing else.
+
+use crate::scene::Scene;
+use anyhow::{Result, bail};
+use clap::Args;
+use tomograf_sim::acquisition::{Acquisition, PRESETS, SpectrumSpec};
+use tomograf_sim::detector::{DetectorModel, Output};
+use tomograf_sim::tissue::TissueModel;
+
+/// Flags of `tomograf project` and `tomograf dataset` for real detector physics.
+#[derive(Debug, Args, Clone, Default)]
+pub struct PhysicsArgs {
+    /// Acquisition preset: ideal-drr (the default: monochromatic DRR), kv-flat-panel-120kvp
+    /// or cbct-100kvp. See docs/physics.md.
+    #[arg(long)]
+    pub preset: Option<String>,
+    /// Tungsten-anode tube voltage, kVp (40–150); replaces the preset's spectrum.
+    #[arg(long)]
+    pub kvp: Option<f64>,
+    /// Exposure per view, mA·s.
+    #[arg(long)]
+    pub mas: Option<f64>,
+    /// Rebin the spectrum to this many energy bins [default: 1 keV bins].
+    #[arg(long)]
+    pub energy_bins: Option<usize>,
+    /// Seed of the detector noise [default: 0].
+    #[arg(long)]
+    pub noise_seed: Option<u64>,
+    /// What the detector images hold: raw, flat-field or log-line-integral
+    /// [default: log-line-integral].
+    #[arg(long)]
+    pub signal: Option<String>,
+}
+
+impl PhysicsArgs {
+    /// Writes the flags into the scene (flags win).
+    pub fn merge_into(&self, s: &mut Scene) -> Result<()> {
+        if self.preset.is_some() {
+            s.acquisition.preset = self.preset.clone();
+        }
+        if self.noise_seed.is_some() {
+            s.acquisition.seed = self.noise_seed;
+        }
+        if self.signal.is_some() {
+            s.acquisition.signal = self.signal.clone();
+        }
+        if let Some(kvp) = self.kvp {
+            let old = s.spectrum.take();
+            s.spectrum = Some(SpectrumSpec {
+                kvp: Some(kvp),
+                energy_kev: None,
+                file: None,
+                ..old.unwrap_or_else(|| SpectrumSpec::tungsten(kvp, &[], 1.0))
+            });
+        }
+        if self.mas.is_some() || self.energy_bins.is_some() {
+            let spec = match (s.spectrum.as_mut(), s.acquisition.preset.as_deref()) {
+                (Some(spec), _) => spec,
+                (None, Some(p)) if p != "ideal-drr" => {
+                    s.spectrum = Some(Acquisition::preset(p)?.spectrum);
+                    s.spectrum.as_mut().expect("just set")
+                }
+                _ => bail!("--mas and --energy-bins need a spectrum: give --kvp or --preset"),
+            };
+            if let Some(m) = self.mas {
+                spec.mas = m;
+            }
+            if let Some(b) = self.energy_bins {
+                spec.bins = Some(b);
+            }
+        }
+        Ok(())
+    }
+}
+
+/// The acquisition the flags alone ask for (no scene file), with its noise seed.
+pub fn from_args(args: &PhysicsArgs) -> Result<Option<(Acquisition, u64)>> {
+    let mut scene = Scene::default();
+    args.merge_into(&mut scene)?;
+    acquisition(&scene)
+}
+
+/// The acquisition a scene asks for, with its noise seed; `None` for the ideal DRR.
+pub fn acquisition(scene: &Scene) -> Result<Option<(Acquisition, u64)>> {
+    let d = &scene.detector;
+    let a = &scene.acquisition;
+    let asks = scene.spectrum.is_some()
+        || scene.materials.is_some()
+        || d.model.is_some()
+        || d.response.is_some()
+        || d.thresholds_kev.is_some()
+        || a.signal.is_some()
+        || a.seed.is_some();
+    let mut acq = match a.preset.as_deref() {
+        None | Some("ideal-drr") if !asks => return Ok(None),
+        Some("ideal-drr") => bail!(
+            "preset ideal-drr is the monochromatic projector: it takes no spectrum, materials, \
+             detector model, signal or seed (choose one of {})",
+            PRESETS.join(", ")
+        ),
+        Some(p) => Acquisition::preset(p)?,
+        None => {
+            let Some(spectrum) = scene.spectrum.clone() else {
+                bail!(
+                    "real detector physics needs a beam: give [spectrum] (or --kvp) or a preset \
+                     ({})",
+                    PRESETS.join(", ")
+                );
+            };
+            Acquisition {
+                spectrum,
+                materials: TissueModel::schneider(),
+                detector: DetectorModel::ideal(),
+                output: Output::LogLineIntegral,
+            }
+        }
+    };
+    if let Some(s) = &scene.spectrum {
+        acq.spectrum = s.clone();
+    }
+    if let Some(m) = &scene.materials {
+        let mut model = match m.model.as_deref() {
+            None | Some("schneider") => TissueModel::schneider(),
+            Some("five-tissue") => TissueModel::five_tissue(),
+            Some("water") => TissueModel::water(70.0),
+            Some(other) => {
+                bail!("unknown materials model '{other}': use schneider, five-tissue or water")
+            }
+        };
+        if let Some(bins) = &m.bins {
+            model.bins = bins.clone();
+        }
+        if let Some(e) = m.calibration_kev {
+            model.calibration_kev = e;
+        }
+        model.validate()?;
+        acq.materials = model;
+    }
+    if let Some(r) = &d.response {
+        if d.model.is_some() || d.thresholds_kev.is_some() {
+            bail!("[detector] response replaces model and thresholds_kev: give one or the other");
+        }
+        acq.detector = r.clone();
+    } else if let Some(m) = &d.model {
+        acq.detector = match m.as_str() {
+            "ideal" => DetectorModel::ideal(),
+            "kv-flat-panel" => DetectorModel::kv_flat_panel(),
+            "cbct" => DetectorModel::cbct(),
+            "photon-counting" => DetectorModel::photon_counting(
+                d.thresholds_kev.clone().unwrap_or_else(|| vec![20.0]),
+            ),
+            other => bail!(
+                "unknown detector model '{other}': use ideal, kv-flat-panel, cbct or \
+                 photon-counting"
+            ),
+        };
+    }
+    if d.thresholds_kev.is_some() && d.model.as_deref() != Some("photon-counting") {
+        bail!("thresholds_kev applies to the photon-counting detector model only");
+    }
+    if let Some(s) = &a.signal {
+        acq.output = match s.as_str() {
+            "raw" => Output::Raw,
+            "flat-field" => Output::FlatField,
+            "log-line-integral" => Output::LogLineIntegral,
+            other => bail!("unknown signal '{other}': use raw, flat-field or log-line-integral"),
+        };
+    }
+    acq.detector.validate()?;
+    Ok(Some((acq, a.seed.unwrap_or(0))))
+}
+
+/// The noise seed of data-set item `index` from the run's noise seed.
+pub fn item_seed(seed: u64, index: usize) -> u64 {
+    tomograf_sim::acquisition::frame_seed(seed ^ 0xD47A_5E7D_A7A5_E7D0, index as u64)
+}
