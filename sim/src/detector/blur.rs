@@ -248,21 +248,57 @@ fn separable(image: &[f64], rows: usize, cols: usize, ku: &Kernel, kv: &Kernel) 
     a.par_chunks_mut(cols)
         .zip(image.par_chunks(cols))
         .for_each(|(dst, src)| filter_line(src, dst, ku));
-    let t = transpose(&a, rows, cols);
-    t.par_chunks(rows)
-        .zip(a.par_chunks_mut(rows))
-        .for_each(|(src, dst)| filter_line(src, dst, kv));
-    transpose(&a, cols, rows)
+    let mut b = vec![0.0; image.len()];
+    filter_columns(&a, &mut b, rows, cols, kv);
+    b
 }
 
-fn transpose(src: &[f64], rows: usize, cols: usize) -> Vec<f64> {
-    let mut dst = vec![0.0; src.len()];
-    dst.par_chunks_mut(rows).enumerate().for_each(|(c, col)| {
-        for (r, d) in col.iter_mut().enumerate() {
-            *d = src[r * cols + c];
+/// Filters every column of a row-major image, working on whole rows at a time (so the
+/// inner loops run along memory), edges replicated.
+fn filter_columns(src: &[f64], dst: &mut [f64], rows: usize, cols: usize, k: &Kernel) {
+    let row = |r: usize| &src[r * cols..(r + 1) * cols];
+    match k {
+        Kernel::Fir { taps, radius } => {
+            dst.par_chunks_mut(cols).enumerate().for_each(|(r, out)| {
+                out.fill(0.0);
+                for (j, &kj) in taps.iter().enumerate() {
+                    let rr = (r + j).saturating_sub(*radius).min(rows - 1);
+                    for (o, &x) in out.iter_mut().zip(row(rr)) {
+                        *o += kj * x;
+                    }
+                }
+            });
         }
-    });
-    dst
+        &Kernel::Exp { c0, a1, r } => {
+            // The recursion of `filter_line`, one state per column, rows in sequence.
+            let mut u: Vec<f64> = row(0).iter().map(|&x| x / (1.0 - r)).collect();
+            for i in 0..rows {
+                if i > 0 {
+                    for (u, &x) in u.iter_mut().zip(row(i - 1)) {
+                        *u = x + r * *u;
+                    }
+                }
+                let out = &mut dst[i * cols..(i + 1) * cols];
+                for ((o, &x), &u) in out.iter_mut().zip(row(i)).zip(&u) {
+                    *o = c0 * x + a1 * u;
+                }
+            }
+            u.iter_mut()
+                .zip(row(rows - 1))
+                .for_each(|(u, &x)| *u = x / (1.0 - r));
+            for i in (0..rows).rev() {
+                if i + 1 < rows {
+                    for (u, &x) in u.iter_mut().zip(row(i + 1)) {
+                        *u = x + r * *u;
+                    }
+                }
+                let out = &mut dst[i * cols..(i + 1) * cols];
+                for (o, &u) in out.iter_mut().zip(&u) {
+                    *o += a1 * u;
+                }
+            }
+        }
+    }
 }
 
 /// One line through a 1-D kernel, edges replicated.

@@ -24,10 +24,8 @@ pub(crate) enum Stage {
     Quanta = 1,
     /// Electronic noise of a frame.
     Electronic = 2,
-    /// The fixed gain map.
-    GainMap = 3,
-    /// The fixed offset map.
-    OffsetMap = 4,
+    /// The fixed gain and offset maps.
+    Maps = 3,
 }
 
 /// The random stream for (`seed`, `stage`, `channel`, `row`).

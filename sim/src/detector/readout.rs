@@ -108,9 +108,9 @@ impl Readout {
             self.offset_nonuniformity_adu,
             self.electronic_noise_adu,
         );
-        let mut gain = (x > 0.0).then(|| noise::stream(self.map_seed, Stage::GainMap, channel, r));
-        let mut offset =
-            (y > 0.0).then(|| noise::stream(self.map_seed, Stage::OffsetMap, channel, r));
+        // One map draw per pixel: the gain from its high 32 bits, the offset from its low.
+        let mut maps =
+            (x > 0.0 || y > 0.0).then(|| noise::stream(self.map_seed, Stage::Maps, channel, r));
         let mut elec = frame_seed
             .filter(|_| se > 0.0)
             .map(|s| noise::stream(s, Stage::Electronic, channel, r));
@@ -118,12 +118,14 @@ impl Readout {
         let max = self.max_code();
         for v in row.iter_mut() {
             let mut s = *v;
-            if let Some(g) = gain.as_mut() {
-                s *= 1.0 + x * (2.0 * g.random::<f64>() - 1.0);
-            }
-            s += self.offset_adu;
-            if let Some(o) = offset.as_mut() {
-                s += y * (2.0 * o.random::<f64>() - 1.0);
+            if let Some(m) = maps.as_mut() {
+                let bits: u64 = m.random();
+                let unit = |b: u64| (b as f64 + 0.5) / 4_294_967_296.0; // (0, 1)
+                s = s * (1.0 + x * (2.0 * unit(bits >> 32) - 1.0))
+                    + self.offset_adu
+                    + y * (2.0 * unit(bits & 0xffff_ffff) - 1.0);
+            } else {
+                s += self.offset_adu;
             }
             if let Some(e) = elec.as_mut() {
                 s += se * noise::normal(e);
