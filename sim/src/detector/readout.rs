@@ -6,7 +6,8 @@
 //! 2. offset: + o₀ + δ(r, c), δ uniform in [−y, y] (y = `offset_nonuniformity_adu`);
 //! 3. electronic noise: + σₑ·N(0, 1), new every frame;
 //! 4. saturation: min(·, `saturation_adu`) (the analogue full well, in ADU);
-//! 5. ADC with `bits`: rounded to the nearest integer and clipped to [0, 2^bits − 1].
+//! 5. ADC with `bits`: clipped to [0, 2^bits − 1] and rounded to the nearest integer
+//!    (halves up).
 //!    Stored as f32, so integers above 2^24 (bits > 24) are rounded to f32 precision.
 //!
 //! The gain and offset maps are fixed properties of the panel: drawn from `map_seed`
@@ -132,10 +133,11 @@ impl Readout {
             }
             s = s.min(sat);
             if let Some(m) = max {
-                if frame_seed.is_some() {
-                    s = s.round();
-                }
                 s = s.clamp(0.0, m);
+                if frame_seed.is_some() {
+                    // Round half up (s ≥ 0 here; `as` truncates, a fast floor).
+                    s = (s + 0.5) as u64 as f64;
+                }
             }
             *v = s;
         }
