@@ -145,30 +145,33 @@ impl Blur {
         if self.is_identity() || image.is_empty() {
             return Ok(());
         }
+        // image ← (1 − t)·Gv(Gu(image)) + t·Ev(Eu(image)): rows first, then columns
+        // straight into the image.
         let t = self.tail_fraction;
-        let core = (t < 1.0).then(|| {
-            separable(
+        let rows_through = |k: &Kernel| {
+            let mut a = vec![0.0; image.len()];
+            a.par_chunks_mut(cols)
+                .zip(image.par_chunks(cols))
+                .for_each(|(dst, src)| filter_line(src, dst, k));
+            a
+        };
+        let core = (t < 1.0).then(|| rows_through(&self.core_kernel(pitch_u_mm)));
+        let tail = (t > 0.0).then(|| rows_through(&self.tail_kernel(pitch_u_mm)));
+        if let Some(a) = &core {
+            filter_columns(
+                a,
                 image,
                 rows,
                 cols,
-                &self.core_kernel(pitch_u_mm),
                 &self.core_kernel(pitch_v_mm),
-            )
-        });
-        let tail = (t > 0.0).then(|| {
-            separable(
-                image,
-                rows,
-                cols,
-                &self.tail_kernel(pitch_u_mm),
-                &self.tail_kernel(pitch_v_mm),
-            )
-        });
-        image.par_iter_mut().enumerate().for_each(|(i, x)| {
-            let c = core.as_ref().map_or(0.0, |c| c[i]);
-            let e = tail.as_ref().map_or(0.0, |e| e[i]);
-            *x = (1.0 - t) * c + t * e;
-        });
+                1.0 - t,
+                false,
+            );
+        }
+        if let Some(b) = &tail {
+            let k = self.tail_kernel(pitch_v_mm);
+            filter_columns(b, image, rows, cols, &k, t, core.is_some());
+        }
         Ok(())
     }
 
@@ -242,27 +245,66 @@ fn dense_taps(k: &Kernel) -> Vec<f64> {
     }
 }
 
-/// Filters rows with `ku`, then columns with `kv`; returns the result.
-fn separable(image: &[f64], rows: usize, cols: usize, ku: &Kernel, kv: &Kernel) -> Vec<f64> {
-    let mut a = vec![0.0; image.len()];
-    a.par_chunks_mut(cols)
-        .zip(image.par_chunks(cols))
-        .for_each(|(dst, src)| filter_line(src, dst, ku));
-    let t = transpose(&a, rows, cols);
-    t.par_chunks(rows)
-        .zip(a.par_chunks_mut(rows))
-        .for_each(|(src, dst)| filter_line(src, dst, kv));
-    transpose(&a, cols, rows)
-}
-
-fn transpose(src: &[f64], rows: usize, cols: usize) -> Vec<f64> {
-    let mut dst = vec![0.0; src.len()];
-    dst.par_chunks_mut(rows).enumerate().for_each(|(c, col)| {
-        for (r, d) in col.iter_mut().enumerate() {
-            *d = src[r * cols + c];
+/// Filters every column of a row-major image with `k` scaled by `scale`, writing (or with
+/// `add`, adding) to `dst`. Works on whole rows at a time, so the inner loops run along
+/// memory; edges replicated.
+fn filter_columns(
+    src: &[f64],
+    dst: &mut [f64],
+    rows: usize,
+    cols: usize,
+    k: &Kernel,
+    scale: f64,
+    add: bool,
+) {
+    let row = |r: usize| &src[r * cols..(r + 1) * cols];
+    match k {
+        Kernel::Fir { taps, radius } => {
+            dst.par_chunks_mut(cols).enumerate().for_each(|(r, out)| {
+                if !add {
+                    out.fill(0.0);
+                }
+                for (j, &kj) in taps.iter().enumerate() {
+                    let rr = (r + j).saturating_sub(*radius).min(rows - 1);
+                    let kj = scale * kj;
+                    for (o, &x) in out.iter_mut().zip(row(rr)) {
+                        *o += kj * x;
+                    }
+                }
+            });
         }
-    });
-    dst
+        &Kernel::Exp { c0, a1, r } => {
+            // The recursion of `filter_line`, one state per column, rows in sequence.
+            let (c0, a1) = (scale * c0, scale * a1);
+            let mut u: Vec<f64> = row(0).iter().map(|&x| x / (1.0 - r)).collect();
+            for i in 0..rows {
+                if i > 0 {
+                    for (u, &x) in u.iter_mut().zip(row(i - 1)) {
+                        *u = x + r * *u;
+                    }
+                }
+                let out = &mut dst[i * cols..(i + 1) * cols];
+                for ((o, &x), &u) in out.iter_mut().zip(row(i)).zip(&u) {
+                    let v = c0 * x + a1 * u;
+                    *o = if add { *o + v } else { v };
+                }
+            }
+            u.iter_mut()
+                .zip(row(rows - 1))
+                .for_each(|(u, &x)| *u = x / (1.0 - r));
+            for i in (0..rows).rev() {
+                if i + 1 < rows {
+                    for (u, &x) in u.iter_mut().zip(row(i + 1)) {
+                        *u = x + r * *u;
+                    }
+                }
+                let out = &mut dst[i * cols..(i + 1) * cols];
+                for (o, &u) in out.iter_mut().zip(&u) {
+                    *o += a1 * u;
+                }
+            }
+        }
+    }
 }
 
 /// One line through a 1-D kernel, edges replicated.
@@ -271,18 +313,29 @@ fn filter_line(src: &[f64], dst: &mut [f64], k: &Kernel) {
     match k {
         Kernel::Fir { taps, radius } => {
             let r = *radius;
-            for (i, d) in dst.iter_mut().enumerate() {
-                *d = if i >= r && i + r < n {
-                    taps.iter()
-                        .zip(&src[i - r..=i + r])
-                        .map(|(k, x)| k * x)
-                        .sum()
-                } else {
-                    taps.iter()
-                        .enumerate()
-                        .map(|(j, k)| k * src[(i + j).saturating_sub(r).min(n - 1)])
-                        .sum()
-                };
+            // Taps in order for every pixel (same sums whatever the path): edge pixels
+            // with replicated neighbours, the interior as shifted slices (vectorises).
+            let edge = |i: usize| -> f64 {
+                taps.iter()
+                    .enumerate()
+                    .map(|(j, k)| k * src[(i + j).saturating_sub(r).min(n - 1)])
+                    .sum()
+            };
+            if n <= 2 * r {
+                for (i, d) in dst.iter_mut().enumerate() {
+                    *d = edge(i);
+                }
+                return;
+            }
+            let inner = &mut dst[r..n - r];
+            inner.fill(0.0);
+            for (j, &k) in taps.iter().enumerate() {
+                for (d, &x) in inner.iter_mut().zip(&src[j..j + n - 2 * r]) {
+                    *d += k * x;
+                }
+            }
+            for i in (0..r).chain(n - r..n) {
+                dst[i] = edge(i);
             }
         }
         &Kernel::Exp { c0, a1, r } => {

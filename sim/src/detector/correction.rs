@@ -12,6 +12,7 @@
 
 use crate::error::{Result, SimError};
 use crate::render::Projection;
+use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 /// How flat and dark fields are acquired.
@@ -154,11 +155,12 @@ fn map3(
     raw: &Projection,
     flat: &Projection,
     dark: &Projection,
-    op: impl Fn(f64, f64, f64) -> f64,
+    op: impl Fn(f64, f64, f64) -> f64 + Sync,
 ) -> Result<Projection> {
     same_size(raw, flat, "raw image", "flat field")?;
     same_size(raw, dark, "raw image", "dark field")?;
     let data = (0..raw.data.len())
+        .into_par_iter()
         .map(|i| {
             let (r, f, d) = (
                 f64::from(raw.data[i]),

@@ -410,11 +410,8 @@ impl DetectorModel {
                 .enumerate()
                 .try_for_each(|(r, row)| {
                     let mut rng = noise::stream(seed, Stage::Quanta, c, r);
-                    let at = r * e.cols;
-                    for (k, v) in row.iter_mut().enumerate() {
-                        *v = noise::sample_quanta(&mut rng, mean[at + k], m2[at + k])?;
-                    }
-                    Ok::<(), SimError>(())
+                    let at = r * e.cols..(r + 1) * e.cols;
+                    noise::sample_row(&mut rng, &mean[at.clone()], &m2[at], row)
                 })?;
         }
         self.blur

@@ -24,10 +24,8 @@ pub(crate) enum Stage {
     Quanta = 1,
     /// Electronic noise of a frame.
     Electronic = 2,
-    /// The fixed gain map.
-    GainMap = 3,
-    /// The fixed offset map.
-    OffsetMap = 4,
+    /// The fixed gain and offset maps.
+    Maps = 3,
 }
 
 /// The random stream for (`seed`, `stage`, `channel`, `row`).
@@ -46,21 +44,39 @@ pub(crate) fn frame_seed(seed: u64, frame: u64) -> u64 {
     z ^ (z >> 31)
 }
 
-/// One draw of the compound-Poisson signal with `mean` and second moment `m2` (both ≥ 0,
-/// `m2` > 0 where `mean` > 0; checked by the caller). Zero mean gives exactly 0.
-pub(crate) fn sample_quanta(rng: &mut ChaCha8Rng, mean: f64, m2: f64) -> Result<f64> {
-    if mean <= 0.0 {
-        return Ok(0.0);
+/// Draws the compound-Poisson signal of a row of pixels, `mean[i]` and second moment
+/// `m2[i]` (both ≥ 0, `m2` > 0 where `mean` > 0; checked by the caller), into `out`.
+/// Zero mean gives exactly 0. Consecutive pixels with the same λ share the sampler set-up.
+pub(crate) fn sample_row(
+    rng: &mut ChaCha8Rng,
+    mean: &[f64],
+    m2: &[f64],
+    out: &mut [f64],
+) -> Result<()> {
+    let mut cached: Option<(f64, Poisson<f64>)> = None;
+    for ((o, &m), &s) in out.iter_mut().zip(mean).zip(m2) {
+        if m <= 0.0 {
+            *o = 0.0;
+            continue;
+        }
+        let g = s / m;
+        let lambda = m / g;
+        let p = match cached {
+            Some((l, p)) if l == lambda => p,
+            _ => {
+                let p = Poisson::new(lambda).map_err(|e| {
+                    SimError::OutOfRange(format!(
+                        "quantum-noise sampling with {lambda} effective quanta (mean {m}, \
+                         second moment {s}): {e}"
+                    ))
+                })?;
+                cached = Some((lambda, p));
+                p
+            }
+        };
+        *o = g * p.sample(rng);
     }
-    let g = m2 / mean;
-    let lambda = mean / g;
-    let p = Poisson::new(lambda).map_err(|e| {
-        SimError::OutOfRange(format!(
-            "quantum-noise sampling with {lambda} effective quanta (mean {mean}, second \
-             moment {m2}): {e}"
-        ))
-    })?;
-    Ok(g * p.sample(rng))
+    Ok(())
 }
 
 /// A standard normal deviate.
@@ -88,7 +104,9 @@ mod tests {
     #[test]
     fn zero_mean_is_zero_and_huge_lambda_is_an_error() {
         let mut r = stream(0, Stage::Quanta, 0, 0);
-        assert_eq!(sample_quanta(&mut r, 0.0, 0.0).unwrap(), 0.0);
-        assert!(sample_quanta(&mut r, 1e30, 1e30).is_err());
+        let mut out = [1.0; 2];
+        sample_row(&mut r, &[0.0, 0.0], &[0.0, 0.0], &mut out).unwrap();
+        assert_eq!(out, [0.0, 0.0]);
+        assert!(sample_row(&mut r, &[1e30], &[1e30], &mut out[..1]).is_err());
     }
 }

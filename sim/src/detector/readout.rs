@@ -6,7 +6,8 @@
 //! 2. offset: + o₀ + δ(r, c), δ uniform in [−y, y] (y = `offset_nonuniformity_adu`);
 //! 3. electronic noise: + σₑ·N(0, 1), new every frame;
 //! 4. saturation: min(·, `saturation_adu`) (the analogue full well, in ADU);
-//! 5. ADC with `bits`: rounded to the nearest integer and clipped to [0, 2^bits − 1].
+//! 5. ADC with `bits`: clipped to [0, 2^bits − 1] and rounded to the nearest integer
+//!    (halves up).
 //!    Stored as f32, so integers above 2^24 (bits > 24) are rounded to f32 precision.
 //!
 //! The gain and offset maps are fixed properties of the panel: drawn from `map_seed`
@@ -108,9 +109,9 @@ impl Readout {
             self.offset_nonuniformity_adu,
             self.electronic_noise_adu,
         );
-        let mut gain = (x > 0.0).then(|| noise::stream(self.map_seed, Stage::GainMap, channel, r));
-        let mut offset =
-            (y > 0.0).then(|| noise::stream(self.map_seed, Stage::OffsetMap, channel, r));
+        // One map draw per pixel: the gain from its high 32 bits, the offset from its low.
+        let mut maps =
+            (x > 0.0 || y > 0.0).then(|| noise::stream(self.map_seed, Stage::Maps, channel, r));
         let mut elec = frame_seed
             .filter(|_| se > 0.0)
             .map(|s| noise::stream(s, Stage::Electronic, channel, r));
@@ -118,22 +119,25 @@ impl Readout {
         let max = self.max_code();
         for v in row.iter_mut() {
             let mut s = *v;
-            if let Some(g) = gain.as_mut() {
-                s *= 1.0 + x * (2.0 * g.random::<f64>() - 1.0);
-            }
-            s += self.offset_adu;
-            if let Some(o) = offset.as_mut() {
-                s += y * (2.0 * o.random::<f64>() - 1.0);
+            if let Some(m) = maps.as_mut() {
+                let bits: u64 = m.random();
+                let unit = |b: u64| (b as f64 + 0.5) / 4_294_967_296.0; // (0, 1)
+                s = s * (1.0 + x * (2.0 * unit(bits >> 32) - 1.0))
+                    + self.offset_adu
+                    + y * (2.0 * unit(bits & 0xffff_ffff) - 1.0);
+            } else {
+                s += self.offset_adu;
             }
             if let Some(e) = elec.as_mut() {
                 s += se * noise::normal(e);
             }
             s = s.min(sat);
             if let Some(m) = max {
-                if frame_seed.is_some() {
-                    s = s.round();
-                }
                 s = s.clamp(0.0, m);
+                if frame_seed.is_some() {
+                    // Round half up (s ≥ 0 here; `as` truncates, a fast floor).
+                    s = (s + 0.5) as u64 as f64;
+                }
             }
             *v = s;
         }
