@@ -137,13 +137,13 @@ pub const PRESETS: &[&str] = &["ideal-drr", "kv-flat-panel-120kvp", "cbct-100kvp
 impl Acquisition {
     /// A named preset:
     /// * `kv-flat-panel-120kvp` — chest radiography: 120 kVp, 2.5 mm Al + 0.1 mm Cu added,
-    ///   2 mAs, Schneider tissues, indirect CsI flat panel, −log output;
+    ///   1 mAs, Schneider tissues, indirect CsI flat panel, −log output;
     /// * `cbct-100kvp` — a linac/C-arm CBCT projection: 100 kVp, 2.5 mm Al + 0.2 mm Cu
     ///   (bow-tie not modelled), 0.4 mAs, Schneider tissues, CBCT panel, −log output.
     pub fn preset(name: &str) -> Result<Self> {
         match name {
             "kv-flat-panel-120kvp" => Ok(Self {
-                spectrum: SpectrumSpec::tungsten(120.0, &[("al", 2.5), ("cu", 0.1)], 2.0),
+                spectrum: SpectrumSpec::tungsten(120.0, &[("al", 2.5), ("cu", 0.1)], 1.0),
                 materials: TissueModel::schneider(),
                 detector: DetectorModel::kv_flat_panel(),
                 output: Output::LogLineIntegral,

@@ -190,28 +190,28 @@ fn presets_validate_and_round_trip_through_toml() {
         assert_eq!(back, m, "{text}");
     }
     let scene = r#"
-        quantum-noise = true
+        quantum_noise = true
         [mode]
         kind = "photon-counting"
-        thresholds-kev = [20.0, 45.0]
+        thresholds_kev = [20.0, 45.0]
         [blur]
-        sigma-mm = 0.1
+        sigma_mm = 0.1
         [readout]
-        electronic-noise-adu = 2.0
+        electronic_noise_adu = 2.0
         bits = 14
         [calibration]
-        flat-frames = 8
+        flat_frames = 8
     "#;
     let m: DetectorModel = toml::from_str(scene).unwrap();
     assert_eq!(m.channels(), 2);
     assert_eq!(m.readout.bits, Some(14));
     assert_eq!(m.calibration.dark_frames, 0);
     let ei: DetectorModel = toml::from_str(
-        "[mode]\nkind = \"energy-integrating\"\nconversion-gain-adu-per-kev = 0.5\n",
+        "[mode]\nkind = \"energy-integrating\"\nconversion_gain_adu_per_kev = 0.5\n",
     )
     .unwrap();
     assert_eq!(ei.mode, Mode::energy_integrating(0.5));
-    assert!(toml::from_str::<DetectorModel>("quantum_noise = true").is_err());
+    assert!(toml::from_str::<DetectorModel>("quantum-noise = true").is_err());
 }
 
 #[test]
@@ -269,4 +269,44 @@ fn bad_configuration_and_input_give_clear_errors() {
             .to_string()
             .contains("channels")
     );
+}
+
+#[test]
+fn larger_pixels_read_as_sums_of_native_pixels() {
+    // 0.2 mm simulated pixels over a 0.1 mm native panel: n = 4 native pixels each.
+    let mean = [0.0, 100.0, 700.0, 5000.0];
+    let e = image(1, 4, &mean);
+    let native = |p: Option<f64>| {
+        noiseless(Readout {
+            bits: Some(8),
+            saturation_adu: Some(200.0),
+            offset_adu: 10.0,
+            native_pitch_mm: p,
+            ..Readout::ideal()
+        })
+    };
+    assert_eq!(native(Some(0.1)).readout.binning(0.2, 0.2), 4.0);
+    // Offset 4·10, full well 4·200, ADC range 4·255.
+    assert_eq!(
+        native(Some(0.1)).record(&e, 0).unwrap()[0].data,
+        [40.0, 140.0, 740.0, 800.0]
+    );
+    // The same panel read at its own pitch saturates at 200.
+    assert_eq!(
+        native(None).record(&e, 0).unwrap()[0].data,
+        [10.0, 110.0, 200.0, 200.0]
+    );
+    // Electronic noise adds in quadrature: variance 4·σ², over 10⁵ pixels.
+    let n = 100_000;
+    let flat = ExpectedImage::zeros(&Detector::new(100, 1000, 0.2), 1);
+    let m = noiseless(Readout {
+        electronic_noise_adu: 3.0,
+        native_pitch_mm: Some(0.1),
+        ..Readout::ideal()
+    });
+    let v = &m.record(&flat, 5).unwrap()[0].data;
+    let mu = v.iter().map(|&x| f64::from(x)).sum::<f64>() / n as f64;
+    let var = v.iter().map(|&x| (f64::from(x) - mu).powi(2)).sum::<f64>() / (n - 1) as f64;
+    // Standard error of the variance: √(2/n) = 0.45 %; 2 % is 4.5 standard errors.
+    assert!((var / 36.0 - 1.0).abs() < 0.02, "variance {var} vs 4·3²");
 }

@@ -214,10 +214,11 @@ impl DetectorModel {
     /// for their sources.
     pub fn kv_flat_panel() -> Self {
         // CsI:Tl ≈ 54 optical photons/keV; ×~0.5 escape/coupling ×~0.8 photodiode QE
-        // ≈ 20 e⁻/keV; 64 e⁻ per ADU puts ~4·10⁶ e⁻ (a-Si:H full well class) at 2¹⁶.
+        // ≈ 20 e⁻/keV; 1000 e⁻ per ADU (a radiography gain mode) puts ≈ 90 µGy at ~60 keV
+        // at 2¹⁶, above the open field of the acquisition presets (see docs/detector.md).
         Self {
             mode: Mode::EnergyIntegrating {
-                conversion_gain_adu_per_kev: 20.0 / 64.0,
+                conversion_gain_adu_per_kev: 20.0 / 1000.0,
                 swank_factor: 0.9,
             },
             scintillator: Some(Scintillator {
@@ -234,11 +235,12 @@ impl DetectorModel {
                 gain_nonuniformity: 0.05,
                 offset_adu: 1000.0,
                 offset_nonuniformity_adu: 100.0,
-                // ~1500 e⁻ rms additive noise (Siewerdsen et al. 1997) at 64 e⁻/ADU.
-                electronic_noise_adu: 1500.0 / 64.0,
+                // ~1500 e⁻ rms additive noise (Siewerdsen et al. 1997) at 1000 e⁻/ADU.
+                electronic_noise_adu: 1500.0 / 1000.0,
                 map_seed: 0x5eed_f1a7,
                 saturation_adu: None,
                 bits: Some(16),
+                native_pitch_mm: Some(0.15),
             },
             calibration: Calibration {
                 flat_frames: 16,
@@ -257,9 +259,10 @@ impl DetectorModel {
             tail_fraction: 0.08,
             tail_length_mm: 1.5,
         };
-        d.readout.electronic_noise_adu = 2500.0 / 64.0;
+        d.readout.electronic_noise_adu = 2500.0 / 1000.0;
         d.readout.gain_nonuniformity = 0.08;
         d.readout.map_seed = 0xcbc7_0001;
+        d.readout.native_pitch_mm = Some(0.4);
         d.calibration = Calibration {
             flat_frames: 32,
             dark_frames: 32,
@@ -404,6 +407,7 @@ impl DetectorModel {
         let n = e.rows * e.cols;
         let mean = &e.mean[c * n..(c + 1) * n];
         let m2 = &e.second_moment[c * n..(c + 1) * n];
+        let binning = self.readout.binning(e.pitch_u_mm, e.pitch_v_mm);
         let mut s = mean.to_vec();
         if let (Some(seed), true) = (seed, self.quantum_noise) {
             s.par_chunks_mut(e.cols)
@@ -418,7 +422,7 @@ impl DetectorModel {
             .apply(&mut s, e.rows, e.cols, e.pitch_u_mm, e.pitch_v_mm)?;
         s.par_chunks_mut(e.cols)
             .enumerate()
-            .for_each(|(r, row)| self.readout.apply_row(row, r, c, seed));
+            .for_each(|(r, row)| self.readout.apply_row(row, r, c, seed, binning));
         Ok(s)
     }
 }

@@ -44,6 +44,14 @@ pub struct Readout {
     /// ADC bit depth, 1–32; none: no quantisation (floating-point output).
     #[serde(default)]
     pub bits: Option<u32>,
+    /// Pitch of the panel's own pixels, mm; none: the simulated pixels are the panel's.
+    /// A simulated pixel of area A larger than native² is read as the digital sum of
+    /// n = A/native² native pixels, each with its own offset, electronic noise, full well
+    /// and ADC: the mean offset and the saturation and ADC range scale by n, the offset
+    /// spread and the electronic noise by √n (independent pixels), and the sum is an
+    /// integer code. (Each native pixel is taken to see the simulated pixel's mean signal.)
+    #[serde(default)]
+    pub native_pitch_mm: Option<f64>,
 }
 
 impl Readout {
@@ -86,6 +94,13 @@ impl Readout {
         {
             return Err(bad(format!("ADC bit depth is {b}; it must be 1 to 32")));
         }
+        if let Some(p) = self.native_pitch_mm
+            && !(p.is_finite() && p > 0.0)
+        {
+            return Err(bad(format!(
+                "native pixel pitch is {p} mm; it must be finite and > 0"
+            )));
+        }
         Ok(())
     }
 
@@ -94,39 +109,49 @@ impl Readout {
         self.bits.map(|b| ((1u64 << b) - 1) as f64)
     }
 
-    /// Reads out row `r` of channel `channel` in place. `frame_seed`: the frame's seed
-    /// (electronic noise, rounding to ADC codes); `None`: the noiseless expectation (no
-    /// electronic noise, no rounding, but the same gain, offset and clipping).
+    /// Native pixels summed into one simulated pixel of `pitch_u_mm` × `pitch_v_mm`
+    /// (≥ 1; 1 without a native pitch). See [`Readout::native_pitch_mm`].
+    pub fn binning(&self, pitch_u_mm: f64, pitch_v_mm: f64) -> f64 {
+        self.native_pitch_mm
+            .map_or(1.0, |p| (pitch_u_mm * pitch_v_mm / (p * p)).max(1.0))
+    }
+
+    /// Reads out row `r` of channel `channel` in place, for simulated pixels that sum
+    /// `binning` native pixels. `frame_seed`: the frame's seed (electronic noise, rounding
+    /// to ADC codes); `None`: the noiseless expectation (no electronic noise, no rounding,
+    /// but the same gain, offset and clipping).
     pub(crate) fn apply_row(
         &self,
         row: &mut [f64],
         r: usize,
         channel: usize,
         frame_seed: Option<u64>,
+        binning: f64,
     ) {
         let (x, y, se) = (
             self.gain_nonuniformity,
-            self.offset_nonuniformity_adu,
-            self.electronic_noise_adu,
+            self.offset_nonuniformity_adu * binning.sqrt(),
+            self.electronic_noise_adu * binning.sqrt(),
         );
+        let offset = self.offset_adu * binning;
         // One map draw per pixel: the gain from its high 32 bits, the offset from its low.
         let mut maps =
             (x > 0.0 || y > 0.0).then(|| noise::stream(self.map_seed, Stage::Maps, channel, r));
         let mut elec = frame_seed
             .filter(|_| se > 0.0)
             .map(|s| noise::stream(s, Stage::Electronic, channel, r));
-        let sat = self.saturation_adu.unwrap_or(f64::INFINITY);
-        let max = self.max_code();
+        let sat = self.saturation_adu.map_or(f64::INFINITY, |s| s * binning);
+        let max = self.max_code().map(|m| m * binning);
         for v in row.iter_mut() {
             let mut s = *v;
             if let Some(m) = maps.as_mut() {
                 let bits: u64 = m.random();
                 let unit = |b: u64| (b as f64 + 0.5) / 4_294_967_296.0; // (0, 1)
                 s = s * (1.0 + x * (2.0 * unit(bits >> 32) - 1.0))
-                    + self.offset_adu
+                    + offset
                     + y * (2.0 * unit(bits & 0xffff_ffff) - 1.0);
             } else {
-                s += self.offset_adu;
+                s += offset;
             }
             if let Some(e) = elec.as_mut() {
                 s += se * noise::normal(e);
