@@ -14,6 +14,7 @@ pub mod error;
 pub mod geometry;
 pub mod phantom;
 pub mod ray;
+pub mod recon;
 pub mod render;
 pub mod trace;
 pub mod volume;
