@@ -371,3 +371,94 @@ pub fn run(args: ReconArgs) -> Result<()> {
     );
     Ok(())
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use tomograf_sim::phantom::{Component, Phantom, Shape};
+    use tomograf_sim::{Beam, Detector};
+
+    /// A dataset-style folder (views.json + projections.npy written by the data-set
+    /// writer) of a water ball, reconstructed by FDK and SART through `run`: the NIfTI
+    /// read back holds ≈ 0 HU at the centre and −1000 HU in the corners. Tolerance
+    /// 60 HU (6 % of the water–air step): 16³ voxels of 10 mm and 36 or 8 views. (SIRT,
+    /// not ordered-subset SART: with 8 views of analytic, hence voxel-inconsistent, data
+    /// SART at λ = 1 drifts in its null space as iterations go on — −90 HU at the centre
+    /// after 20 — while SIRT stays within 10 HU.)
+    #[test]
+    fn reconstructs_a_dataset_folder() {
+        let dir = tempfile::tempdir().unwrap();
+        let mu_w = tomograf_sim::attenuation::mu_water_per_mm(60.0).unwrap();
+        let geometry = Geometry {
+            beam: Beam::Cone {
+                sad_mm: 1000.0,
+                sid_mm: 1500.0,
+            },
+            detector: Detector::new(32, 32, 8.0),
+            isocentre: DVec3::ZERO,
+        };
+        let poses: Vec<Pose> = (0..36).map(|i| Pose::new(10.0 * i as f64, 0.0)).collect();
+        let views = geometry.views(&poses).unwrap();
+        let ball = Phantom {
+            background_hu: -1000.0,
+            components: vec![Component {
+                name: "water",
+                shape: Shape::Ellipsoid {
+                    centre: DVec3::ZERO,
+                    semi_axes: DVec3::splat(50.0),
+                    rotation_z_deg: 0.0,
+                },
+                delta_hu: 1000.0,
+            }],
+        };
+        let mut stack = Vec::new();
+        for v in &views {
+            for i in 0..v.rows * v.cols {
+                let ray = v.ray((i / v.cols) as f64, (i % v.cols) as f64);
+                stack.push(ball.line_integral(&ray, mu_w) as f32);
+            }
+        }
+        tomograf_datasets::image::write_npy(
+            &dir.path().join("projections.npy"),
+            &stack,
+            &[36, 32, 32],
+        )
+        .unwrap();
+        let json = serde_json::json!({"geometry": geometry, "poses": poses, "views": views});
+        std::fs::write(dir.path().join("views.json"), json.to_string()).unwrap();
+        for (method, picks) in [
+            (Method::Fdk, vec![]),
+            (Method::Sirt, vec![0, 4, 9, 13, 18, 22, 27, 31]),
+        ] {
+            let out = dir.path().join(format!("{method:?}.nii.gz"));
+            let mut args =
+                ReconArgs::parse_from(["x", "in", "--dims", "16,16,16", "--spacing", "10"]);
+            args.input = dir.path().to_path_buf();
+            args.output = out.clone();
+            args.method = method;
+            args.views = picks;
+            run(args).unwrap();
+            let v = nifti::read_nifti(&out).unwrap();
+            let centre = v.get(8, 8, 8);
+            let corner = v.get(0, 0, 0);
+            assert!(centre.abs() < 60.0, "{method:?}: centre {centre} HU");
+            assert!(
+                (corner + 1000.0).abs() < 60.0,
+                "{method:?}: corner {corner} HU"
+            );
+        }
+    }
+
+    #[derive(clap::Parser)]
+    struct Wrap {
+        #[command(flatten)]
+        args: ReconArgs,
+    }
+
+    impl ReconArgs {
+        fn parse_from<const N: usize>(a: [&str; N]) -> Self {
+            use clap::Parser;
+            Wrap::parse_from(a).args
+        }
+    }
+}

@@ -173,7 +173,7 @@ impl<'a> SiddonOperator<'a> {
         let slice = nx * ny;
         let dims = self.grid.dims();
         // Slabs of whole k-slices; the result does not depend on their thickness.
-        let thick = nz.div_ceil(4 * rayon::current_num_threads()).max(1);
+        let thick = nz.div_ceil(2 * rayon::current_num_threads()).max(1);
         // Views in batches, so that only a few views' rays are held at once.
         for batch in (0..subset.len()).collect::<Vec<_>>().chunks(8) {
             let rays: Vec<Vec<Option<SlabRay>>> =

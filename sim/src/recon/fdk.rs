@@ -245,18 +245,17 @@ pub fn fdk(
             let mut buf = vec![Complex::new(0.0, 0.0); n_pad];
             for r in 0..det.rows {
                 buf.fill(Complex::new(0.0, 0.0));
-                for c in 0..det.cols {
+                for (c, b) in buf[..det.cols].iter_mut().enumerate() {
                     let i = r * det.cols + c;
-                    let gamma_w = w.column(c, a_of(c), sad_mm);
-                    buf[c].re = f64::from(p.data[i]) * cos_w[i] * gamma_w;
+                    b.re = f64::from(p.data[i]) * cos_w[i] * w.column(a_of(c), sad_mm);
                 }
                 fwd.process(&mut buf);
                 for (x, f) in buf.iter_mut().zip(&filter) {
                     *x *= *f;
                 }
                 inv.process(&mut buf);
-                for c in 0..det.cols {
-                    out[r * det.cols + c] = (buf[c].re * w.scalar) as f32;
+                for (o, b) in out[r * det.cols..(r + 1) * det.cols].iter_mut().zip(&buf) {
+                    *o = (b.re * w.scalar) as f32;
                 }
             }
             out
@@ -339,8 +338,8 @@ struct ViewWeight {
 }
 
 impl ViewWeight {
-    /// Factor for detector column `c` at virtual coordinate `a` (mm).
-    fn column(&self, _c: usize, a: f64, sad: f64) -> f64 {
+    /// Factor for the detector column at virtual coordinate `a` (mm).
+    fn column(&self, a: f64, sad: f64) -> f64 {
         let Some((beta, delta, sense)) = self.parker else {
             return 1.0;
         };
