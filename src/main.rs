@@ -6,6 +6,7 @@ mod dataset;
 mod output;
 mod physics;
 mod project;
+mod recon_cmd;
 mod scene;
 
 use anyhow::Result;
@@ -33,6 +34,8 @@ enum Command {
     Scan(project::ScanArgs),
     /// Make a training or test set: normalised CTs and their projections, with a manifest.
     Dataset(dataset::DatasetArgs),
+    /// Classical reconstruction (FDK, SART, SART-TV, SIRT) from projections with geometry.
+    ReconstructClassical(Box<recon_cmd::ReconArgs>),
 }
 
 fn main() {
@@ -64,5 +67,6 @@ fn run(cli: Cli) -> Result<()> {
         Command::Bench(args) => bench::run(args),
         Command::Scan(args) => project::scan(args),
         Command::Dataset(args) => dataset::run(args),
+        Command::ReconstructClassical(args) => recon_cmd::run(*args),
     }
 }

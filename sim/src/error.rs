@@ -24,6 +24,9 @@ pub enum SimError {
     /// The projection geometry is impossible (SID < SAD, zero pixel pitch, empty detector…).
     #[error("invalid geometry: {0}")]
     InvalidGeometry(String),
+    /// Projection images that cannot be reconstructed from (wrong count or size, NaN).
+    #[error("invalid projections: {0}")]
+    InvalidProjections(String),
     /// A physical parameter is outside the range the model or its data tables cover.
     #[error("out of range: {0}")]
     OutOfRange(String),

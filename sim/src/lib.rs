@@ -19,6 +19,7 @@ pub mod material;
 pub mod phantom;
 pub mod polychromatic;
 pub mod ray;
+pub mod recon;
 pub mod render;
 pub mod spectrum;
 pub mod tissue;

@@ -1,0 +1,464 @@
+//! `tomograf reconstruct-classical`: FDK, SART, SART-TV or SIRT from projections written
+//! by `tomograf project` (`drr.json` + `drr.npy`) or by `tomograf dataset` (an item's
+//! `views.json` + `projections.npy`), to a NIfTI volume in HU (or mu).
+
+use anyhow::{Context, Result, bail, ensure};
+use clap::{Args, ValueEnum};
+use glam::{DMat3, DVec3};
+use indicatif::{ProgressBar, ProgressStyle};
+use serde::Deserialize;
+use std::path::{Path, PathBuf};
+use tomograf_datasets::nifti;
+use tomograf_sim::recon::{self, AngularWeighting, FdkOptions, SartOptions, TvOptions, Window};
+use tomograf_sim::{Geometry, Pose, Projection, Quantity, View, Volume};
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum Method {
+    /// Feldkamp–Davis–Kress filtered backprojection (circular cone-beam orbits).
+    Fdk,
+    /// SART with ordered subsets.
+    Sart,
+    /// SART followed by TV steps each iteration (ASD-POCS style).
+    SartTv,
+    /// SIRT (one subset holding every view).
+    Sirt,
+}
+
+#[derive(Debug, Args)]
+pub struct ReconArgs {
+    /// Folder written by `tomograf project` (drr.json, drr.npy) or a `tomograf dataset`
+    /// item (views.json, projections.npy).
+    pub input: PathBuf,
+    /// Output NIfTI volume.
+    #[arg(short, long, default_value = "recon.nii.gz")]
+    pub output: PathBuf,
+    #[arg(long, value_enum, default_value = "sart-tv")]
+    pub method: Method,
+    /// Use only these view indices, e.g. `0,18` (default: all).
+    #[arg(long, value_delimiter = ',')]
+    pub views: Vec<usize>,
+    /// Output grid from this NIfTI file (dims, spacing, origin, direction). Default: the
+    /// projected volume's grid from drr.json, or the dataset item's ct.nii.gz.
+    #[arg(long)]
+    pub like: Option<PathBuf>,
+    /// Output grid size, centred on the isocentre (with --spacing), e.g. 128,128,128.
+    #[arg(long, value_delimiter = ',')]
+    pub dims: Option<Vec<usize>>,
+    /// Voxel size (mm) for --dims.
+    #[arg(long, default_value_t = 2.5)]
+    pub spacing: f64,
+    /// Ramp-filter window (FDK).
+    #[arg(long, value_enum, default_value = "ram-lak")]
+    pub window: WindowArg,
+    /// Angular weighting (FDK).
+    #[arg(long, value_enum, default_value = "auto")]
+    pub weighting: WeightingArg,
+    /// Iteration cap (SART, SART-TV, SIRT).
+    #[arg(long, default_value_t = 20)]
+    pub iterations: usize,
+    /// Ordered subsets (SART, SART-TV).
+    #[arg(long, default_value_t = 10)]
+    pub subsets: usize,
+    /// Relaxation λ in (0, 2).
+    #[arg(long, default_value_t = 1.0)]
+    pub relaxation: f64,
+    /// Stop when the residual improves by less than this fraction per iteration.
+    #[arg(long, default_value_t = 0.0)]
+    pub tolerance: f64,
+    /// TV steps per iteration (SART-TV).
+    #[arg(long, default_value_t = 10)]
+    pub tv_steps: usize,
+    /// TV step size α relative to the data update (SART-TV).
+    #[arg(long, default_value_t = 0.2)]
+    pub tv_alpha: f64,
+    /// Effective energy (keV) whose water attenuation converts mu to HU.
+    #[arg(long, default_value_t = 60.0)]
+    pub energy_kev: f64,
+    /// Write linear attenuation (mm⁻¹) instead of HU.
+    #[arg(long)]
+    pub mu: bool,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum WindowArg {
+    RamLak,
+    SheppLogan,
+    Cosine,
+    Hann,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum WeightingArg {
+    Auto,
+    Gaps,
+    Parker,
+}
+
+/// One view as drr.json and views.json store it.
+#[derive(Debug, Deserialize)]
+struct SidecarView {
+    pose: Option<Pose>,
+    #[serde(flatten)]
+    view: View,
+}
+
+#[derive(Debug, Deserialize)]
+struct SidecarGrid {
+    dims: [usize; 3],
+    spacing_mm: [f64; 3],
+    origin_mm: [f64; 3],
+    direction: [[f64; 3]; 3],
+}
+
+/// What the input folder holds.
+struct Input {
+    images: Vec<Projection>,
+    views: Vec<View>,
+    poses: Option<Vec<Pose>>,
+    geometry: Option<Geometry>,
+    grid: Option<Volume>,
+}
+
+fn read_json(path: &Path) -> Result<serde_json::Value> {
+    let text =
+        std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
+    serde_json::from_str(&text).with_context(|| format!("parsing {}", path.display()))
+}
+
+fn load(dir: &Path) -> Result<Input> {
+    let (json, npy, quantity, grid) = if dir.join("drr.json").is_file() {
+        let j = read_json(&dir.join("drr.json"))?;
+        let q: Quantity = serde_json::from_value(j["quantity"].clone())
+            .context("drr.json: reading `quantity`")?;
+        let grid = serde_json::from_value::<SidecarGrid>(j["volume"].clone())
+            .ok()
+            .map(|g| {
+                let d = g.direction;
+                Volume::new(
+                    g.dims,
+                    DVec3::from(g.spacing_mm),
+                    DVec3::from(g.origin_mm),
+                    DMat3::from_cols_array_2d(&d),
+                    vec![0.0; g.dims.iter().product()],
+                )
+            })
+            .transpose()?;
+        (j, dir.join("drr.npy"), q, grid)
+    } else if dir.join("views.json").is_file() {
+        let j = read_json(&dir.join("views.json"))?;
+        let ct = dir.join("ct.nii.gz");
+        let grid = if ct.is_file() {
+            Some(nifti::read_nifti(&ct)?.map(|_| 0.0)?)
+        } else {
+            None
+        };
+        (j, dir.join("projections.npy"), Quantity::LineIntegral, grid)
+    } else {
+        bail!(
+            "{} holds neither drr.json (tomograf project) nor views.json (tomograf dataset)",
+            dir.display()
+        );
+    };
+    let views: Vec<SidecarView> =
+        serde_json::from_value(json["views"].clone()).context("reading the views' geometry")?;
+    let mut poses: Option<Vec<Pose>> = views.iter().map(|v| v.pose).collect();
+    if poses.is_none() {
+        poses = serde_json::from_value(json["poses"].clone()).ok();
+    }
+    let geometry: Option<Geometry> = serde_json::from_value(json["geometry"].clone()).ok();
+    let views: Vec<View> = views.into_iter().map(|v| v.view).collect();
+    let (data, shape) = read_npy_f32(&npy)?;
+    ensure!(
+        shape.len() == 3 && shape[0] == views.len(),
+        "{} has shape {shape:?}, expected ({}, rows, cols)",
+        npy.display(),
+        views.len()
+    );
+    let px = shape[1] * shape[2];
+    let images = data
+        .chunks(px)
+        .enumerate()
+        .map(|(i, c)| {
+            let data = c
+                .iter()
+                .map(|&x| to_line_integral(quantity, x))
+                .collect::<Result<Vec<f32>>>()
+                .with_context(|| format!("view {i}"))?;
+            Ok(Projection {
+                rows: shape[1],
+                cols: shape[2],
+                data,
+            })
+        })
+        .collect::<Result<Vec<_>>>()?;
+    Ok(Input {
+        images,
+        views,
+        poses,
+        geometry,
+        grid,
+    })
+}
+
+fn to_line_integral(q: Quantity, x: f32) -> Result<f32> {
+    let x = f64::from(x);
+    Ok(match q {
+        Quantity::LineIntegral => x,
+        Quantity::Transmission => {
+            ensure!(x > 0.0, "transmission {x} ≤ 0 has no line integral");
+            -x.ln()
+        }
+        Quantity::Intensity { i0 } => {
+            ensure!(x > 0.0, "intensity {x} ≤ 0 has no line integral");
+            -(x / i0).ln()
+        }
+    } as f32)
+}
+
+/// Reads a little-endian float32, C-order `.npy` file: `(values, shape)`.
+fn read_npy_f32(path: &Path) -> Result<(Vec<f32>, Vec<usize>)> {
+    let bytes = std::fs::read(path).with_context(|| format!("reading {}", path.display()))?;
+    let bad = || anyhow::anyhow!("{} is not a float32 .npy array", path.display());
+    ensure!(bytes.len() >= 10 && &bytes[..6] == b"\x93NUMPY", bad());
+    let (len, start) = match bytes[6] {
+        1 => (u16::from_le_bytes([bytes[8], bytes[9]]) as usize, 10),
+        2 | 3 if bytes.len() >= 12 => (
+            u32::from_le_bytes([bytes[8], bytes[9], bytes[10], bytes[11]]) as usize,
+            12,
+        ),
+        _ => return Err(bad()),
+    };
+    let header = std::str::from_utf8(bytes.get(start..start + len).ok_or_else(bad)?)?;
+    ensure!(
+        header.contains("'descr': '<f4'") && header.contains("'fortran_order': False"),
+        "{}: only little-endian float32 in C order is read (header {header})",
+        path.display()
+    );
+    let shape_text = header
+        .split("'shape': (")
+        .nth(1)
+        .and_then(|s| s.split(')').next())
+        .ok_or_else(bad)?;
+    let shape: Vec<usize> = shape_text
+        .split(',')
+        .filter(|s| !s.trim().is_empty())
+        .map(|s| s.trim().parse())
+        .collect::<std::result::Result<_, _>>()?;
+    let body = &bytes[start + len..];
+    let n: usize = shape.iter().product();
+    ensure!(
+        body.len() == 4 * n,
+        "{}: {} data bytes for shape {shape:?}",
+        path.display(),
+        body.len()
+    );
+    Ok((
+        body.chunks_exact(4)
+            .map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]]))
+            .collect(),
+        shape,
+    ))
+}
+
+pub fn run(args: ReconArgs) -> Result<()> {
+    let input = load(&args.input)?;
+    let pick: Vec<usize> = if args.views.is_empty() {
+        (0..input.views.len()).collect()
+    } else {
+        args.views.clone()
+    };
+    if let Some(&i) = pick.iter().find(|&&i| i >= input.views.len()) {
+        bail!(
+            "--views: view {i} does not exist (the input has {})",
+            input.views.len()
+        );
+    }
+    let images: Vec<Projection> = pick.iter().map(|&i| input.images[i].clone()).collect();
+    let views: Vec<View> = pick.iter().map(|&i| input.views[i]).collect();
+    let template = match (&args.like, &args.dims, input.grid) {
+        (Some(p), _, _) => nifti::read_nifti(p)?.map(|_| 0.0)?,
+        (None, Some(d), _) => {
+            ensure!(d.len() == 3, "--dims takes three sizes, e.g. 128,128,128");
+            let dims = [d[0], d[1], d[2]];
+            let centre = input.geometry.map_or(DVec3::ZERO, |g| g.isocentre);
+            Volume::centred(
+                dims,
+                DVec3::splat(args.spacing),
+                centre,
+                vec![0.0; dims.iter().product()],
+            )?
+        }
+        (None, None, Some(g)) => g,
+        (None, None, None) => bail!("no output grid: give --like ct.nii.gz or --dims"),
+    };
+    let volume = match args.method {
+        Method::Fdk => {
+            let (Some(g), Some(poses)) = (input.geometry, &input.poses) else {
+                bail!(
+                    "FDK needs the set-up's geometry and every view's pose, which {} does not hold; use --method sart",
+                    args.input.display()
+                );
+            };
+            let poses: Vec<Pose> = pick.iter().map(|&i| poses[i]).collect();
+            let opts = FdkOptions {
+                window: match args.window {
+                    WindowArg::RamLak => Window::RamLak,
+                    WindowArg::SheppLogan => Window::SheppLogan,
+                    WindowArg::Cosine => Window::Cosine,
+                    WindowArg::Hann => Window::Hann,
+                },
+                weighting: match args.weighting {
+                    WeightingArg::Auto => AngularWeighting::Auto,
+                    WeightingArg::Gaps => AngularWeighting::Gaps,
+                    WeightingArg::Parker => AngularWeighting::Parker,
+                },
+            };
+            recon::fdk(&images, &g, &poses, &opts, &template)?
+        }
+        m => {
+            let opts = SartOptions {
+                iterations: args.iterations,
+                subsets: if m == Method::Sirt { 1 } else { args.subsets },
+                relaxation: args.relaxation,
+                nonnegative: true,
+                tolerance: args.tolerance,
+                tv: (m == Method::SartTv).then_some(TvOptions {
+                    iterations: args.tv_steps,
+                    step: args.tv_alpha,
+                }),
+            };
+            let bar = ProgressBar::new(args.iterations as u64).with_style(
+                ProgressStyle::with_template(
+                    "{spinner} iteration {pos}/{len} [{bar:30}] {elapsed} (eta {eta}) {msg}",
+                )
+                .expect("valid template")
+                .progress_chars("=> "),
+            );
+            let rec = recon::sart_tv_with_progress(&images, &views, &opts, &template, |r| {
+                bar.set_position(r.iteration as u64);
+                bar.set_message(format!("residual {:.4}", r.residual));
+            })?;
+            bar.finish_and_clear();
+            if let Some(r) = rec.history.last() {
+                eprintln!(
+                    "{} iterations, relative residual {:.4}",
+                    r.iteration, r.residual
+                );
+            }
+            rec.volume
+        }
+    };
+    let out = if args.mu {
+        volume
+    } else {
+        recon::mu_to_hu_at_kev(&volume, args.energy_kev)?
+    };
+    if let Some(dir) = args.output.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir)?;
+    }
+    nifti::write_nifti(&args.output, &out)?;
+    eprintln!(
+        "wrote {} ({} from {} views, {})",
+        args.output.display(),
+        match args.method {
+            Method::Fdk => "FDK",
+            Method::Sart => "SART",
+            Method::SartTv => "SART-TV",
+            Method::Sirt => "SIRT",
+        },
+        views.len(),
+        if args.mu { "mm⁻¹" } else { "HU" }
+    );
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use tomograf_sim::phantom::{Component, Phantom, Shape};
+    use tomograf_sim::{Beam, Detector};
+
+    /// A dataset-style folder (views.json + projections.npy written by the data-set
+    /// writer) of a water ball, reconstructed by FDK and SART through `run`: the NIfTI
+    /// read back holds ≈ 0 HU at the centre and −1000 HU in the corners. Tolerance
+    /// 60 HU (6 % of the water–air step): 16³ voxels of 10 mm and 36 or 8 views. (SIRT,
+    /// not ordered-subset SART: with 8 views of analytic, hence voxel-inconsistent, data
+    /// SART at λ = 1 drifts in its null space as iterations go on — −90 HU at the centre
+    /// after 20 — while SIRT stays within 10 HU.)
+    #[test]
+    fn reconstructs_a_dataset_folder() {
+        let dir = tempfile::tempdir().unwrap();
+        let mu_w = tomograf_sim::attenuation::mu_water_per_mm(60.0).unwrap();
+        let geometry = Geometry {
+            beam: Beam::Cone {
+                sad_mm: 1000.0,
+                sid_mm: 1500.0,
+            },
+            detector: Detector::new(32, 32, 8.0),
+            isocentre: DVec3::ZERO,
+        };
+        let poses: Vec<Pose> = (0..36).map(|i| Pose::new(10.0 * i as f64, 0.0)).collect();
+        let views = geometry.views(&poses).unwrap();
+        let ball = Phantom {
+            background_hu: -1000.0,
+            components: vec![Component {
+                name: "water",
+                shape: Shape::Ellipsoid {
+                    centre: DVec3::ZERO,
+                    semi_axes: DVec3::splat(50.0),
+                    rotation_z_deg: 0.0,
+                },
+                delta_hu: 1000.0,
+            }],
+        };
+        let mut stack = Vec::new();
+        for v in &views {
+            for i in 0..v.rows * v.cols {
+                let ray = v.ray((i / v.cols) as f64, (i % v.cols) as f64);
+                stack.push(ball.line_integral(&ray, mu_w) as f32);
+            }
+        }
+        tomograf_datasets::image::write_npy(
+            &dir.path().join("projections.npy"),
+            &stack,
+            &[36, 32, 32],
+        )
+        .unwrap();
+        let json = serde_json::json!({"geometry": geometry, "poses": poses, "views": views});
+        std::fs::write(dir.path().join("views.json"), json.to_string()).unwrap();
+        for (method, picks) in [
+            (Method::Fdk, vec![]),
+            (Method::Sirt, vec![0, 4, 9, 13, 18, 22, 27, 31]),
+        ] {
+            let out = dir.path().join(format!("{method:?}.nii.gz"));
+            let mut args =
+                ReconArgs::parse_from(["x", "in", "--dims", "16,16,16", "--spacing", "10"]);
+            args.input = dir.path().to_path_buf();
+            args.output = out.clone();
+            args.method = method;
+            args.views = picks;
+            run(args).unwrap();
+            let v = nifti::read_nifti(&out).unwrap();
+            let centre = v.get(8, 8, 8);
+            let corner = v.get(0, 0, 0);
+            assert!(centre.abs() < 60.0, "{method:?}: centre {centre} HU");
+            assert!(
+                (corner + 1000.0).abs() < 60.0,
+                "{method:?}: corner {corner} HU"
+            );
+        }
+    }
+
+    #[derive(clap::Parser)]
+    struct Wrap {
+        #[command(flatten)]
+        args: ReconArgs,
+    }
+
+    impl ReconArgs {
+        fn parse_from<const N: usize>(a: [&str; N]) -> Self {
+            use clap::Parser;
+            Wrap::parse_from(a).args
+        }
+    }
+}
