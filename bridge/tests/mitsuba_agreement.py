@@ -216,6 +216,7 @@ def run(spp: int) -> list[dict]:
              ("cone θ=90°", cone, tg.Pose(90)), ("parallel θ=120°, φ=−15°", par, tg.Pose(120, -15))]
     rows: list[dict] = []
     seed = 1
+    step_err = 0.0
 
     def record(case, model, expect, ours_l, mean, se, secs):
         st = zstats(np.exp(-np.asarray(ours_l, np.float64)), mean, se)
@@ -237,6 +238,11 @@ def run(spp: int) -> list[dict]:
             mean, se = mts.transmittance(o, d, spp, seed)
             secs = time.perf_counter() - t
             seed += 1
+            if filt == "trilinear":
+                # Midpoint-rule error of the marcher: against 8× finer steps.
+                fine = tg.line_integrals(vol, o, d, projector=proj, step_voxels=step / 8)
+                coarse = tg.line_integrals(vol, o, d, projector=proj, step_voxels=step)
+                step_err = max(step_err, float(np.max(np.abs(coarse - fine))))
             for model, v, expect in ((label, vol, "agree"),
                                      ("wrong: volume shifted ½ voxel along x", shifted, "reject"),
                                      ("wrong: transposed axes", transposed, "reject")):
@@ -266,6 +272,7 @@ def run(spp: int) -> list[dict]:
             record(case, "tomograf.project (Siddon)", "agree", ours, mean, se, secs)
             record(case, "wrong: image flipped top–bottom", "reject", ours[::-1], mean, se, secs)
     for r in rows:
+        r["trilinear_step_err"] = step_err
         if r["expect"] == "agree":
             r["ok"] = (RMS_RANGE[0] <= r["rms_z"] <= RMS_RANGE[1] and abs(r["mean_z"]) < MEAN_LIMIT
                        and r["missed_max_dev"] < 1e-6)
@@ -285,6 +292,9 @@ def markdown(rows: list[dict], command: str, total_s: float) -> str:
             f"{r['mean_z']:+.3f} | {r['pixels']} | {r['spp']} | {100 * r['median_rel_se']:.2f} % | "
             f"{r['seconds']:.1f} | {'yes' if r['ok'] else '**NO**'} |"
         )
+    out.append("")
+    out.append(f"Trilinear marcher at 1/16 voxel vs 1/128 voxel on the same rays: max |ΔL| = "
+               f"{rows[0]['trilinear_step_err']:.1e} (the Monte Carlo error is ~0.6 % of T).")
     out.append("")
     out.append(f"Produced by `{command}` in {total_s:.0f} s.")
     return "\n".join(out)

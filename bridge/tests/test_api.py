@@ -185,3 +185,18 @@ def test_corrupt_file_is_a_value_error(tmp_path):
     p.write_bytes(b"not a nifti file at all" * 20)
     with pytest.raises(ValueError, match="bad.nii"):
         tg.Volume.load(str(p))
+
+
+def test_type_stubs_cover_the_module():
+    import ast
+    from pathlib import Path
+
+    stub = ast.parse((Path(__file__).resolve().parents[1] / "tomograf.pyi").read_text())
+    declared = {n.name for n in stub.body if isinstance(n, (ast.FunctionDef, ast.ClassDef))}
+    public = {n for n in dir(tg) if not n.startswith("_") and n != "tomograf"}
+    assert declared == public
+    classes = {n.name: n for n in stub.body if isinstance(n, ast.ClassDef)}
+    for name, node in classes.items():
+        members = {m.name for m in node.body if isinstance(m, ast.FunctionDef)} - {"__init__"}
+        actual = {m for m in dir(getattr(tg, name)) if not m.startswith("_")}
+        assert members == actual, name
