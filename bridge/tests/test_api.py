@@ -200,3 +200,14 @@ def test_type_stubs_cover_the_module():
         members = {m.name for m in node.body if isinstance(m, ast.FunctionDef)} - {"__init__"}
         actual = {m for m in dir(getattr(tg, name)) if not m.startswith("_")}
         assert members == actual, name
+
+
+def test_the_docs_example_runs(tmp_path, monkeypatch):
+    import re
+    from pathlib import Path
+
+    text = (Path(__file__).resolve().parents[2] / "docs" / "python.md").read_text()
+    block = re.search(r"## Example\n\n```python\n(.*?)```", text, re.S).group(1)
+    monkeypatch.chdir(tmp_path)
+    exec(compile(block.replace("/tmp/zeros.nii.gz", str(tmp_path / "zeros.nii.gz")), "python.md", "exec"), {})
+    assert (tmp_path / "zeros.nii.gz").exists()
