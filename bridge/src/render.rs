@@ -82,6 +82,12 @@ pub fn project<'py>(
     if list.is_empty() {
         return Err(errors::value("no views to render"));
     }
+    let (rows, cols) = (list[0].rows, list[0].cols);
+    if list.iter().any(|v| v.rows != rows || v.cols != cols) {
+        return Err(errors::value(
+            "all views in one call must have the same rows × cols",
+        ));
+    }
     let vol = &mu.inner;
     let out = py.detach(|| -> PyResult<Vec<f32>> {
         check_mu(vol)?;
@@ -93,12 +99,6 @@ pub fn project<'py>(
         }
         Ok(data)
     })?;
-    let (rows, cols) = (list[0].rows, list[0].cols);
-    if list.iter().any(|v| v.rows != rows || v.cols != cols) {
-        return Err(errors::value(
-            "all views in one call must have the same rows × cols",
-        ));
-    }
     let shape: Vec<usize> = if single {
         vec![rows, cols]
     } else {
