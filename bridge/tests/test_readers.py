@@ -101,3 +101,17 @@ def test_nibabel_written_point_lands_where_the_conventions_say(tmp_path, cli):
         assert abs(r - er) < 0.5 and abs(c - ec) < 0.5, (theta, phi, r, c, er, ec)
         if theta == 0:
             assert c > cols / 2 and r < rows / 2  # AP: left on the image's right, head up
+
+
+def test_dicom_series_loads_like_the_nifti(tmp_path, cli):
+    cli("phantom", "-o", tmp_path / "t.nii.gz", "--dims", "30,20,12", "--spacing", "12,14,25")
+    cli("phantom", "--dicom", "-o", tmp_path / "dcm", "--dims", "30,20,12", "--spacing", "12,14,25")
+    a = tg.Volume.load(str(tmp_path / "t.nii.gz"))
+    b = tg.Volume.load(str(tmp_path / "dcm"))
+    assert a.dims == b.dims
+    np.testing.assert_allclose(b.array, a.array, atol=0.5)  # DICOM stores HU rounded to int16
+    np.testing.assert_allclose(b.origin, a.origin, atol=1e-3)
+    np.testing.assert_allclose(b.spacing, a.spacing, rtol=1e-5)
+    (tmp_path / "empty").mkdir()
+    with pytest.raises(ValueError, match="empty: no DICOM files"):
+        tg.Volume.load(str(tmp_path / "empty"))
