@@ -62,6 +62,7 @@ TRILINEAR_STEP = 1.0 / 16.0
 RMS_RANGE = (0.9, 1.1)
 MEAN_LIMIT = 0.05
 WRONG_RMS_MIN = 5.0
+RNG = "numpy"  # --rng
 
 
 def find_libllvm() -> None:
@@ -125,14 +126,20 @@ class Mitsuba:
         ray.o = mi.Point3f(o[:, 0], o[:, 1], o[:, 2])
         ray.d = mi.Vector3f(d[:, 0], d[:, 1], d[:, 2])
         ray.maxt = dr.inf
-        # Independent uniforms for every lane and step (numpy's PCG64; lanes seeded from
-        # one PCG32 state with consecutive stream ids are correlated and understate the
-        # spread).
-        rng = np.random.default_rng(seed)
+        # Independent uniforms for every lane and step (numpy's PCG64). RNG = "pcg32-streams"
+        # reproduces the pitfall in docs/mitsuba.md: one mi.PCG32 state with consecutive
+        # stream ids per lane gives correlated samples that understate the spread.
+        if RNG == "pcg32-streams":
+            pcg = mi.PCG32(size=lanes, initstate=seed, initseq=dr.arange(mi.UInt64, lanes))
+        else:
+            rng = np.random.default_rng(seed)
         weight = dr.full(mi.Float, 1.0, lanes)
         active = dr.full(mi.Bool, True, lanes)
         while True:
-            u = mi.Float(rng.random(lanes, dtype=np.float32))
+            if RNG == "pcg32-streams":
+                u = pcg.next_float32()
+            else:
+                u = mi.Float(rng.random(lanes, dtype=np.float32))
             mei = self.medium.sample_interaction(ray, u, 0, active)
             hit = active & mei.is_valid()
             ratio = 1.0 - mei.sigma_t[0] / mei.combined_extinction[0]
@@ -140,6 +147,8 @@ class Mitsuba:
             ray.o[hit] = mei.p
             active = hit
             dr.eval(weight, ray.o, active)
+            if RNG == "pcg32-streams":
+                dr.eval(pcg)
             if not dr.any(active):
                 break
         w = np.asarray(weight, dtype=np.float64).reshape(n, spp)
@@ -306,12 +315,18 @@ def main() -> int:
     ap.add_argument("--json", help="write the rows as JSON here")
     ap.add_argument("--out", help="write the markdown table into this file, between the "
                     "'<!-- mitsuba-table -->' markers (the file is created when missing)")
+    ap.add_argument("--rng", choices=["numpy", "pcg32-streams"], default="numpy",
+                    help="random numbers: numpy PCG64 (default) or the correlated PCG32 "
+                    "streams of the pitfall in docs/mitsuba.md")
     a = ap.parse_args()
+    global RNG
+    RNG = a.rng
     find_libllvm()
     t0 = time.perf_counter()
     rows = run(a.spp)
     total = time.perf_counter() - t0
-    cmd = "python bridge/tests/mitsuba_agreement.py --spp %d%s" % (a.spp, f" --out {a.out}" if a.out else "")
+    cmd = "python bridge/tests/mitsuba_agreement.py --spp %d%s%s" % (
+        a.spp, f" --rng {a.rng}" if a.rng != "numpy" else "", f" --out {a.out}" if a.out else "")
     table = markdown(rows, cmd, total)
     print(table)
     if a.json:
