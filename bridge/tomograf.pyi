@@ -115,9 +115,9 @@ class Geometry:
     """Beam (cone: SAD/SID mm; or parallel), detector and isocentre (world LPS mm)."""
 
     @staticmethod
-    def cone(sad_mm: float, sid_mm: float, detector: Detector, isocentre: Vec3 = (0.0, 0.0, 0.0)) -> Geometry: ...
+    def cone(sad_mm: float, sid_mm: float, detector: Detector, isocentre: Sequence[float] = (0.0, 0.0, 0.0)) -> Geometry: ...
     @staticmethod
-    def parallel(detector: Detector, isocentre: Vec3 = (0.0, 0.0, 0.0)) -> Geometry: ...
+    def parallel(detector: Detector, isocentre: Sequence[float] = (0.0, 0.0, 0.0)) -> Geometry: ...
     def view(self, pose: PoseLike) -> View: ...
     def views(self, poses: Sequence[PoseLike]) -> list[View]: ...
     def fit_pitch(self, poses: Sequence[PoseLike], volume: Volume) -> float:
@@ -184,9 +184,9 @@ def line_integrals(
     (defaults 0, ∞). origins/directions (..., 3) → result (...)."""
 
 def thorax(
-    dims: Tuple[int, int, int] = (256, 256, 133),
-    spacing_mm: Vec3 = (1.4, 1.4, 2.5),
-    centre: Vec3 = (0.0, 0.0, 0.0),
+    dims: Sequence[int] = (256, 256, 133),
+    spacing_mm: Sequence[float] = (1.4, 1.4, 2.5),
+    centre: Sequence[float] = (0.0, 0.0, 0.0),
     seed: Optional[int] = None,
 ) -> Volume:
     """Analytic thorax phantom sampled at voxel centres (HU)."""
@@ -197,8 +197,8 @@ def thorax_line_integrals(view: View, mu_water_per_mm: float, seed: Optional[int
 def chest(
     seed: int = 0,
     profile: Literal["lidc", "lidc-cropped", "full-chest"] = "lidc",
-    dims: Tuple[int, int, int] = (256, 256, 133),
-    spacing_mm: Vec3 = (1.4, 1.4, 2.5),
+    dims: Sequence[int] = (256, 256, 133),
+    spacing_mm: Sequence[float] = (1.4, 1.4, 2.5),
     table: bool = False,
     pacemaker: bool = False,
 ) -> Volume:
@@ -207,8 +207,8 @@ def chest(
 def describe_chest(
     seed: int = 0,
     profile: Literal["lidc", "lidc-cropped", "full-chest"] = "lidc",
-    dims: Tuple[int, int, int] = (256, 256, 133),
-    spacing_mm: Vec3 = (1.4, 1.4, 2.5),
+    dims: Sequence[int] = (256, 256, 133),
+    spacing_mm: Sequence[float] = (1.4, 1.4, 2.5),
     table: bool = False,
     pacemaker: bool = False,
 ) -> dict[str, Any]:

@@ -153,17 +153,12 @@ impl PyGeometry {
     /// Flat-panel cone beam: source at ``sad_mm`` from the isocentre, detector at
     /// ``sid_mm`` from the source (SID ≥ SAD).
     #[staticmethod]
-    #[pyo3(signature = (sad_mm, sid_mm, detector, isocentre=(0.0, 0.0, 0.0)))]
-    fn cone(
-        sad_mm: f64,
-        sid_mm: f64,
-        detector: PyDetector,
-        isocentre: (f64, f64, f64),
-    ) -> PyResult<Self> {
+    #[pyo3(signature = (sad_mm, sid_mm, detector, isocentre=[0.0, 0.0, 0.0]))]
+    fn cone(sad_mm: f64, sid_mm: f64, detector: PyDetector, isocentre: [f64; 3]) -> PyResult<Self> {
         let inner = Geometry {
             beam: Beam::Cone { sad_mm, sid_mm },
             detector: detector.inner,
-            isocentre: DVec3::from(isocentre),
+            isocentre: vec3("isocentre", isocentre)?,
         };
         inner.validate().map_err(errors::sim)?;
         Ok(Self { inner })
@@ -171,12 +166,12 @@ impl PyGeometry {
     /// Parallel beam; the detector plane passes through the isocentre and the pitch is
     /// measured there.
     #[staticmethod]
-    #[pyo3(signature = (detector, isocentre=(0.0, 0.0, 0.0)))]
-    fn parallel(detector: PyDetector, isocentre: (f64, f64, f64)) -> PyResult<Self> {
+    #[pyo3(signature = (detector, isocentre=[0.0, 0.0, 0.0]))]
+    fn parallel(detector: PyDetector, isocentre: [f64; 3]) -> PyResult<Self> {
         let inner = Geometry {
             beam: Beam::Parallel,
             detector: detector.inner,
-            isocentre: DVec3::from(isocentre),
+            isocentre: vec3("isocentre", isocentre)?,
         };
         inner.validate().map_err(errors::sim)?;
         Ok(Self { inner })

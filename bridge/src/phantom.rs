@@ -22,17 +22,17 @@ fn analytic(seed: Option<u64>) -> Phantom {
 /// size, heart position, nodules); ``None``: the reference thorax. About
 /// 330 × 230 × 320 mm, centred on the world origin.
 #[pyfunction]
-#[pyo3(signature = (dims=(256, 256, 133), spacing_mm=(1.4, 1.4, 2.5), centre=(0.0, 0.0, 0.0), seed=None))]
+#[pyo3(signature = (dims=[256, 256, 133], spacing_mm=[1.4, 1.4, 2.5], centre=[0.0, 0.0, 0.0], seed=None))]
 pub fn thorax(
     py: Python<'_>,
-    dims: (usize, usize, usize),
-    spacing_mm: (f64, f64, f64),
-    centre: (f64, f64, f64),
+    dims: [usize; 3],
+    spacing_mm: [f64; 3],
+    centre: [f64; 3],
     seed: Option<u64>,
 ) -> PyResult<PyVolume> {
-    let spacing = vec3("spacing", spacing_mm.into())?;
-    let centre = vec3("centre", centre.into())?;
-    let v = py.detach(|| analytic(seed).voxelize([dims.0, dims.1, dims.2], spacing, centre));
+    let spacing = vec3("spacing", spacing_mm)?;
+    let centre = vec3("centre", centre)?;
+    let v = py.detach(|| analytic(seed).voxelize(dims, spacing, centre));
     Ok(PyVolume::wrap(v.map_err(errors::sim)?))
 }
 
@@ -74,13 +74,13 @@ pub fn thorax_line_integrals<'py>(
 fn spec(
     seed: u64,
     profile: &str,
-    dims: (usize, usize, usize),
-    spacing_mm: (f64, f64, f64),
+    dims: [usize; 3],
+    spacing_mm: [f64; 3],
     table: bool,
     pacemaker: bool,
 ) -> PyResult<AnatomySpec> {
     let profile = Profile::parse(profile).map_err(errors::dataset)?;
-    let mut s = AnatomySpec::new(seed, profile, [dims.0, dims.1, dims.2], spacing_mm.into());
+    let mut s = AnatomySpec::new(seed, profile, dims, spacing_mm);
     s.table = table;
     s.pacemaker = pacemaker;
     Ok(s)
@@ -92,13 +92,13 @@ fn spec(
 /// ``table`` and ``pacemaker``. Grid centred on the world origin, identity direction;
 /// ``spacing_mm`` along (x, y, z). Same arguments, same voxels.
 #[pyfunction]
-#[pyo3(signature = (seed=0, profile="lidc", dims=(256, 256, 133), spacing_mm=(1.4, 1.4, 2.5), table=false, pacemaker=false))]
+#[pyo3(signature = (seed=0, profile="lidc", dims=[256, 256, 133], spacing_mm=[1.4, 1.4, 2.5], table=false, pacemaker=false))]
 pub fn chest(
     py: Python<'_>,
     seed: u64,
     profile: &str,
-    dims: (usize, usize, usize),
-    spacing_mm: (f64, f64, f64),
+    dims: [usize; 3],
+    spacing_mm: [f64; 3],
     table: bool,
     pacemaker: bool,
 ) -> PyResult<PyVolume> {
@@ -112,13 +112,13 @@ pub fn chest(
 /// The patient that :func:`chest` with the same arguments generates (sizes, landmarks,
 /// nodules, in world LPS mm) as a dict, without generating voxels.
 #[pyfunction]
-#[pyo3(signature = (seed=0, profile="lidc", dims=(256, 256, 133), spacing_mm=(1.4, 1.4, 2.5), table=false, pacemaker=false))]
+#[pyo3(signature = (seed=0, profile="lidc", dims=[256, 256, 133], spacing_mm=[1.4, 1.4, 2.5], table=false, pacemaker=false))]
 pub fn describe_chest<'py>(
     py: Python<'py>,
     seed: u64,
     profile: &str,
-    dims: (usize, usize, usize),
-    spacing_mm: (f64, f64, f64),
+    dims: [usize; 3],
+    spacing_mm: [f64; 3],
     table: bool,
     pacemaker: bool,
 ) -> PyResult<Bound<'py, PyAny>> {
