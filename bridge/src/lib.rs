@@ -17,7 +17,7 @@
 //! Write it as its own module here (one concept per module: `spectrum.rs`,
 //! `detector_response.rs`, `scatter.rs`, …) with `#[pyclass]`/`#[pyfunction]` items
 //! that convert errors through [`errors`] and release the GIL with `py.detach` around
-//! the heavy work, register it in [`tomograf`] below under the matching comment, and add
+//! the heavy work, register it in [`tomograf_py`] below under the matching comment, and add
 //! its signatures to `tomograf.pyi` and a test to `bridge/tests/`.
 
 pub mod errors;
@@ -32,7 +32,8 @@ use pyo3::prelude::*;
 /// tracing in cone- and parallel-beam geometry. Units: mm, mm⁻¹, keV, HU, degrees;
 /// world frame DICOM LPS. See docs/python.md.
 #[pymodule]
-fn tomograf(m: &Bound<'_, PyModule>) -> PyResult<()> {
+#[pyo3(name = "tomograf")]
+fn tomograf_py(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     // Volumes and attenuation.
     m.add_class::<volume::PyVolume>()?;
