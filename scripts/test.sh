@@ -7,3 +7,7 @@ cd "$(dirname "$0")/.."
 cargo fmt --all -- --check
 cargo clippy --workspace --all-targets --release --quiet -- -D warnings
 cargo test --workspace --release
+
+# Python bridge: module build, pytest (API, nibabel/OpenImageIO readers, Mitsuba 3
+# cross-validation); installs its own virtualenv and libLLVM 19 (see bridge/test.sh).
+bridge/test.sh

@@ -1,0 +1,58 @@
+//! # `tomograf` — the Python module
+//!
+//! PyO3 bindings of tomograf: volumes (NIfTI/DICOM in, numpy in and out), HU → mu,
+//! geometry (poses, detectors, cone/parallel set-ups, general-form views), exact Siddon
+//! and trilinear projections (GIL released), and the phantoms. Built with maturin
+//! (`bridge/pyproject.toml`); type stubs in `bridge/tomograf.pyi`; tests in
+//! `bridge/tests/` (pytest). Conventions and units: `docs/python.md`.
+//!
+//! Arrays: volumes are numpy `[k, j, i]` (z, y, x for an axial CT, i fastest), images
+//! `(rows, cols)` with row 0 at the top (beam's-eye view). Lengths in mm, attenuation in
+//! mm⁻¹, energies in keV, CT values in HU, angles in degrees; world frame DICOM LPS.
+//!
+//! Errors: Rust messages unchanged, as `ValueError` (bad input) or `OSError` and its
+//! subclasses (files); see [`errors`].
+//!
+//! ## Adding a part (spectra, detector response, scatter, meshes, reconstruction)
+//! Write it as its own module here (one concept per module: `spectrum.rs`,
+//! `detector_response.rs`, `scatter.rs`, …) with `#[pyclass]`/`#[pyfunction]` items
+//! that convert errors through [`errors`] and release the GIL with `py.detach` around
+//! the heavy work, register it in [`tomograf_py`] below under the matching comment, and add
+//! its signatures to `tomograf.pyi` and a test to `bridge/tests/`.
+
+pub mod errors;
+pub mod geometry;
+pub mod phantom;
+pub mod render;
+pub mod volume;
+
+use pyo3::prelude::*;
+
+/// Simulated X-ray projections (DRRs) of CT volumes: exact Siddon and trilinear ray
+/// tracing in cone- and parallel-beam geometry. Units: mm, mm⁻¹, keV, HU, degrees;
+/// world frame DICOM LPS. See docs/python.md.
+#[pymodule]
+#[pyo3(name = "tomograf")]
+fn tomograf_py(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add("__version__", env!("CARGO_PKG_VERSION"))?;
+    // Volumes and attenuation.
+    m.add_class::<volume::PyVolume>()?;
+    m.add_function(wrap_pyfunction!(volume::mu_water, m)?)?;
+    m.add_function(wrap_pyfunction!(volume::water_energy_range_kev, m)?)?;
+    // Geometry.
+    m.add_class::<geometry::PyPose>()?;
+    m.add_class::<geometry::PyDetector>()?;
+    m.add_class::<geometry::PyGeometry>()?;
+    m.add_class::<geometry::PyView>()?;
+    m.add_function(wrap_pyfunction!(geometry::arc, m)?)?;
+    // Rendering.
+    m.add_function(wrap_pyfunction!(render::project, m)?)?;
+    m.add_function(wrap_pyfunction!(render::line_integrals, m)?)?;
+    // Phantoms.
+    m.add_function(wrap_pyfunction!(phantom::thorax, m)?)?;
+    m.add_function(wrap_pyfunction!(phantom::thorax_line_integrals, m)?)?;
+    m.add_function(wrap_pyfunction!(phantom::chest, m)?)?;
+    m.add_function(wrap_pyfunction!(phantom::describe_chest, m)?)?;
+    // Spectra, detector response, scatter, meshes, reconstruction: register here.
+    Ok(())
+}

@@ -1,0 +1,215 @@
+"""Simulated X-ray projections (DRRs) of CT volumes: exact Siddon and trilinear ray tracing.
+
+Units: lengths mm, attenuation mm⁻¹, energies keV, CT values HU, angles degrees.
+World frame: DICOM LPS (+x patient left, +y posterior, +z head). Volumes are numpy
+``[k, j, i]`` (z, y, x for an axial CT; i fastest). Images are ``(rows, cols)``, row 0
+at the top in the beam's-eye view. Errors: ``ValueError`` for bad input,
+``OSError`` (``FileNotFoundError``, ``PermissionError``) for files.
+"""
+
+from os import PathLike
+from typing import Any, Literal, Optional, Sequence, Tuple, Union
+
+import numpy as np
+import numpy.typing as npt
+
+__version__: str
+
+Vec3 = Tuple[float, float, float]
+Projector = Literal["siddon", "trilinear"]
+QuantityName = Literal["line-integral", "line_integral", "transmission", "intensity"]
+
+class Volume:
+    """A scalar field on a regular grid in the LPS world frame (HU, or mm⁻¹ after to_mu).
+
+    Voxel (i, j, k) is centred at ``origin + direction @ (spacing * (i, j, k))``."""
+
+    def __init__(
+        self,
+        array: npt.ArrayLike,
+        spacing: Sequence[float],
+        origin: Optional[Sequence[float]] = None,
+        direction: Optional[npt.ArrayLike] = None,
+    ) -> None:
+        """From a 3-D array ``[k, j, i]`` (→ float32). spacing (sx, sy, sz) mm along (i, j, k);
+        origin: world LPS mm of voxel (0, 0, 0)'s centre (default: grid centred on 0);
+        direction: 3×3, columns = world directions of (i, j, k) (default identity)."""
+    @staticmethod
+    def load(path: Union[str, PathLike[str]], allow_non_ct: bool = False) -> Volume:
+        """NIfTI file (.nii/.nii.gz, RAS→LPS) or a folder with one DICOM CT series."""
+    def save_nifti(self, path: Union[str, PathLike[str]]) -> None:
+        """Write NIfTI-1 (.nii/.nii.gz) atomically."""
+    @property
+    def array(self) -> npt.NDArray[np.float32]:
+        """Copy of the voxels, shape (nk, nj, ni)."""
+    @property
+    def dims(self) -> Tuple[int, int, int]:
+        """Voxels along (i, j, k)."""
+    @property
+    def shape(self) -> Tuple[int, int, int]:
+        """(nk, nj, ni), the shape of ``array``."""
+    @property
+    def spacing(self) -> Vec3:
+        """Voxel size along (i, j, k), mm."""
+    @property
+    def origin(self) -> Vec3:
+        """World LPS mm of the centre of voxel (0, 0, 0)."""
+    @property
+    def direction(self) -> npt.NDArray[np.float64]:
+        """3×3; column a = world direction of index axis a."""
+    @property
+    def centre(self) -> Vec3:
+        """World LPS mm of the grid centre."""
+    def index_to_world(self, ijk: Sequence[float]) -> Vec3: ...
+    def world_to_index(self, p: Sequence[float]) -> Vec3: ...
+    def min_max(self) -> Tuple[float, float]: ...
+    def to_mu(
+        self, energy_kev: Optional[float] = None, mu_water_per_mm: Optional[float] = None
+    ) -> Volume:
+        """HU → mm⁻¹: mu_water·max(0, 1 + HU/1000); default 60 keV."""
+
+def mu_water(energy_kev: float) -> float:
+    """Linear attenuation of water, mm⁻¹ (xraydb / Elam 2002)."""
+
+def water_energy_range_kev() -> Tuple[float, float]: ...
+
+class Pose:
+    """θ: gantry angle about +z (0 = AP, source anterior; 90 = source at patient's left);
+    φ: elevation towards the head. Degrees."""
+
+    def __init__(self, theta_deg: float, phi_deg: float = 0.0) -> None: ...
+    @staticmethod
+    def parse(text: str) -> Pose:
+        """'ap', 'pa', 'lateral', 'right-lateral', or 'θ' / 'θ,φ'."""
+    @property
+    def theta_deg(self) -> float: ...
+    @property
+    def phi_deg(self) -> float: ...
+
+PoseLike = Union[Pose, float, str]
+
+def arc(start_deg: float, step_deg: float, count: int, phi_deg: float = 0.0) -> list[Pose]: ...
+
+class Detector:
+    """rows × cols flat panel; pixel (0, 0) top-left in beam's-eye view; pitch in mm at the
+    detector; offsets shift the panel centre along columns (right) / rows (down), mm."""
+
+    def __init__(
+        self,
+        rows: int,
+        cols: int,
+        pitch_mm: float,
+        pitch_v_mm: Optional[float] = None,
+        offset_u_mm: float = 0.0,
+        offset_v_mm: float = 0.0,
+    ) -> None: ...
+    @property
+    def rows(self) -> int: ...
+    @property
+    def cols(self) -> int: ...
+    @property
+    def pitch_mm(self) -> Tuple[float, float]:
+        """(column pitch, row pitch), mm."""
+
+class Geometry:
+    """Beam (cone: SAD/SID mm; or parallel), detector and isocentre (world LPS mm)."""
+
+    @staticmethod
+    def cone(sad_mm: float, sid_mm: float, detector: Detector, isocentre: Sequence[float] = (0.0, 0.0, 0.0)) -> Geometry: ...
+    @staticmethod
+    def parallel(detector: Detector, isocentre: Sequence[float] = (0.0, 0.0, 0.0)) -> Geometry: ...
+    def view(self, pose: PoseLike) -> View: ...
+    def views(self, poses: Sequence[PoseLike]) -> list[View]: ...
+    def fit_pitch(self, poses: Sequence[PoseLike], volume: Volume) -> float:
+        """Square pitch (mm) that fits the volume on the panel in every pose (2 % margin)."""
+    @property
+    def beam(self) -> Literal["cone", "parallel"]: ...
+    @property
+    def detector(self) -> Detector: ...
+    @property
+    def isocentre(self) -> Vec3: ...
+
+class View:
+    """General form: pixel (r, c) centre = detector_origin + c·u + r·v (world LPS mm)."""
+
+    @staticmethod
+    def cone(source: Sequence[float], detector_origin: Sequence[float], u: Sequence[float],
+             v: Sequence[float], rows: int, cols: int) -> View: ...
+    @staticmethod
+    def parallel(direction: Sequence[float], detector_origin: Sequence[float], u: Sequence[float],
+                 v: Sequence[float], rows: int, cols: int) -> View: ...
+    @property
+    def beam(self) -> Literal["cone", "parallel"]: ...
+    @property
+    def source(self) -> Optional[Vec3]: ...
+    @property
+    def direction(self) -> Optional[Vec3]: ...
+    @property
+    def detector_origin(self) -> Vec3: ...
+    @property
+    def u(self) -> Vec3: ...
+    @property
+    def v(self) -> Vec3: ...
+    @property
+    def rows(self) -> int: ...
+    @property
+    def cols(self) -> int: ...
+    def pixel_centre(self, row: float, col: float) -> Vec3: ...
+    def project_point(self, p: Sequence[float]) -> Optional[Tuple[float, float]]: ...
+    def rays(self) -> Tuple[npt.NDArray[np.float64], npt.NDArray[np.float64],
+                            npt.NDArray[np.float64], npt.NDArray[np.float64]]:
+        """(origin (r,c,3), unit direction (r,c,3), t_min (r,c), t_max (r,c)), mm."""
+
+def project(
+    mu: Volume,
+    views: Union[View, Sequence[View]],
+    projector: Projector = "siddon",
+    step_voxels: float = 0.5,
+    quantity: QuantityName = "line-integral",
+    i0: float = 1.0,
+) -> npt.NDArray[np.float32]:
+    """Render attenuation (mm⁻¹): (rows, cols) for one view, (n, rows, cols) for a list.
+    GIL released; bit-identical for any thread count."""
+
+def line_integrals(
+    mu: Volume,
+    origins: npt.ArrayLike,
+    directions: npt.ArrayLike,
+    t_min: Optional[npt.ArrayLike] = None,
+    t_max: Optional[npt.ArrayLike] = None,
+    projector: Projector = "siddon",
+    step_voxels: float = 0.5,
+) -> npt.NDArray[np.float64]:
+    """∫mu ds along origin + t·direction (direction normalised), t ∈ [t_min, t_max] mm
+    (defaults 0, ∞). origins/directions (..., 3) → result (...)."""
+
+def thorax(
+    dims: Sequence[int] = (256, 256, 133),
+    spacing_mm: Sequence[float] = (1.4, 1.4, 2.5),
+    centre: Sequence[float] = (0.0, 0.0, 0.0),
+    seed: Optional[int] = None,
+) -> Volume:
+    """Analytic thorax phantom sampled at voxel centres (HU)."""
+
+def thorax_line_integrals(view: View, mu_water_per_mm: float, seed: Optional[int] = None) -> npt.NDArray[np.float64]:
+    """Exact line integrals of the continuous analytic thorax through each pixel centre."""
+
+def chest(
+    seed: int = 0,
+    profile: Literal["lidc", "lidc-cropped", "full-chest"] = "lidc",
+    dims: Sequence[int] = (256, 256, 133),
+    spacing_mm: Sequence[float] = (1.4, 1.4, 2.5),
+    table: bool = False,
+    pacemaker: bool = False,
+) -> Volume:
+    """Procedural chest patient (HU), grid centred on the world origin."""
+
+def describe_chest(
+    seed: int = 0,
+    profile: Literal["lidc", "lidc-cropped", "full-chest"] = "lidc",
+    dims: Sequence[int] = (256, 256, 133),
+    spacing_mm: Sequence[float] = (1.4, 1.4, 2.5),
+    table: bool = False,
+    pacemaker: bool = False,
+) -> dict[str, Any]:
+    """The sampled patient (sizes, landmarks, nodules; world LPS mm) without voxels."""
