@@ -31,6 +31,7 @@ pub const NAMES: &[&str] = &[
     "w",
     "iodine-contrast",
     "csi",
+    "cdte",
     "gos",
 ];
 
@@ -149,6 +150,9 @@ const RECIPES: &[Recipe] = &[
     ("pmma", 1.19, &[(1, 0.080541), (6, 0.599846), (8, 0.319613)]),
     // Cesium Iodide.
     ("csi", 4.51, &[(53, 0.488451), (55, 0.511549)]),
+    // Cadmium Telluride (photon-counting sensors): stoichiometric CdTe from the atomic
+    // masses Cd 112.41, Te 127.60; density 5.85 g/cm³.
+    ("cdte", 5.85, &[(48, 0.468356), (52, 0.531644)]),
     // Gadolinium Oxysulfide, Gd2O2S.
     (
         "gos",
