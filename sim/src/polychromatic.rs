@@ -40,6 +40,8 @@ pub struct SpectralIntegrator {
     mass_att: Vec<f64>,
     materials: Vec<String>,
     channels: Vec<Channel>,
+    /// Per channel, the mean and second moment with nothing in the beam.
+    open: Vec<(f64, f64)>,
 }
 
 impl SpectralIntegrator {
@@ -99,15 +101,45 @@ impl SpectralIntegrator {
                 second: photons.iter().zip(w2).map(|(n, w)| n * w).collect(),
             });
         }
+        // Bins that add less than 1e-12 of every channel's open-field signal (the far tails
+        // of a filtered spectrum, bins outside every counting window) are dropped: they
+        // change no result beyond 1e-12 relative and would cost as much as the others.
+        let keep: Vec<bool> = (0..bins)
+            .map(|b| {
+                channels.iter().any(|c| {
+                    let total: f64 = c.first.iter().sum();
+                    c.first[b] > 1e-12 * total
+                })
+            })
+            .collect();
+        let pick = |v: &[f64]| -> Vec<f64> {
+            v.iter()
+                .enumerate()
+                .filter(|(i, _)| keep[i % bins])
+                .map(|(_, x)| *x)
+                .collect()
+        };
+        let channels: Vec<Channel> = channels
+            .iter()
+            .map(|c| Channel {
+                first: pick(&c.first),
+                second: pick(&c.second),
+            })
+            .collect();
+        let open = channels
+            .iter()
+            .map(|c| (c.first.iter().sum(), c.second.iter().sum()))
+            .collect();
         Ok(Self {
-            energies_kev,
-            mass_att,
+            energies_kev: pick(&energies_kev),
+            mass_att: pick(&mass_att),
             materials: names,
             channels,
+            open,
         })
     }
 
-    /// Bin energies (keV).
+    /// Bin energies (keV) of the bins that contribute (see [`SpectralIntegrator::new`]).
     pub fn energies_kev(&self) -> &[f64] {
         &self.energies_kev
     }
@@ -125,12 +157,20 @@ impl SpectralIntegrator {
     /// Mean signal of each channel with nothing in the beam, per unit exposure factor
     /// (the flat field before exposure and geometry).
     pub fn unattenuated(&self) -> Vec<f64> {
-        self.channels.iter().map(|c| c.first.iter().sum()).collect()
+        self.open.iter().map(|o| o.0).collect()
     }
 
     /// Mean and second moment of each channel, per unit exposure factor, behind mass
     /// thicknesses `t` (g/cm², one per material). `att` is scratch of one value per bin.
     pub fn pixel(&self, t: &[f64], att: &mut [f64], mean: &mut [f64], second: &mut [f64]) {
+        if t.iter().all(|&x| x == 0.0) {
+            // Nothing in the way (air): the open field.
+            for (c, &(m1, m2)) in self.open.iter().enumerate() {
+                mean[c] = m1;
+                second[c] = m2;
+            }
+            return;
+        }
         let bins = self.energies_kev.len();
         pixel_kernel(&self.mass_att, bins, t, att, &self.channels, mean, second);
     }

@@ -203,8 +203,8 @@ fn packet_key(rays: &[Option<GridRay>], threshold: f64) -> Option<(usize, bool)>
 /// `floor`, `gt`, `le`, `ne` (lane masks), `or` (of masks), `none` (no lane set),
 /// `select` (mask ? a : b), `load`/`store` (from/to `[f64; LANES]`), `gather` (f32
 /// values at f64-valued indices, widened to f64), and for compositions `gather_packed`
-/// (density and material index of packed values), `eq` and `add_where` (s + w where the
-/// mask is set).
+/// (density and material index of packed values), `eq`, `and`, `all` (every lane set) and
+/// `add_where` (s + w where the mask is set).
 #[cfg(target_arch = "x86_64")]
 macro_rules! packet_kernel {
     ($features:literal, $lanes:literal, $vec:ty, $mask:ty, { $($prims:item)* }) => {
@@ -358,6 +358,15 @@ macro_rules! packet_kernel {
                 let (r1, m1) = gather_packed(field, va);
                 let (r2, m2) = gather_packed(field, vb);
                 let (w0, w1, w2) = (mul(r0, l0), mul(r1, l1), mul(r2, l2));
+                if all(and(eq(m0, m1), eq(m1, m2))) {
+                    // Each lane stays in one material over the layer (the usual case inside
+                    // an organ): one masked add per material.
+                    let w = add(add(w0, w1), w2);
+                    for (m, s) in sums.iter_mut().enumerate() {
+                        *s = add_where(eq(m0, splat(m as f64)), *s, w);
+                    }
+                    return;
+                }
                 for (m, s) in sums.iter_mut().enumerate() {
                     let k = splat(m as f64);
                     let a = add_where(eq(m0, k), *s, w0);
@@ -552,6 +561,16 @@ mod avx2 {
         }
         #[inline]
         #[target_feature(enable = "avx2,fma")]
+        fn and(a: M, b: M) -> M {
+            _mm256_and_pd(a, b)
+        }
+        #[inline]
+        #[target_feature(enable = "avx2,fma")]
+        fn all(m: M) -> bool {
+            _mm256_movemask_pd(m) == 0xF
+        }
+        #[inline]
+        #[target_feature(enable = "avx2,fma")]
         fn or(a: M, b: M) -> M {
             _mm256_or_pd(a, b)
         }
@@ -681,6 +700,16 @@ mod avx512 {
         #[target_feature(enable = "avx512f,avx2,fma")]
         fn add_where(m: M, s: V, w: V) -> V {
             _mm512_mask_add_pd(s, m, s, w)
+        }
+        #[inline]
+        #[target_feature(enable = "avx512f,avx2,fma")]
+        fn and(a: M, b: M) -> M {
+            a & b
+        }
+        #[inline]
+        #[target_feature(enable = "avx512f,avx2,fma")]
+        fn all(m: M) -> bool {
+            m == 0xFF
         }
         #[inline]
         #[target_feature(enable = "avx512f,avx2,fma")]
