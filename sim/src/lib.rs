@@ -9,6 +9,7 @@
 //! Units: lengths in mm, attenuation in mm⁻¹, energies in keV, CT values in HU, angles in
 //! degrees. World frame: DICOM LPS (+x patient left, +y posterior, +z head).
 
+pub mod accel;
 pub mod attenuation;
 pub mod error;
 pub mod geometry;

@@ -4,6 +4,7 @@
 //! Each pixel is computed independently from the same inputs, so images are bit-identical
 //! whatever the number of threads.
 
+use crate::accel::{EmptySpace, SkipOptions};
 use crate::error::{Result, SimError};
 use crate::geometry::View;
 use crate::ray::{GridBox, GridRay, Ray};
@@ -11,6 +12,7 @@ use crate::trace::{LineIntegral, packet, siddon, trilinear};
 use crate::volume::Volume;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
+use std::sync::Arc;
 
 /// How a ray is integrated through the volume.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -97,7 +99,7 @@ impl Projection {
 }
 
 /// Renders line integrals of an attenuation volume (mm⁻¹).
-#[derive(Debug, Clone, Copy)]
+#[derive(Debug, Clone)]
 pub struct Renderer<'a> {
     mu: &'a Volume,
     projector: Projector,
@@ -106,6 +108,8 @@ pub struct Renderer<'a> {
     /// nothing), for the trilinear field the whole grid (it is non-zero half a voxel
     /// beyond). `None`: nothing to integrate.
     bounds: Option<GridBox>,
+    /// Empty-space skipping (see [`crate::accel`]); `None`: off.
+    skip: Option<Arc<EmptySpace>>,
 }
 
 impl<'a> Renderer<'a> {
@@ -127,7 +131,21 @@ impl<'a> Renderer<'a> {
             projector,
             packet_threshold: packet::default_threshold(),
             bounds,
+            skip: None,
         })
+    }
+
+    /// Turns empty-space skipping on (`Some`, building the brick map now) or off
+    /// (`None`). Results are unchanged: see [`crate::accel`] for how exact that is.
+    pub fn with_skipping(mut self, options: Option<SkipOptions>) -> Result<Self> {
+        self.skip = match options {
+            None => None,
+            Some(o) => Some(Arc::new(match self.projector {
+                Projector::Siddon => EmptySpace::for_siddon(self.mu, o)?,
+                Projector::Trilinear { .. } => EmptySpace::for_trilinear(self.mu, o)?,
+            })),
+        };
+        Ok(self)
     }
 
     /// Sets the crossings per voxel layer from which exact Siddon traces a packet of rays
@@ -158,13 +176,19 @@ impl<'a> Renderer<'a> {
         let Some(g) = g else {
             return 0.0;
         };
-        match self.projector {
-            Projector::Siddon => {
+        match (self.projector, self.skip.as_deref()) {
+            (Projector::Siddon, skip) => {
                 let mut acc = LineIntegral::new(self.mu.data());
-                siddon::trace(self.mu.dims(), g, &mut acc);
+                match skip {
+                    Some(s) => s.siddon(self.mu.dims(), g, &mut acc),
+                    None => siddon::trace(self.mu.dims(), g, &mut acc),
+                }
                 acc.value()
             }
-            Projector::Trilinear { step_voxels } => {
+            (Projector::Trilinear { step_voxels }, Some(s)) => {
+                s.trilinear(self.mu.data(), self.mu.dims(), g, step_voxels)
+            }
+            (Projector::Trilinear { step_voxels }, None) => {
                 trilinear::march(self.mu.data(), self.mu.dims(), g, step_voxels)
             }
         }
@@ -185,11 +209,20 @@ impl<'a> Renderer<'a> {
                 let mut values = vec![0.0f64; row.len()];
                 let mut handled = vec![false; row.len()];
                 if packets {
-                    // The whole row through the SIMD tracer where its rays allow.
+                    // The whole row through the SIMD tracer where its rays allow; with
+                    // skipping, each ray narrowed to its first..last occupied brick.
+                    let trimmed: Vec<Option<GridRay>>;
+                    let rays = match self.skip.as_deref() {
+                        Some(s) => {
+                            trimmed = rays.iter().map(|g| g.and_then(|g| s.trim(&g))).collect();
+                            &trimmed
+                        }
+                        None => &rays,
+                    };
                     packet::trace_row(
                         self.mu.data(),
                         self.mu.dims(),
-                        &rays,
+                        rays,
                         self.packet_threshold,
                         &mut values,
                         &mut handled,

@@ -49,15 +49,22 @@ pub fn sample(values: &[f32], dims: [usize; 3], g: [f64; 3]) -> f64 {
 /// Midpoint-rule integral of the trilinear field along `ray`, with samples
 /// `step_voxels` grid units apart (at most). Result in the field's units × mm.
 pub fn march(values: &[f32], dims: [usize; 3], ray: &GridRay, step_voxels: f64) -> f64 {
-    let length = ray.length();
-    let grid_per_mm =
-        (ray.gd[0] * ray.gd[0] + ray.gd[1] * ray.gd[1] + ray.gd[2] * ray.gd[2]).sqrt();
-    let steps = ((length * grid_per_mm / step_voxels).ceil() as usize).max(1);
-    let h = length / steps as f64;
+    let (steps, h) = quadrature(ray, step_voxels);
     let mut sum = 0.0;
     for s in 0..steps {
         let t = ray.t_enter + (s as f64 + 0.5) * h;
         sum += sample(values, dims, ray.at(t));
     }
     sum * h
+}
+
+/// The midpoint rule [`march`] uses on `ray`: `(N, h)`, sample `s` at
+/// `t_enter + (s + ½)·h` for `s = 0..N`, `h` in mm.
+#[inline]
+pub fn quadrature(ray: &GridRay, step_voxels: f64) -> (usize, f64) {
+    let length = ray.length();
+    let grid_per_mm =
+        (ray.gd[0] * ray.gd[0] + ray.gd[1] * ray.gd[1] + ray.gd[2] * ray.gd[2]).sqrt();
+    let steps = ((length * grid_per_mm / step_voxels).ceil() as usize).max(1);
+    (steps, length / steps as f64)
 }
