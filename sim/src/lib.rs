@@ -13,6 +13,7 @@ pub mod accel;
 pub mod attenuation;
 pub mod error;
 pub mod geometry;
+pub mod mesh;
 pub mod phantom;
 pub mod ray;
 pub mod render;

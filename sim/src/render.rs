@@ -4,9 +4,12 @@
 //! Each pixel is computed independently from the same inputs, so images are bit-identical
 //! whatever the number of threads.
 
-use crate::accel::{EmptySpace, SkipOptions};
+use crate::accel::intervals::Interval;
+use crate::accel::{EmptySpace, SkipOptions, siddon_over, trilinear_in};
 use crate::error::{Result, SimError};
 use crate::geometry::View;
+use crate::mesh::object::subtract;
+use crate::mesh::{MeshInterval, MeshScene};
 use crate::ray::{GridBox, GridRay, Ray};
 use crate::trace::{LineIntegral, packet, siddon, trilinear};
 use crate::volume::Volume;
@@ -110,6 +113,8 @@ pub struct Renderer<'a> {
     bounds: Option<GridBox>,
     /// Empty-space skipping (see [`crate::accel`]); `None`: off.
     skip: Option<Arc<EmptySpace>>,
+    /// Mesh objects in the same rays (see [`crate::mesh`]); `None`: voxels only.
+    meshes: Option<Arc<MeshScene>>,
 }
 
 impl<'a> Renderer<'a> {
@@ -132,7 +137,18 @@ impl<'a> Renderer<'a> {
             packet_threshold: packet::default_threshold(),
             bounds,
             skip: None,
+            meshes: None,
         })
+    }
+
+    /// Adds mesh objects: inside a mesh its `mu_per_mm` replaces the voxels' values (an
+    /// implant displaces tissue); every mesh needs an explicit `mu_per_mm`.
+    pub fn with_meshes(mut self, meshes: Arc<MeshScene>) -> Result<Self> {
+        meshes
+            .require_mu()
+            .map_err(|e| SimError::OutOfRange(e.to_string()))?;
+        self.meshes = (!meshes.is_empty()).then_some(meshes);
+        Ok(self)
     }
 
     /// Turns empty-space skipping on (`Some`, building the brick map now) or off
@@ -163,7 +179,44 @@ impl<'a> Renderer<'a> {
 
     /// ∫mu ds along one ray (f64; 0 when the ray misses the volume).
     pub fn line_integral(&self, ray: &Ray) -> f64 {
-        self.clipped_integral(self.clip(ray).as_ref())
+        let g = self.clip(ray);
+        match self.meshes.as_deref() {
+            Some(m) => {
+                let mut iv = Vec::new();
+                m.line_integral(ray, &mut iv) + self.voxels_outside(g.as_ref(), &iv)
+            }
+            None => self.clipped_integral(g.as_ref()),
+        }
+    }
+
+    /// ∫mu ds of the voxels along `g` outside the mesh intervals `iv`.
+    fn voxels_outside(&self, g: Option<&GridRay>, iv: &[MeshInterval]) -> f64 {
+        let Some(g) = g else {
+            return 0.0;
+        };
+        if iv.is_empty() {
+            return self.clipped_integral(Some(g));
+        }
+        let mut base = vec![Interval {
+            t0: g.t_enter,
+            t1: g.t_exit,
+        }];
+        let mut keep = Vec::new();
+        match self.projector {
+            Projector::Siddon => {
+                if let Some(s) = self.skip.as_deref() {
+                    s.intervals(g, &mut base);
+                }
+                subtract(&base, iv, &mut keep);
+                let mut acc = LineIntegral::new(self.mu.data());
+                siddon_over(self.mu.dims(), g, &keep, &mut acc);
+                acc.value()
+            }
+            Projector::Trilinear { step_voxels } => {
+                subtract(&base, iv, &mut keep);
+                trilinear_in(self.mu.data(), self.mu.dims(), g, step_voxels, &keep)
+            }
+        }
     }
 
     /// `ray` clipped to the part of the grid this projector integrates.
@@ -203,9 +256,26 @@ impl<'a> Renderer<'a> {
             .enumerate()
             .for_each(|(r, row)| {
                 let r = r as f64;
-                let rays: Vec<Option<GridRay>> = (0..row.len())
-                    .map(|c| self.clip(&view.ray(r, c as f64)))
-                    .collect();
+                let world: Vec<Ray> = (0..row.len()).map(|c| view.ray(r, c as f64)).collect();
+                let mut rays: Vec<Option<GridRay>> = world.iter().map(|w| self.clip(w)).collect();
+                // Rays through meshes: the mesh part, and the voxels outside it (scalar).
+                let meshed: Vec<Option<(f64, Vec<MeshInterval>)>> = match self.meshes.as_deref() {
+                    Some(m) => world
+                        .iter()
+                        .map(|w| {
+                            let mut iv = Vec::new();
+                            let l = m.line_integral(w, &mut iv);
+                            (!iv.is_empty()).then_some((l, iv))
+                        })
+                        .collect(),
+                    None => vec![None; row.len()],
+                };
+                let voxel_rays = rays.clone();
+                for (g, m) in rays.iter_mut().zip(&meshed) {
+                    if m.is_some() {
+                        *g = None;
+                    }
+                }
                 let mut values = vec![0.0f64; row.len()];
                 let mut handled = vec![false; row.len()];
                 if packets {
@@ -229,7 +299,9 @@ impl<'a> Renderer<'a> {
                     );
                 }
                 for (c, px) in row.iter_mut().enumerate() {
-                    let v = if handled[c] {
+                    let v = if let Some((l, iv)) = &meshed[c] {
+                        l + self.voxels_outside(voxel_rays[c].as_ref(), iv)
+                    } else if handled[c] {
                         values[c]
                     } else {
                         self.clipped_integral(rays[c].as_ref())

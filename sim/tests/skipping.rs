@@ -112,7 +112,11 @@ fn check_rays(vol: &Volume, rays: &[Ray], what: &str) {
         let plain = Renderer::new(vol, projector).unwrap();
         for brick in [1, 4, 8, 16] {
             for finder in [Finder::Dda, Finder::Bvh] {
-                let o = SkipOptions { brick, finder };
+                let o = SkipOptions {
+                    brick,
+                    finder,
+                    ..SkipOptions::default()
+                };
                 let fast = plain.clone().with_skipping(Some(o)).unwrap();
                 for ray in rays {
                     let (a, b) = (plain.line_integral(ray), fast.line_integral(ray));
@@ -182,7 +186,11 @@ fn chest_renders_unchanged() {
             let plain = Renderer::new(&vol, projector).unwrap();
             let a = plain.render(&view).unwrap();
             for finder in [Finder::Dda, Finder::Bvh] {
-                let o = SkipOptions { brick: 8, finder };
+                let o = SkipOptions {
+                    brick: 8,
+                    finder,
+                    ..SkipOptions::default()
+                };
                 let b = plain
                     .clone()
                     .with_skipping(Some(o))
@@ -254,6 +262,7 @@ fn trilinear_needs_the_dilated_map() {
     let opts = SkipOptions {
         brick: 8,
         finder: Finder::Dda,
+        threshold: 0.0,
     };
     let dilated = EmptySpace::for_trilinear(&vol, opts).unwrap();
     let undilated = EmptySpace::from_map(BrickMap::nonzero(&vol, 8).unwrap(), Finder::Dda);
