@@ -131,14 +131,21 @@ impl<'a> Renderer<'a> {
             Projector::Siddon => mu.occupied(),
             Projector::Trilinear { .. } => Some(GridBox::whole(mu.dims())),
         };
-        Ok(Self {
+        let renderer = Self {
             mu,
             projector,
             packet_threshold: packet::default_threshold(),
             bounds,
             skip: None,
             meshes: None,
-        })
+        };
+        // Empty-space skipping is on by default where it was measured faster (trilinear:
+        // docs/benchmarks.md, "Empty-space skipping"); exact Siddon's row packets gain
+        // nothing from it, so it stays opt-in there.
+        match projector {
+            Projector::Trilinear { .. } => renderer.with_skipping(Some(SkipOptions::default())),
+            Projector::Siddon => Ok(renderer),
+        }
     }
 
     /// Adds mesh objects: inside a mesh its `mu_per_mm` replaces the voxels' values (an
@@ -271,40 +278,44 @@ impl<'a> Renderer<'a> {
                     None => vec![None; row.len()],
                 };
                 let voxel_rays = rays.clone();
-                for (g, m) in rays.iter_mut().zip(&meshed) {
-                    if m.is_some() {
+                // Only rays whose mesh intervals overlap their voxel part leave the packets.
+                let overlap: Vec<bool> = rays
+                    .iter()
+                    .zip(&meshed)
+                    .map(|(g, m)| match (g, m) {
+                        (Some(g), Some((_, iv))) => {
+                            iv.iter().any(|i| i.t1 > g.t_enter && i.t0 < g.t_exit)
+                        }
+                        _ => false,
+                    })
+                    .collect();
+                for (g, &o) in rays.iter_mut().zip(&overlap) {
+                    if o {
                         *g = None;
                     }
                 }
                 let mut values = vec![0.0f64; row.len()];
                 let mut handled = vec![false; row.len()];
                 if packets {
-                    // The whole row through the SIMD tracer where its rays allow; with
-                    // skipping, each ray narrowed to its first..last occupied brick.
-                    let trimmed: Vec<Option<GridRay>>;
-                    let rays = match self.skip.as_deref() {
-                        Some(s) => {
-                            trimmed = rays.iter().map(|g| g.and_then(|g| s.trim(&g))).collect();
-                            &trimmed
-                        }
-                        None => &rays,
-                    };
+                    // The whole row through the SIMD tracer where its rays allow (it walks
+                    // whole layers: empty-space skipping applies to the scalar rays only).
                     packet::trace_row(
                         self.mu.data(),
                         self.mu.dims(),
-                        rays,
+                        &rays,
                         self.packet_threshold,
                         &mut values,
                         &mut handled,
                     );
                 }
                 for (c, px) in row.iter_mut().enumerate() {
-                    let v = if let Some((l, iv)) = &meshed[c] {
+                    let mesh_part = meshed[c].as_ref().map_or(0.0, |m| m.0);
+                    let v = if let (true, Some((l, iv))) = (overlap[c], &meshed[c]) {
                         l + self.voxels_outside(voxel_rays[c].as_ref(), iv)
                     } else if handled[c] {
-                        values[c]
+                        mesh_part + values[c]
                     } else {
-                        self.clipped_integral(rays[c].as_ref())
+                        mesh_part + self.clipped_integral(rays[c].as_ref())
                     };
                     *px = v as f32;
                 }
