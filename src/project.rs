@@ -515,7 +515,16 @@ pub fn run(args: ProjectArgs) -> Result<()> {
     let (mu, source) = load_mu(&scene)?;
     let t_load = t0.elapsed();
     let job = resolve(&scene, &mu)?;
-    let renderer = Renderer::new(&mu, job.projector)?;
+    let mut renderer = Renderer::new(&mu, job.projector)?;
+    if !scene.mesh.is_empty() {
+        let mut objects = Vec::new();
+        for (i, m) in scene.mesh.iter().enumerate() {
+            objects.extend(m.build(i)?);
+        }
+        renderer = renderer.with_meshes(std::sync::Arc::new(
+            tomograf_sim::mesh::MeshScene::new(objects),
+        ))?;
+    }
     outputs.prepare()?;
 
     let bar = ProgressBar::new(job.views.len() as u64).with_style(

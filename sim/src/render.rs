@@ -196,6 +196,24 @@ impl<'a> Renderer<'a> {
         }
     }
 
+    /// Exact-Siddon ∫mu ds of the voxels along `g` inside the mesh intervals `iv`.
+    fn voxels_inside(&self, g: Option<&GridRay>, iv: &[MeshInterval]) -> f64 {
+        let Some(g) = g else {
+            return 0.0;
+        };
+        let inside: Vec<Interval> = iv
+            .iter()
+            .map(|i| Interval {
+                t0: i.t0.max(g.t_enter),
+                t1: i.t1.min(g.t_exit),
+            })
+            .filter(|i| i.t1 > i.t0)
+            .collect();
+        let mut acc = LineIntegral::new(self.mu.data());
+        siddon_over(self.mu.dims(), g, &inside, &mut acc);
+        acc.value()
+    }
+
     /// ∫mu ds of the voxels along `g` outside the mesh intervals `iv`.
     fn voxels_outside(&self, g: Option<&GridRay>, iv: &[MeshInterval]) -> f64 {
         let Some(g) = g else {
@@ -264,7 +282,7 @@ impl<'a> Renderer<'a> {
             .for_each(|(r, row)| {
                 let r = r as f64;
                 let world: Vec<Ray> = (0..row.len()).map(|c| view.ray(r, c as f64)).collect();
-                let mut rays: Vec<Option<GridRay>> = world.iter().map(|w| self.clip(w)).collect();
+                let rays: Vec<Option<GridRay>> = world.iter().map(|w| self.clip(w)).collect();
                 // Rays through meshes: the mesh part, and the voxels outside it (scalar).
                 let meshed: Vec<Option<(f64, Vec<MeshInterval>)>> = match self.meshes.as_deref() {
                     Some(m) => world
@@ -277,8 +295,9 @@ impl<'a> Renderer<'a> {
                         .collect(),
                     None => vec![None; row.len()],
                 };
-                let voxel_rays = rays.clone();
-                // Only rays whose mesh intervals overlap their voxel part leave the packets.
+                // Rays whose mesh intervals overlap their voxel part: traced whole by the
+                // packets, then the voxels inside the meshes are subtracted (Siddon over
+                // those intervals only); the scalar path traces the complement instead.
                 let overlap: Vec<bool> = rays
                     .iter()
                     .zip(&meshed)
@@ -289,11 +308,6 @@ impl<'a> Renderer<'a> {
                         _ => false,
                     })
                     .collect();
-                for (g, &o) in rays.iter_mut().zip(&overlap) {
-                    if o {
-                        *g = None;
-                    }
-                }
                 let mut values = vec![0.0f64; row.len()];
                 let mut handled = vec![false; row.len()];
                 if packets {
@@ -311,7 +325,11 @@ impl<'a> Renderer<'a> {
                 for (c, px) in row.iter_mut().enumerate() {
                     let mesh_part = meshed[c].as_ref().map_or(0.0, |m| m.0);
                     let v = if let (true, Some((l, iv))) = (overlap[c], &meshed[c]) {
-                        l + self.voxels_outside(voxel_rays[c].as_ref(), iv)
+                        if handled[c] {
+                            l + values[c] - self.voxels_inside(rays[c].as_ref(), iv)
+                        } else {
+                            l + self.voxels_outside(rays[c].as_ref(), iv)
+                        }
                     } else if handled[c] {
                         mesh_part + values[c]
                     } else {

@@ -295,10 +295,10 @@ pub fn tube(path: &[DVec3], radius: f64, segments: u32) -> Result<TriMesh> {
     }))
 }
 
-/// A pacemaker: the can (a rounded slab 50 × 45 × 8 mm in x, y, z) and two leads
-/// (tubes of 1 mm radius) leaving its header at +y and curving down to −y and on along
-/// −z (into the heart when placed on the chest). Returned as `(name, mesh)` pairs,
-/// centred on the can.
+/// A pacemaker as it lies under the skin of the chest (LPS frame): the can, a rounded
+/// slab 50 × 8 × 45 mm (x, y, z; thin front to back), and two leads (tubes of 1 mm radius)
+/// leaving its header at +z (towards the head), looping and running 12 cm posterior (+y)
+/// into the chest. Returned as `(name, mesh)` pairs, centred on the can.
 pub fn pacemaker(segments: u32) -> Result<Vec<(String, TriMesh)>> {
     let segments = segments.max(8);
     // Can outline: a stadium (two half-discs joined by straight sides).
@@ -312,8 +312,20 @@ pub fn pacemaker(segments: u32) -> Result<Vec<(String, TriMesh)>> {
         let a = std::f64::consts::FRAC_PI_2 + std::f64::consts::PI * s as f64 / segments as f64;
         outline.push([-(half_w - r) + r * a.cos(), r * a.sin()]);
     }
+    // Built flat in x–y with the header at +y, then turned by +90° about x: (x, y, z) →
+    // (x, −z, y).
+    let turn = |m: TriMesh| {
+        outward(TriMesh {
+            vertices: m
+                .vertices
+                .iter()
+                .map(|v| DVec3::new(v.x, -v.z, v.y))
+                .collect(),
+            triangles: m.triangles,
+        })
+    };
     let can = prism(&outline, 8.0)?;
-    let mut out = vec![("pacemaker-can".to_string(), can)];
+    let mut out = vec![("pacemaker-can".to_string(), turn(can))];
     for (k, dx) in [(1, -6.0), (2, 6.0)] {
         let path: Vec<DVec3> = (0..=24)
             .map(|i| {
@@ -325,7 +337,7 @@ pub fn pacemaker(segments: u32) -> Result<Vec<(String, TriMesh)>> {
             .collect();
         out.push((
             format!("pacemaker-lead-{k}"),
-            tube(&path, 1.0, segments.min(16))?,
+            turn(tube(&path, 1.0, segments.min(16))?),
         ));
     }
     Ok(out)
