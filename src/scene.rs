@@ -183,10 +183,8 @@ impl MeshEntry {
                     Some(eps) => topology::repair(&mesh, eps).with_context(what)?.0,
                     None => mesh,
                 };
-                Ok(
-                    MeshObject::new(&part, &mesh, &placement, &material, Some(mu), true)
-                        .with_context(what)?,
-                )
+                MeshObject::new(&part, &mesh, &placement, &material, Some(mu), true)
+                    .with_context(what)
             })
             .collect()
     }
