@@ -63,7 +63,7 @@ pub(crate) fn view(n: usize, pose: Pose) -> Result<View> {
     .view(pose)?)
 }
 
-pub(crate) fn median_ms(
+fn median_ms(
     repeats: usize,
     mut f: impl FnMut() -> Result<Projection>,
 ) -> Result<(f64, Projection)> {

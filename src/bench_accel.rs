@@ -3,12 +3,42 @@
 //! Every figure is a ratio against a baseline rendered in the same process (same volume,
 //! same view), medians of repeated renders.
 
-use crate::bench::{BenchArgs, median_ms, thorax_mu, view};
+use crate::bench::{BenchArgs, thorax_mu, view};
 use anyhow::Result;
 use std::fmt::Write as _;
 use std::time::Instant;
 use tomograf_sim::accel::{EmptySpace, Finder, SkipOptions};
 use tomograf_sim::{Pose, Projection, Projector, Renderer};
+
+/// Median render times (ms) of `renderers` on `view`, measured interleaved (one render of
+/// each per round, after a warm-up round) so that a change in machine load during the
+/// measurement affects all of them alike; also returns each renderer's image.
+fn interleaved(
+    repeats: usize,
+    renderers: &[&Renderer],
+    v: &tomograf_sim::View,
+) -> Result<(Vec<f64>, Vec<Projection>)> {
+    let mut images = renderers
+        .iter()
+        .map(|r| r.render(v))
+        .collect::<Result<Vec<_>, _>>()?;
+    let mut times = vec![Vec::new(); renderers.len()];
+    for _ in 0..repeats.max(1) {
+        for (i, r) in renderers.iter().enumerate() {
+            let t = Instant::now();
+            images[i] = r.render(v)?;
+            times[i].push(t.elapsed().as_secs_f64() * 1e3);
+        }
+    }
+    let medians = times
+        .into_iter()
+        .map(|mut t| {
+            t.sort_by(f64::total_cmp);
+            t[t.len() / 2]
+        })
+        .collect();
+    Ok((medians, images))
+}
 
 /// Largest |a − b| / max(|b|, 1e-3·peak) over the pixels.
 fn max_rel(a: &Projection, b: &Projection) -> f64 {
@@ -39,6 +69,11 @@ pub fn skipping(args: &BenchArgs, md: &mut String) -> Result<()> {
         "Render times in ms; \"×\" is the speed-up over the same renderer without skipping \
          (the occupied-box clipping stays on in both). Images with and without skipping agree \
          (max rel. pixel difference in the last column; f32 pixels).\n"
+    )?;
+    writeln!(
+        md,
+        "Renders of all columns are interleaved (one of each per round, median over rounds) so that \
+         load changes on a shared machine hit every column alike.\n"
     )?;
     writeln!(
         md,
@@ -86,13 +121,14 @@ pub fn skipping(args: &BenchArgs, md: &mut String) -> Result<()> {
         };
         for &(name, pose) in poses {
             let v = view(det, pose)?;
-            let (t_off, img_off) = median_ms(args.repeats, || Ok(off.render(&v)?))?;
+            let all: Vec<&Renderer> = std::iter::once(&off).chain(&on).collect();
+            let (times, images) = interleaved(args.repeats, &all, &v)?;
+            let t_off = times[0];
             let mut row = format!("| {name} | {pname} | {t_off:.1} |");
             let (mut best, mut diff) = (f64::INFINITY, 0.0f64);
-            for r in &on {
-                let (t, img) = median_ms(args.repeats, || Ok(r.render(&v)?))?;
-                best = best.min(t);
-                diff = diff.max(max_rel(&img, &img_off));
+            for (t, img) in times[1..].iter().zip(&images[1..]) {
+                best = best.min(*t);
+                diff = diff.max(max_rel(img, &images[0]));
                 write!(row, " {t:.1} |")?;
             }
             writeln!(md, "{row} {:.2} | {diff:.1e} |", t_off / best)?;
@@ -112,14 +148,21 @@ pub fn skipping(args: &BenchArgs, md: &mut String) -> Result<()> {
     writeln!(md, "|---|---:|---:|---:|")?;
     let v = view(det, Pose::AP)?;
     let off = Renderer::new(&noisy, Projector::Siddon)?.with_packet_threshold(f64::INFINITY);
-    let (t_off, img_off) = median_ms(args.repeats, || Ok(off.render(&v)?))?;
+    let thresholds = [0.0f32, 1e-5];
+    let on = thresholds
+        .iter()
+        .map(|&threshold| {
+            off.clone().with_skipping(Some(SkipOptions {
+                threshold,
+                ..SkipOptions::default()
+            }))
+        })
+        .collect::<Result<Vec<_>, _>>()?;
+    let all: Vec<&Renderer> = std::iter::once(&off).chain(&on).collect();
+    let (times, images) = interleaved(args.repeats, &all, &v)?;
+    let (t_off, img_off) = (times[0], &images[0]);
     writeln!(md, "| off | {t_off:.1} | 1.00 | 0 |")?;
-    for threshold in [0.0f32, 1e-5] {
-        let r = off.clone().with_skipping(Some(SkipOptions {
-            threshold,
-            ..SkipOptions::default()
-        }))?;
-        let (t, img) = median_ms(args.repeats, || Ok(r.render(&v)?))?;
+    for ((threshold, t), img) in thresholds.iter().zip(&times[1..]).zip(&images[1..]) {
         let d = img
             .data
             .iter()
@@ -234,9 +277,8 @@ pub fn meshes(args: &BenchArgs, md: &mut String) -> Result<()> {
         .with_meshes(Arc::new(MeshScene::new(devices)))?;
     for (name, pose) in [("AP", Pose::AP), ("lateral", Pose::LATERAL)] {
         let v = view(det, pose)?;
-        let (t0, _) = median_ms(args.repeats, || Ok(base.render(&v)?))?;
-        let (t1, _) = median_ms(args.repeats, || Ok(with_big.render(&v)?))?;
-        let (t2, _) = median_ms(args.repeats, || Ok(with_dev.render(&v)?))?;
+        let (t, _) = interleaved(args.repeats, &[&base, &with_big, &with_dev], &v)?;
+        let (t0, t1, t2) = (t[0], t[1], t[2]);
         writeln!(
             md,
             "| {name} | {t0:.1} | {t1:.1} | {:+.0} | {t2:.1} | {:+.0} |",
