@@ -1,5 +1,5 @@
 //! Mesh objects: path lengths against independent references, robustness on edges and
-//! vertices, watertightness errors and repair, and meshes combined with voxels.
+//! vertices, watertightness errors and repair, file loading and placement.
 //!
 //! References and tolerances:
 //! * convex meshes (box, icosphere, cylinder): the chord of the intersection of the face
