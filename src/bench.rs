@@ -32,6 +32,9 @@ pub struct BenchArgs {
     /// `--out docs/physics-benchmarks.md`).
     #[arg(long)]
     pub physics: bool,
+    /// Only the empty-space skipping and mesh sections (docs/benchmarks.md, docs/meshes.md).
+    #[arg(long)]
+    pub accel_only: bool,
 }
 
 /// Counts voxels with positive path length.
@@ -45,13 +48,13 @@ impl PathAccumulator for StepCount {
     }
 }
 
-fn thorax_mu(dims: [usize; 3], spacing: [f64; 3]) -> Result<Volume> {
+pub(crate) fn thorax_mu(dims: [usize; 3], spacing: [f64; 3]) -> Result<Volume> {
     let hu = Phantom::thorax().voxelize(dims, DVec3::from(spacing), DVec3::ZERO)?;
     Ok(Attenuation::hounsfield_at_kev(60.0)?.to_mu(hu)?)
 }
 
 /// A cone-beam view (SAD 1000, SID 1500) whose panel just covers a 360 mm field.
-fn view(n: usize, pose: Pose) -> Result<View> {
+pub(crate) fn view(n: usize, pose: Pose) -> Result<View> {
     let pitch = 360.0 * 1.5 * 1.1 / n as f64;
     Ok(Geometry {
         beam: Beam::Cone {
@@ -132,6 +135,10 @@ pub fn run(args: BenchArgs) -> Result<()> {
             .map_or("none (scalar)".to_string(), |k| format!("{k:?}")),
         args.repeats
     )?;
+
+    if args.accel_only {
+        return crate::bench_accel::run(&args, md);
+    }
 
     // 1. Throughput.
     let (sizes, dets): (&[usize], &[usize]) = if args.quick {
@@ -268,6 +275,9 @@ pub fn run(args: BenchArgs) -> Result<()> {
         "\nObserved order of the marcher's error per halving of the step: {}.",
         orders.join(", ")
     )?;
+
+    crate::bench_accel::skipping(&args, &mut md)?;
+    crate::bench_accel::meshes(&args, &mut md)?;
 
     write_page("Projector benchmarks", &md, args.out.as_deref())
 }

@@ -1,6 +1,7 @@
 //! `tomograf` — X-ray projections (DRRs) of CT volumes with exact ray tracing.
 
 mod bench;
+mod bench_accel;
 mod bench_physics;
 mod dataset;
 mod output;

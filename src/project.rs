@@ -559,10 +559,26 @@ pub fn run(args: ProjectArgs) -> Result<()> {
     let renderer;
     let render: Box<RenderView> = match &acquisition {
         None => {
-            renderer = Renderer::new(&vol, job.projector)?;
+            let mut r = Renderer::new(&vol, job.projector)?;
+            if !scene.mesh.is_empty() {
+                let mut objects = Vec::new();
+                for (i, m) in scene.mesh.iter().enumerate() {
+                    objects.extend(m.build(i)?);
+                }
+                r = r.with_meshes(std::sync::Arc::new(tomograf_sim::mesh::MeshScene::new(
+                    objects,
+                )))?;
+            }
+            renderer = r;
             Box::new(|_, view| Ok(vec![renderer.render(view)?.to_quantity(job.quantity)]))
         }
         Some((acq, seed)) => {
+            if !scene.mesh.is_empty() {
+                bail!(
+                    "[[mesh]] objects are not yet supported with real detector physics (a \
+                     spectrum, materials or a detector model); render them as an ideal DRR"
+                );
+            }
             if scene.output.quantity.is_some() || scene.output.i0.is_some() {
                 bail!(
                     "--quantity and --i0 are for the ideal DRR; with real detector physics the \

@@ -61,6 +61,25 @@
 //! thresholds_kev = [20.0, 50.0]     # photon-counting only
 //! ```
 //!
+//! Mesh objects (closed triangle meshes; inside one its mu replaces the voxels'), one table
+//! each; later meshes win where meshes overlap:
+//!
+//! ```toml
+//! [[mesh]]
+//! name = "screw"
+//! path = "screw.stl"          # .obj, .ply or .stl; or kind = "box" | "sphere" |
+//!                             # "cylinder" | "pacemaker" | "table" (generated in code)
+//! material = "titanium"
+//! mu_per_mm = 0.08            # linear attenuation inside, mm⁻¹ (required for now)
+//! translation_mm = [0.0, 0.0, 0.0]
+//! rotation_deg = [0.0, 0.0, 0.0]   # about x, then y, then z
+//! scale = [1.0, 1.0, 1.0]          # file units → mm
+//! # matrix = [[1,0,0,0],[0,1,0,0],[0,0,1,0],[0,0,0,1]]   # instead of the three above
+//! repair_epsilon_mm = 1e-6    # optional: merge close vertices, fix orientation
+//! # kind parameters: size_mm = [x, y, z] (box, table: [width, thickness, length]),
+//! # radius_mm, height_mm, resolution (sphere subdivisions / cylinder sides)
+//! ```
+//!
 //! Views may also be given in the general form, one table each:
 //!
 //! ```toml
@@ -100,6 +119,8 @@ pub struct Scene {
     pub acquisition: AcquisitionSection,
     pub spectrum: Option<SpectrumSpec>,
     pub materials: Option<MaterialsSection>,
+    #[serde(default)]
+    pub mesh: Vec<MeshEntry>,
 }
 
 /// Which physics between the traced paths and the image (see `crate::physics`).
@@ -125,6 +146,103 @@ pub struct MaterialsSection {
     pub calibration_kev: Option<f64>,
     /// Explicit HU intervals (replace the model's).
     pub bins: Option<Vec<TissueBin>>,
+}
+
+/// One `[[mesh]]` table.
+#[derive(Debug, Clone, Default, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MeshEntry {
+    pub name: Option<String>,
+    pub path: Option<PathBuf>,
+    pub kind: Option<String>,
+    pub material: Option<String>,
+    pub mu_per_mm: Option<f64>,
+    pub translation_mm: Option<[f64; 3]>,
+    pub rotation_deg: Option<[f64; 3]>,
+    pub scale: Option<[f64; 3]>,
+    pub matrix: Option<[[f64; 4]; 4]>,
+    pub repair_epsilon_mm: Option<f64>,
+    pub size_mm: Option<[f64; 3]>,
+    pub radius_mm: Option<f64>,
+    pub height_mm: Option<f64>,
+    pub resolution: Option<u32>,
+}
+
+impl MeshEntry {
+    /// The mesh(es) this entry describes, checked and placed (a pacemaker gives three).
+    pub fn build(&self, index: usize) -> Result<Vec<tomograf_sim::mesh::MeshObject>> {
+        use tomograf_sim::mesh::{MeshObject, Placement, TriMesh, io, shapes, topology};
+        let name = self.name.clone().unwrap_or_else(|| format!("mesh{index}"));
+        let what = || format!("[[mesh]] {name}");
+        let parts: Vec<(String, TriMesh)> = match (&self.path, self.kind.as_deref()) {
+            (Some(p), None) => vec![(name.clone(), io::load(p).with_context(what)?)],
+            (None, Some(kind)) => {
+                let n = self.resolution;
+                let r = self.radius_mm.unwrap_or(10.0);
+                let h = self.height_mm.unwrap_or(2.0 * r);
+                match kind {
+                    "box" => vec![(
+                        name.clone(),
+                        shapes::cuboid(glam::DVec3::from(self.size_mm.unwrap_or([20.0; 3])))?,
+                    )],
+                    "sphere" => vec![(name.clone(), shapes::icosphere(r, n.unwrap_or(4))?)],
+                    "cylinder" => {
+                        vec![(name.clone(), shapes::cylinder(r, h, n.unwrap_or(64))?)]
+                    }
+                    "pacemaker" => shapes::pacemaker(n.unwrap_or(32))?
+                        .into_iter()
+                        .map(|(part, m)| (format!("{name}/{part}"), m))
+                        .collect(),
+                    "table" => {
+                        let [w, t, l] = self.size_mm.unwrap_or([450.0, 40.0, 1900.0]);
+                        vec![(name.clone(), shapes::table_top(w, l, t)?)]
+                    }
+                    other => anyhow::bail!(
+                        "{}: unknown kind '{other}'; expected box, sphere, cylinder, pacemaker or table",
+                        what()
+                    ),
+                }
+            }
+            _ => anyhow::bail!("{}: give exactly one of path and kind", what()),
+        };
+        let placement = match self.matrix {
+            Some(matrix) => {
+                if self.translation_mm.is_some()
+                    || self.rotation_deg.is_some()
+                    || self.scale.is_some()
+                {
+                    anyhow::bail!(
+                        "{}: give matrix or translation/rotation/scale, not both",
+                        what()
+                    );
+                }
+                Placement::Matrix { matrix }
+            }
+            None => Placement::Pose {
+                rotation_deg: self.rotation_deg.unwrap_or([0.0; 3]),
+                scale: self.scale.unwrap_or([1.0; 3]),
+                translation_mm: self.translation_mm.unwrap_or([0.0; 3]),
+            },
+        };
+        let material = self.material.clone().unwrap_or_else(|| "unknown".into());
+        let Some(mu) = self.mu_per_mm else {
+            anyhow::bail!(
+                "{}: mu_per_mm is required (linear attenuation inside, mm⁻¹)",
+                what()
+            );
+        };
+        parts
+            .into_iter()
+            .map(|(part, mesh)| {
+                let mesh = match self.repair_epsilon_mm {
+                    Some(eps) => topology::repair(&mesh, eps).with_context(what)?.0,
+                    None => mesh,
+                };
+                MeshObject::new(&part, &mesh, &placement, &material, Some(mu), true)
+                    .with_context(what)
+            })
+            .collect()
+    }
 }
 
 #[derive(Debug, Clone, Default, Serialize, Deserialize)]
@@ -220,6 +338,13 @@ impl Scene {
                 if p.is_relative() {
                     *p = dir.join(&*p);
                 }
+            }
+        }
+        for m in &mut scene.mesh {
+            if let (Some(p), Some(dir)) = (&m.path, path.parent())
+                && p.is_relative()
+            {
+                m.path = Some(dir.join(p));
             }
         }
         Ok(scene)

@@ -9,6 +9,7 @@
 //! Units: lengths in mm, attenuation in mm⁻¹, energies in keV, CT values in HU, angles in
 //! degrees. World frame: DICOM LPS (+x patient left, +y posterior, +z head).
 
+pub mod accel;
 pub mod acquisition;
 pub mod attenuation;
 pub mod composition;
@@ -16,6 +17,7 @@ pub mod detector;
 pub mod error;
 pub mod geometry;
 pub mod material;
+pub mod mesh;
 pub mod phantom;
 pub mod polychromatic;
 pub mod ray;

@@ -4,14 +4,19 @@
 //! Each pixel is computed independently from the same inputs, so images are bit-identical
 //! whatever the number of threads.
 
+use crate::accel::intervals::Interval;
+use crate::accel::{EmptySpace, SkipOptions, siddon_over, trilinear_in};
 use crate::composition::Composition;
 use crate::error::{Result, SimError};
 use crate::geometry::View;
+use crate::mesh::object::subtract;
+use crate::mesh::{MeshInterval, MeshScene};
 use crate::ray::{GridBox, GridRay, Ray};
 use crate::trace::{LineIntegral, MaterialPaths, packet, siddon, trilinear};
 use crate::volume::Volume;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
+use std::sync::Arc;
 
 /// How a ray is integrated through the volume.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -123,7 +128,7 @@ impl MassThickness {
 
 /// Renders line integrals of an attenuation volume (mm⁻¹), or per-material mass
 /// thicknesses of a [`Composition`].
-#[derive(Debug, Clone, Copy)]
+#[derive(Debug, Clone)]
 pub struct Renderer<'a> {
     /// mu (mm⁻¹), or a packed composition when `materials > 0`.
     mu: &'a Volume,
@@ -135,11 +140,27 @@ pub struct Renderer<'a> {
     /// nothing), for the trilinear field the whole grid (it is non-zero half a voxel
     /// beyond). `None`: nothing to integrate.
     bounds: Option<GridBox>,
+    /// Empty-space skipping (see [`crate::accel`]); `None`: off.
+    skip: Option<Arc<EmptySpace>>,
+    /// Mesh objects in the same rays (see [`crate::mesh`]); `None`: voxels only.
+    meshes: Option<Arc<MeshScene>>,
 }
 
 impl<'a> Renderer<'a> {
     /// A renderer over `mu` (linear attenuation, mm⁻¹, see [`crate::attenuation`]).
     pub fn new(mu: &'a Volume, projector: Projector) -> Result<Self> {
+        let renderer = Self::build(mu, projector)?;
+        // Empty-space skipping is on by default where it was measured faster (trilinear:
+        // docs/benchmarks.md, "Empty-space skipping"); exact Siddon's row packets gain
+        // nothing from it, so it stays opt-in there.
+        match projector {
+            Projector::Trilinear { .. } => renderer.with_skipping(Some(SkipOptions::default())),
+            Projector::Siddon => Ok(renderer),
+        }
+    }
+
+    /// A renderer over `field` with no skipping and no meshes.
+    fn build(mu: &'a Volume, projector: Projector) -> Result<Self> {
         if let Projector::Trilinear { step_voxels } = projector
             && !(step_voxels.is_finite() && step_voxels > 0.0)
         {
@@ -157,7 +178,43 @@ impl<'a> Renderer<'a> {
             projector,
             packet_threshold: packet::default_threshold(),
             bounds,
+            skip: None,
+            meshes: None,
         })
+    }
+
+    /// Adds mesh objects: inside a mesh its `mu_per_mm` replaces the voxels' values (an
+    /// implant displaces tissue); every mesh needs an explicit `mu_per_mm`.
+    pub fn with_meshes(mut self, meshes: Arc<MeshScene>) -> Result<Self> {
+        if self.materials > 0 {
+            return Err(SimError::OutOfRange(
+                "meshes in a material composition (polychromatic scenes) are not supported yet"
+                    .into(),
+            ));
+        }
+        meshes
+            .require_mu()
+            .map_err(|e| SimError::OutOfRange(e.to_string()))?;
+        self.meshes = (!meshes.is_empty()).then_some(meshes);
+        Ok(self)
+    }
+
+    /// Turns empty-space skipping on (`Some`, building the brick map now) or off
+    /// (`None`). Results are unchanged: see [`crate::accel`] for how exact that is.
+    pub fn with_skipping(mut self, options: Option<SkipOptions>) -> Result<Self> {
+        if self.materials > 0 && options.is_some() {
+            return Err(SimError::OutOfRange(
+                "empty-space skipping of a material composition is not supported yet".into(),
+            ));
+        }
+        self.skip = match options {
+            None => None,
+            Some(o) => Some(Arc::new(match self.projector {
+                Projector::Siddon => EmptySpace::for_siddon(self.mu, o)?,
+                Projector::Trilinear { .. } => EmptySpace::for_trilinear(self.mu, o)?,
+            })),
+        };
+        Ok(self)
     }
 
     /// A renderer of per-material mass thickness over `composition`
@@ -165,7 +222,7 @@ impl<'a> Renderer<'a> {
     /// nearest-neighbour material grid, and trilinear marching of each material's partial
     /// density field.
     pub fn for_composition(composition: &'a Composition, projector: Projector) -> Result<Self> {
-        let mut r = Self::new(composition.packed(), projector)?;
+        let mut r = Self::build(composition.packed(), projector)?;
         r.materials = composition.materials().len();
         Ok(r)
     }
@@ -185,7 +242,62 @@ impl<'a> Renderer<'a> {
 
     /// ∫mu ds along one ray (f64; 0 when the ray misses the volume).
     pub fn line_integral(&self, ray: &Ray) -> f64 {
-        self.clipped_integral(self.clip(ray).as_ref())
+        let g = self.clip(ray);
+        match self.meshes.as_deref() {
+            Some(m) => {
+                let mut iv = Vec::new();
+                m.line_integral(ray, &mut iv) + self.voxels_outside(g.as_ref(), &iv)
+            }
+            None => self.clipped_integral(g.as_ref()),
+        }
+    }
+
+    /// Exact-Siddon ∫mu ds of the voxels along `g` inside the mesh intervals `iv`.
+    fn voxels_inside(&self, g: Option<&GridRay>, iv: &[MeshInterval]) -> f64 {
+        let Some(g) = g else {
+            return 0.0;
+        };
+        let inside: Vec<Interval> = iv
+            .iter()
+            .map(|i| Interval {
+                t0: i.t0.max(g.t_enter),
+                t1: i.t1.min(g.t_exit),
+            })
+            .filter(|i| i.t1 > i.t0)
+            .collect();
+        let mut acc = LineIntegral::new(self.mu.data());
+        siddon_over(self.mu.dims(), g, &inside, &mut acc);
+        acc.value()
+    }
+
+    /// ∫mu ds of the voxels along `g` outside the mesh intervals `iv`.
+    fn voxels_outside(&self, g: Option<&GridRay>, iv: &[MeshInterval]) -> f64 {
+        let Some(g) = g else {
+            return 0.0;
+        };
+        if iv.is_empty() {
+            return self.clipped_integral(Some(g));
+        }
+        let mut base = vec![Interval {
+            t0: g.t_enter,
+            t1: g.t_exit,
+        }];
+        let mut keep = Vec::new();
+        match self.projector {
+            Projector::Siddon => {
+                if let Some(s) = self.skip.as_deref() {
+                    s.intervals(g, &mut base);
+                }
+                subtract(&base, iv, &mut keep);
+                let mut acc = LineIntegral::new(self.mu.data());
+                siddon_over(self.mu.dims(), g, &keep, &mut acc);
+                acc.value()
+            }
+            Projector::Trilinear { step_voxels } => {
+                subtract(&base, iv, &mut keep);
+                trilinear_in(self.mu.data(), self.mu.dims(), g, step_voxels, &keep)
+            }
+        }
     }
 
     /// `ray` clipped to the part of the grid this projector integrates.
@@ -198,13 +310,19 @@ impl<'a> Renderer<'a> {
         let Some(g) = g else {
             return 0.0;
         };
-        match self.projector {
-            Projector::Siddon => {
+        match (self.projector, self.skip.as_deref()) {
+            (Projector::Siddon, skip) => {
                 let mut acc = LineIntegral::new(self.mu.data());
-                siddon::trace(self.mu.dims(), g, &mut acc);
+                match skip {
+                    Some(s) => s.siddon(self.mu.dims(), g, &mut acc),
+                    None => siddon::trace(self.mu.dims(), g, &mut acc),
+                }
                 acc.value()
             }
-            Projector::Trilinear { step_voxels } => {
+            (Projector::Trilinear { step_voxels }, Some(s)) => {
+                s.trilinear(self.mu.data(), self.mu.dims(), g, step_voxels)
+            }
+            (Projector::Trilinear { step_voxels }, None) => {
                 trilinear::march(self.mu.data(), self.mu.dims(), g, step_voxels)
             }
         }
@@ -260,12 +378,24 @@ impl<'a> Renderer<'a> {
             .enumerate()
             .for_each(|(r, row)| {
                 let r = r as f64;
-                let rays: Vec<Option<GridRay>> = (0..view.cols)
-                    .map(|c| self.clip(&view.ray(r, c as f64)))
-                    .collect();
+                let world: Vec<Ray> = (0..view.cols).map(|c| view.ray(r, c as f64)).collect();
+                let rays: Vec<Option<GridRay>> = world.iter().map(|w| self.clip(w)).collect();
+                // Rays through meshes: the mesh part and its intervals (attenuation only).
+                let meshed: Vec<Option<(f64, Vec<MeshInterval>)>> = match self.meshes.as_deref() {
+                    Some(m) if !packed => world
+                        .iter()
+                        .map(|w| {
+                            let mut iv = Vec::new();
+                            let l = m.line_integral(w, &mut iv);
+                            (!iv.is_empty()).then_some((l, iv))
+                        })
+                        .collect(),
+                    _ => vec![None; view.cols],
+                };
                 let mut handled = vec![false; view.cols];
                 if let (true, Some(kernel)) = (packets, packet::kernel()) {
-                    // The whole row through the SIMD tracer where its rays allow.
+                    // The whole row through the SIMD tracer where its rays allow (it walks
+                    // whole layers: empty-space skipping applies to the scalar rays only).
                     let (field, dims, t) = (self.mu.data(), self.mu.dims(), self.packet_threshold);
                     if packed {
                         packet::trace_row_materials_with(
@@ -283,17 +413,42 @@ impl<'a> Renderer<'a> {
                     }
                 }
                 for (c, px) in row.chunks_mut(k).enumerate() {
-                    if handled[c] {
-                        continue;
-                    }
                     if packed {
-                        self.clipped_materials(rays[c].as_ref(), px);
+                        if !handled[c] {
+                            self.clipped_materials(rays[c].as_ref(), px);
+                        }
                     } else {
-                        px[0] = self.clipped_integral(rays[c].as_ref());
+                        let packet = handled[c].then_some(px[0]);
+                        px[0] = self.pixel(packet, rays[c].as_ref(), meshed[c].as_ref());
                     }
                 }
             });
         Ok(data)
+    }
+
+    /// ∫mu ds of one pixel: its clipped ray `g` (already traced whole by the packets when
+    /// `packet` holds the value) plus the mesh part `mesh` (line integral and intervals).
+    /// Inside a mesh the mesh replaces the voxels: the packet value loses the voxels inside
+    /// the intervals, or the scalar walk traces only the voxels outside them.
+    fn pixel(
+        &self,
+        packet: Option<f64>,
+        g: Option<&GridRay>,
+        mesh: Option<&(f64, Vec<MeshInterval>)>,
+    ) -> f64 {
+        let voxels = || packet.unwrap_or_else(|| self.clipped_integral(g));
+        match (mesh, g) {
+            (Some((l, iv)), Some(gr))
+                if iv.iter().any(|i| i.t1 > gr.t_enter && i.t0 < gr.t_exit) =>
+            {
+                match packet {
+                    Some(v) => l + v - self.voxels_inside(g, iv),
+                    None => l + self.voxels_outside(g, iv),
+                }
+            }
+            (Some((l, _)), _) => l + voxels(),
+            (None, _) => voxels(),
+        }
     }
 
     /// Σρ·ℓ per material (g/cm³ · mm) along a clipped ray into `out` (zeros when it misses).

@@ -44,6 +44,8 @@ pub fn trace<A: PathAccumulator>(dims: [usize; 3], ray: &GridRay, acc: &mut A) {
         ijk[a] = (p.floor() as i64).clamp(0, n[a] - 1);
         if gd[a] != 0.0 {
             step[a] = if gd[a] > 0.0 { 1 } else { -1 };
+            ijk[a] = agree_with_crossings(ijk[a], step[a], ray.t_enter, g0[a], inv[a], 1)
+                .clamp(0, n[a] - 1);
             next[a] = plane_t(next_plane(ijk[a], step[a]), g0[a], inv[a]);
         }
     }
@@ -204,6 +206,24 @@ fn index_before(plane: f64, step: i64, current: i64) -> i64 {
         1 => plane as i64 - 1,
         -1 => plane as i64,
         _ => current,
+    }
+}
+
+/// Corrects a start index `i` (from `floor` of the start point, cells of `cell` grid
+/// units) so that it agrees with the crossing times: the cell whose entry plane is crossed
+/// at or before `t` and whose exit plane after it. `floor` and [`plane_t`] round
+/// independently; for a ray nearly parallel to an axis (|gd| ~ 1e-17) they can disagree
+/// by a cell over a long stretch of `t`, which matters when a walk starts inside the grid
+/// (e.g. at an empty-space interval, [`crate::accel`]).
+#[inline(always)]
+pub fn agree_with_crossings(i: i64, step: i64, t: f64, g0: f64, inv: f64, cell: i64) -> i64 {
+    let (entry, exit) = if step > 0 { (i, i + 1) } else { (i + 1, i) };
+    if plane_t((entry * cell) as f64, g0, inv) > t {
+        i - step
+    } else if plane_t((exit * cell) as f64, g0, inv) <= t {
+        i + step
+    } else {
+        i
     }
 }
 

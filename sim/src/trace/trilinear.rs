@@ -87,7 +87,7 @@ pub fn sample_materials(
 /// Midpoint-rule integral of the trilinear field along `ray`, with samples
 /// `step_voxels` grid units apart (at most). Result in the field's units × mm.
 pub fn march(values: &[f32], dims: [usize; 3], ray: &GridRay, step_voxels: f64) -> f64 {
-    let (steps, h) = midpoints(ray, step_voxels);
+    let (steps, h) = quadrature(ray, step_voxels);
     let mut sum = 0.0;
     for s in 0..steps {
         let t = ray.t_enter + (s as f64 + 0.5) * h;
@@ -106,16 +106,17 @@ pub fn march_materials(
     step_voxels: f64,
     sums: &mut [f64],
 ) {
-    let (steps, h) = midpoints(ray, step_voxels);
+    let (steps, h) = quadrature(ray, step_voxels);
     for s in 0..steps {
         let t = ray.t_enter + (s as f64 + 0.5) * h;
         sample_materials(packed, dims, ray.at(t), h, sums);
     }
 }
 
-/// The number of midpoint samples along the clipped `ray` and their spacing (mm) for a
-/// step of at most `step_voxels` grid units.
-fn midpoints(ray: &GridRay, step_voxels: f64) -> (usize, f64) {
+/// The midpoint rule [`march`] uses on `ray`: `(N, h)`, sample `s` at
+/// `t_enter + (s + ½)·h` for `s = 0..N`, `h` in mm.
+#[inline]
+pub fn quadrature(ray: &GridRay, step_voxels: f64) -> (usize, f64) {
     let length = ray.length();
     let grid_per_mm =
         (ray.gd[0] * ray.gd[0] + ray.gd[1] * ray.gd[1] + ray.gd[2] * ray.gd[2]).sqrt();

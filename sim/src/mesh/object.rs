@@ -1,0 +1,403 @@
+//! A placed, checked mesh with its BVH and material, and a scene of several.
+//!
+//! Per ray the BVH (`obvhs`, f32 boxes grown by a margin) proposes candidate triangles;
+//! each is intersected exactly in f64 with the watertight test ([`super::intersect`]);
+//! hits are sorted by `t` and a winding count (+1 entering, −1 leaving) gives the
+//! intervals inside the mesh. The whole line through the mesh's bounding box is traced,
+//! so a ray that starts inside a mesh is handled; intervals are then clipped to the ray's
+//! `[t_min, t_max]`.
+
+use super::intersect::{Hit, ShearedRay};
+use super::{MeshError, Placement, Result, TriMesh, topology};
+use crate::accel::intervals::Interval;
+use crate::ray::Ray;
+use glam::{DVec3, Vec3A};
+use obvhs::BvhBuildParams;
+use obvhs::aabb::Aabb;
+use obvhs::bvh2::Bvh2;
+use obvhs::bvh2::builder::build_bvh2;
+use std::time::Duration;
+
+/// A closed mesh in the world with its material.
+#[derive(Clone)]
+pub struct MeshObject {
+    /// Name (for messages and per-mesh outputs).
+    pub name: String,
+    /// Material name (resolved to attenuation by the materials module).
+    pub material: String,
+    /// Linear attenuation inside the mesh, mm⁻¹, when given explicitly.
+    pub mu_per_mm: Option<f64>,
+    /// Triangles (world mm), in BVH primitive order.
+    tris: Vec<[DVec3; 3]>,
+    bvh: Bvh2,
+    lo: DVec3,
+    hi: DVec3,
+    volume_mm3: f64,
+}
+
+impl std::fmt::Debug for MeshObject {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("MeshObject")
+            .field("name", &self.name)
+            .field("material", &self.material)
+            .field("mu_per_mm", &self.mu_per_mm)
+            .field("triangles", &self.tris.len())
+            .finish()
+    }
+}
+
+/// How much the f32 triangle boxes are grown: f32 rounding of coordinates up to a few
+/// metres is ~1e-4 mm; 1e-2 mm plus 1e-5 of the coordinate leaves a wide margin.
+fn margin(v: f32) -> f32 {
+    1e-2 + 1e-5 * v.abs()
+}
+
+impl MeshObject {
+    /// Places `mesh`, checks that it is closed and outward facing ([`topology::check`])
+    /// and, when `check_self_intersection`, that no two triangles cross; builds the BVH.
+    pub fn new(
+        name: &str,
+        mesh: &TriMesh,
+        placement: &Placement,
+        material: &str,
+        mu_per_mm: Option<f64>,
+        check_self_intersection: bool,
+    ) -> Result<Self> {
+        if let Some(mu) = mu_per_mm
+            && !(mu.is_finite() && mu >= 0.0)
+        {
+            return Err(MeshError::OutOfRange(format!(
+                "mesh {name}: mu = {mu} mm⁻¹; it must be finite and ≥ 0"
+            )));
+        }
+        let world = mesh.placed(placement)?;
+        topology::check(&world).map_err(|e| prefix(name, e))?;
+        let aabbs: Vec<Aabb> = (0..world.triangles.len())
+            .map(|t| {
+                let c = world.corners(t);
+                let lo = c[0].min(c[1]).min(c[2]);
+                let hi = c[0].max(c[1]).max(c[2]);
+                let (lo, hi) = (lo.as_vec3a(), hi.as_vec3a());
+                Aabb::new(
+                    lo - Vec3A::from(lo.to_array().map(margin)),
+                    hi + Vec3A::from(hi.to_array().map(margin)),
+                )
+            })
+            .collect();
+        let bvh = build_bvh2(
+            &aabbs,
+            BvhBuildParams::medium_build(),
+            &mut Duration::default(),
+        );
+        let tris = bvh
+            .primitive_indices
+            .iter()
+            .map(|&p| world.corners(p as usize))
+            .collect();
+        let (lo, hi) = world.bounds();
+        let object = Self {
+            name: name.to_string(),
+            material: material.to_string(),
+            mu_per_mm,
+            tris,
+            bvh,
+            lo,
+            hi,
+            volume_mm3: world.signed_volume(),
+        };
+        if check_self_intersection {
+            let (pairs, first) = object.self_intersections();
+            if pairs > 0 {
+                return Err(prefix(name, MeshError::SelfIntersecting { pairs, first }));
+            }
+        }
+        Ok(object)
+    }
+
+    /// Number of triangles.
+    pub fn triangle_count(&self) -> usize {
+        self.tris.len()
+    }
+
+    /// Enclosed volume, mm³.
+    pub fn volume_mm3(&self) -> f64 {
+        self.volume_mm3
+    }
+
+    /// World bounding box (mm).
+    pub fn bounds(&self) -> (DVec3, DVec3) {
+        (self.lo, self.hi)
+    }
+
+    /// Heap bytes (triangles and BVH).
+    pub fn memory_bytes(&self) -> usize {
+        self.tris.capacity() * std::mem::size_of::<[DVec3; 3]>()
+            + self.bvh.nodes.capacity() * std::mem::size_of::<obvhs::bvh2::node::Bvh2Node>()
+            + self.bvh.primitive_indices.capacity() * 4
+    }
+
+    /// The line of `ray` against the bounding box (slab test, f64): `(t0, t1)` or `None`.
+    fn box_span(&self, ray: &Ray) -> Option<(f64, f64)> {
+        let (mut t0, mut t1) = (f64::NEG_INFINITY, f64::INFINITY);
+        for a in 0..3 {
+            let (o, d) = (ray.origin[a], ray.direction[a]);
+            if d == 0.0 {
+                if o < self.lo[a] || o > self.hi[a] {
+                    return None;
+                }
+                continue;
+            }
+            let (p, q) = ((self.lo[a] - o) / d, (self.hi[a] - o) / d);
+            t0 = t0.max(p.min(q));
+            t1 = t1.min(p.max(q));
+        }
+        (t1 >= t0).then_some((t0, t1))
+    }
+
+    /// All intersections of the line of `ray` with the surface, sorted by `t` (exits
+    /// before entries at equal `t`).
+    pub fn hits(&self, ray: &Ray, out: &mut Vec<Hit>) {
+        out.clear();
+        let Some((t0, t1)) = self.box_span(ray) else {
+            return;
+        };
+        // The f32 ray starts a little before the box so its coordinates stay small.
+        let pad = 1.0 + 1e-6 * (t1 - t0);
+        let start = t0 - pad;
+        let origin = (ray.origin + start * ray.direction).as_vec3a();
+        let len = (t1 - start + pad) as f32;
+        let r = obvhs::ray::Ray::new(origin, ray.direction.as_vec3a(), 0.0, len);
+        let sheared = ShearedRay::new(ray.origin, ray.direction);
+        self.bvh.ray_traverse_anyhit(r, |_, id| {
+            let [a, b, c] = self.tris[id];
+            if let Some(h) = sheared.hit(a, b, c) {
+                out.push(h);
+            }
+        });
+        out.sort_unstable_by(|x, y| x.t.total_cmp(&y.t).then(x.sign.cmp(&y.sign)));
+    }
+
+    /// Intervals of `ray` inside the mesh, clipped to `[t_min, t_max]`, sorted.
+    pub fn inside(&self, ray: &Ray, out: &mut Vec<Interval>) {
+        let mut hits = Vec::new();
+        self.hits(ray, &mut hits);
+        out.clear();
+        let mut winding = 0i32;
+        let mut start = 0.0;
+        for h in &hits {
+            let before = winding;
+            winding += h.sign;
+            if before <= 0 && winding > 0 {
+                start = h.t;
+            } else if before > 0 && winding <= 0 {
+                let (a, b) = (start.max(ray.t_min), h.t.min(ray.t_max));
+                if b > a {
+                    out.push(Interval { t0: a, t1: b });
+                }
+            }
+        }
+    }
+
+    /// Path length of `ray` inside the mesh, mm.
+    pub fn path_length(&self, ray: &Ray) -> f64 {
+        let mut v = Vec::new();
+        self.inside(ray, &mut v);
+        v.iter().map(|i| i.t1 - i.t0).sum()
+    }
+
+    /// Pairs of triangles that cross (sharing no vertex position; coplanar overlaps are
+    /// not detected), found with the BVH; returns the count and one pair (input order
+    /// is lost: indices are in BVH order).
+    pub fn self_intersections(&self) -> (usize, (usize, usize)) {
+        let mut pairs = 0;
+        let mut first = (0, 0);
+        for (i, tri) in self.tris.iter().enumerate() {
+            let lo = tri[0].min(tri[1]).min(tri[2]).as_vec3a();
+            let hi = tri[0].max(tri[1]).max(tri[2]).as_vec3a();
+            let query = Aabb::new(lo - 1e-3, hi + 1e-3);
+            self.bvh.aabb_traverse(query, |bvh, node| {
+                let n = &bvh.nodes[node as usize];
+                for j in n.first_index..n.first_index + n.prim_count {
+                    let j = j as usize;
+                    if j > i && triangles_cross(tri, &self.tris[j]) {
+                        if pairs == 0 {
+                            first = (i, j);
+                        }
+                        pairs += 1;
+                    }
+                }
+                true
+            });
+        }
+        (pairs, first)
+    }
+}
+
+fn prefix(name: &str, e: MeshError) -> MeshError {
+    match e {
+        MeshError::Invalid(s) => MeshError::Invalid(format!("mesh {name}: {s}")),
+        MeshError::OutOfRange(s) => MeshError::OutOfRange(format!("mesh {name}: {s}")),
+        other => MeshError::Invalid(format!("mesh {name}: {other}")),
+    }
+}
+
+/// Whether two triangles that share no vertex cross: an edge of one passes through the
+/// interior of the other (f64; touching at a single point counts as crossing only when
+/// strictly inside).
+fn triangles_cross(p: &[DVec3; 3], q: &[DVec3; 3]) -> bool {
+    if p.iter().any(|a| q.contains(a)) {
+        return false;
+    }
+    let edge_hits = |s: &[DVec3; 3], t: &[DVec3; 3]| {
+        (0..3).any(|e| segment_hits_triangle(s[e], s[(e + 1) % 3], t))
+    };
+    edge_hits(p, q) || edge_hits(q, p)
+}
+
+fn segment_hits_triangle(a: DVec3, b: DVec3, t: &[DVec3; 3]) -> bool {
+    let n = (t[1] - t[0]).cross(t[2] - t[0]);
+    let (da, db) = (n.dot(a - t[0]), n.dot(b - t[0]));
+    if da * db >= 0.0 {
+        return false; // both on one side, or touching/coplanar
+    }
+    let p = a + (b - a) * (da / (da - db));
+    (0..3).all(|e| {
+        let (u, v) = (t[e], t[(e + 1) % 3]);
+        n.dot((v - u).cross(p - u)) > 0.0
+    })
+}
+
+/// A mesh's part of one ray.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct MeshInterval {
+    /// Start, mm.
+    pub t0: f64,
+    /// End, mm.
+    pub t1: f64,
+    /// Index of the mesh in its [`MeshScene`].
+    pub mesh: usize,
+}
+
+/// Several meshes. Where meshes overlap, the one listed **later** holds the ray (as if
+/// painted over the earlier ones); inside any mesh its material replaces the voxels'.
+#[derive(Debug, Clone, Default)]
+pub struct MeshScene {
+    /// The meshes, in priority order (last wins).
+    pub objects: Vec<MeshObject>,
+}
+
+impl MeshScene {
+    /// A scene of `objects`.
+    pub fn new(objects: Vec<MeshObject>) -> Self {
+        Self { objects }
+    }
+
+    /// Whether there are no meshes.
+    pub fn is_empty(&self) -> bool {
+        self.objects.is_empty()
+    }
+
+    /// Checks that every mesh has an explicit `mu_per_mm` (needed by the monochromatic
+    /// line integral until materials are resolved by name).
+    pub fn require_mu(&self) -> Result<()> {
+        match self.objects.iter().find(|o| o.mu_per_mm.is_none()) {
+            Some(o) => Err(MeshError::OutOfRange(format!(
+                "mesh {} (material {}) has no mu_per_mm; give one to render it",
+                o.name, o.material
+            ))),
+            None => Ok(()),
+        }
+    }
+
+    /// The disjoint, sorted intervals of `ray` inside meshes, each with the mesh that
+    /// holds it (overlaps resolved: later mesh wins).
+    pub fn intervals(&self, ray: &Ray, out: &mut Vec<MeshInterval>) {
+        out.clear();
+        let mut all: Vec<MeshInterval> = Vec::new();
+        let mut v = Vec::new();
+        for (m, o) in self.objects.iter().enumerate() {
+            o.inside(ray, &mut v);
+            all.extend(v.iter().map(|i| MeshInterval {
+                t0: i.t0,
+                t1: i.t1,
+                mesh: m,
+            }));
+        }
+        if all.len() <= 1 || self.objects.len() == 1 {
+            *out = all;
+            return;
+        }
+        // Sweep the interval ends; each elementary piece goes to the highest mesh index
+        // covering it.
+        let mut cuts: Vec<f64> = all.iter().flat_map(|i| [i.t0, i.t1]).collect();
+        cuts.sort_unstable_by(f64::total_cmp);
+        cuts.dedup();
+        for w in cuts.windows(2) {
+            let (a, b) = (w[0], w[1]);
+            let owner = all
+                .iter()
+                .filter(|i| i.t0 <= a && i.t1 >= b)
+                .map(|i| i.mesh)
+                .max();
+            if let Some(mesh) = owner {
+                match out.last_mut() {
+                    Some(l) if l.mesh == mesh && l.t1 == a => l.t1 = b,
+                    _ => out.push(MeshInterval { t0: a, t1: b, mesh }),
+                }
+            }
+        }
+    }
+
+    /// Path length of `ray` held by each mesh (mm), after overlaps are resolved.
+    pub fn path_lengths(&self, ray: &Ray) -> Vec<f64> {
+        let mut v = Vec::new();
+        self.intervals(ray, &mut v);
+        let mut out = vec![0.0; self.objects.len()];
+        for i in &v {
+            out[i.mesh] += i.t1 - i.t0;
+        }
+        out
+    }
+
+    /// Σ mu × length over the meshes along `ray` (meshes without `mu_per_mm` add 0;
+    /// see [`MeshScene::require_mu`]), and the intervals they hold.
+    pub fn line_integral(&self, ray: &Ray, intervals: &mut Vec<MeshInterval>) -> f64 {
+        self.intervals(ray, intervals);
+        intervals
+            .iter()
+            .map(|i| self.objects[i.mesh].mu_per_mm.unwrap_or(0.0) * (i.t1 - i.t0))
+            .sum()
+    }
+
+    /// Heap bytes of all meshes.
+    pub fn memory_bytes(&self) -> usize {
+        self.objects.iter().map(MeshObject::memory_bytes).sum()
+    }
+}
+
+/// The parts of the sorted, disjoint `keep` intervals not covered by the sorted, disjoint
+/// `remove` intervals.
+pub fn subtract(keep: &[Interval], remove: &[MeshInterval], out: &mut Vec<Interval>) {
+    out.clear();
+    let mut r = 0;
+    for k in keep {
+        let mut t = k.t0;
+        while r < remove.len() && remove[r].t1 <= t {
+            r += 1;
+        }
+        let mut s = r;
+        while s < remove.len() && remove[s].t0 < k.t1 {
+            if remove[s].t0 > t {
+                out.push(Interval {
+                    t0: t,
+                    t1: remove[s].t0,
+                });
+            }
+            t = t.max(remove[s].t1);
+            s += 1;
+        }
+        if k.t1 > t {
+            out.push(Interval { t0: t, t1: k.t1 });
+        }
+    }
+}
