@@ -203,8 +203,8 @@ fn packet_key(rays: &[Option<GridRay>], threshold: f64) -> Option<(usize, bool)>
 /// `floor`, `gt`, `le`, `ne` (lane masks), `or` (of masks), `none` (no lane set),
 /// `select` (mask ? a : b), `load`/`store` (from/to `[f64; LANES]`), `gather` (f32
 /// values at f64-valued indices, widened to f64), and for compositions `gather_packed`
-/// (density and material index of packed values), `eq`, `and`, `all` (every lane set) and
-/// `add_where` (s + w where the mask is set).
+/// (density and material index of packed values), `eq`, `and` and `add_where` (s + w where
+/// the mask is set).
 #[cfg(target_arch = "x86_64")]
 macro_rules! packet_kernel {
     ($features:literal, $lanes:literal, $vec:ty, $mask:ty, { $($prims:item)* }) => {
@@ -314,8 +314,8 @@ macro_rules! packet_kernel {
         /// Adds one packet's contribution from the voxel layer entered at `e` and left at
         /// plane `p_b` (`base_m`: the layer's part of the linear voxel index) to `sums`; `e`
         /// becomes the next layer's entry (the same values a fresh [`entry`] would compute).
-        /// `PACKED`: `field` is a packed composition and `sums` holds one sum of ρ·ℓ per
-        /// material; otherwise `field` is mu and `sums[0]` the line integral.
+        /// `PACKED`: `field` is a packed composition and `sums` the packet's composition
+        /// state ([`add_material`]); otherwise `field` is mu and `sums[0]` the line integral.
         #[inline]
         #[target_feature(enable = $features)]
         #[allow(clippy::too_many_arguments)]
@@ -340,10 +340,7 @@ macro_rules! packet_kernel {
                 let len = sub(t_b, t_a);
                 if PACKED {
                     let (rho, label) = gather_packed(field, base);
-                    let w = mul(rho, len);
-                    for (m, s) in sums.iter_mut().enumerate() {
-                        *s = add_where(eq(label, splat(m as f64)), *s, w);
-                    }
+                    add_material(sums, label, mul(rho, len));
                 } else {
                     sums[0] = add(sums[0], mul(gather(field, base), len));
                 }
@@ -359,25 +356,50 @@ macro_rules! packet_kernel {
                 let (r2, m2) = gather_packed(field, vb);
                 let (w0, w1, w2) = (mul(r0, l0), mul(r1, l1), mul(r2, l2));
                 if all(and(eq(m0, m1), eq(m1, m2))) {
-                    // Each lane stays in one material over the layer (the usual case inside
-                    // an organ): one masked add per material.
-                    let w = add(add(w0, w1), w2);
-                    for (m, s) in sums.iter_mut().enumerate() {
-                        *s = add_where(eq(m0, splat(m as f64)), *s, w);
-                    }
-                    return;
-                }
-                for (m, s) in sums.iter_mut().enumerate() {
-                    let k = splat(m as f64);
-                    let a = add_where(eq(m0, k), *s, w0);
-                    let a = add_where(eq(m1, k), a, w1);
-                    *s = add_where(eq(m2, k), a, w2);
+                    // Each lane stays in one material over the layer (the usual case).
+                    add_material(sums, m0, add(add(w0, w1), w2));
+                } else {
+                    add_material(sums, m0, w0);
+                    add_material(sums, m1, w1);
+                    add_material(sums, m2, w2);
                 }
             } else {
                 let v = mul(gather(field, base), l0);
                 let v = fmadd(gather(field, va), l1, v);
                 sums[0] = add(sums[0], fmadd(gather(field, vb), l2, v));
             }
+        }
+
+        /// Adds ρ·ℓ `w` of material `label` (per lane) to a packet's composition state
+        /// `[current material, its running sum, sum of material 0, 1, …]`: while a lane
+        /// stays in one material its contributions go to the running sum; when it changes
+        /// material the running sum is moved to the old material's sum. So the cost per
+        /// segment does not grow with the number of materials, only per change.
+        #[inline]
+        #[target_feature(enable = $features)]
+        fn add_material(state: &mut [V], label: V, w: V) {
+            let (cur, run) = (state[0], state[1]);
+            let change = ne(label, cur);
+            if none(change) {
+                state[1] = add(run, w);
+                return;
+            }
+            for (m, s) in state[2..].iter_mut().enumerate() {
+                *s = add_where(and(change, eq(cur, splat(m as f64))), *s, run);
+            }
+            state[1] = select(change, w, add(run, w));
+            state[0] = select(change, label, cur);
+        }
+
+        /// Moves the running sums of a packet's composition state to their materials.
+        #[inline]
+        #[target_feature(enable = $features)]
+        fn flush_materials(state: &mut [V]) {
+            let (cur, run) = (state[0], state[1]);
+            for (m, s) in state[2..].iter_mut().enumerate() {
+                *s = add_where(eq(cur, splat(m as f64)), *s, run);
+            }
+            state[1] = zero();
         }
 
         /// Traces a row: `k` sums per ray into `out[n·k..(n+1)·k]` (see [`layer`]).
@@ -443,7 +465,13 @@ macro_rules! packet_kernel {
                     }
                     let (first, last, dir) = if positive { (lo, hi, 1i64) } else { (hi, lo, -1i64) };
                     let entry_plane = |j: i64| (if positive { j } else { j + 1 }) as f64;
-                    let mut sums = vec![zero(); packets.len() * k];
+                    // Per packet: the line integral, or the composition state of `add_material`
+                    // (current material — none yet —, running sum, k material sums).
+                    let slot = if PACKED { k + 2 } else { 1 };
+                    let mut sums = vec![zero(); packets.len() * slot];
+                    if PACKED {
+                        sums.chunks_mut(slot).for_each(|s| s[0] = splat(-1.0));
+                    }
                     let start = splat(entry_plane(first));
                     let mut entries: Vec<Entry> =
                         packets.iter().map(|p| entry(p, &oth1, &oth2, start)).collect();
@@ -451,7 +479,7 @@ macro_rules! packet_kernel {
                     loop {
                         let p_b = splat(entry_plane(j + dir));
                         let base_m = splat((j as usize * strides[m]) as f64);
-                        for ((p, sum), e) in packets.iter().zip(sums.chunks_mut(k)).zip(entries.iter_mut()) {
+                        for ((p, sum), e) in packets.iter().zip(sums.chunks_mut(slot)).zip(entries.iter_mut()) {
                             layer::<PACKED>(field, p, &oth1, &oth2, e, p_b, base_m, sum);
                         }
                         if j == last {
@@ -459,7 +487,13 @@ macro_rules! packet_kernel {
                         }
                         j += dir;
                     }
-                    for (&s, sum) in members.iter().zip(sums.chunks(k)) {
+                    for (&s, sum) in members.iter().zip(sums.chunks_mut(slot)) {
+                        let sum = if PACKED {
+                            flush_materials(sum);
+                            &sum[2..]
+                        } else {
+                            &sum[..]
+                        };
                         for (m, sum) in sum.iter().enumerate() {
                             let v = store(*sum);
                             for n in span(s) {
