@@ -8,7 +8,7 @@ at the top in the beam's-eye view. Errors: ``ValueError`` for bad input,
 """
 
 from os import PathLike
-from typing import Any, Literal, Optional, Sequence, Tuple, Union
+from typing import Any, List, Literal, Optional, Sequence, Tuple, Union
 
 import numpy as np
 import numpy.typing as npt
@@ -213,3 +213,22 @@ def describe_chest(
     pacemaker: bool = False,
 ) -> dict[str, Any]:
     """The sampled patient (sizes, landmarks, nodules; world LPS mm) without voxels."""
+
+def presets() -> List[str]:
+    """Acquisition preset names ("ideal-drr" is `project` itself)."""
+
+def acquire(
+    hu: Volume,
+    views: Union[View, Sequence[View]],
+    preset: str = "kv-flat-panel-120kvp",
+    kvp: Optional[float] = None,
+    mas: Optional[float] = None,
+    energy_bins: Optional[int] = None,
+    signal: Optional[str] = None,
+    seed: int = 0,
+    projector: Projector = "siddon",
+) -> npt.NDArray[np.float32]:
+    """Real detector physics on a CT in HU (polychromatic beam, tissues, detector noise,
+    blur, flat-field, −log): (rows, cols) for one view, (n, rows, cols) for a list; a
+    photon-counting detector adds a channel axis. GIL released; seeded, thread-count
+    independent."""

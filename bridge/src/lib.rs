@@ -23,6 +23,7 @@
 pub mod errors;
 pub mod geometry;
 pub mod phantom;
+mod physics;
 pub mod render;
 pub mod volume;
 
@@ -53,6 +54,9 @@ fn tomograf_py(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(phantom::thorax_line_integrals, m)?)?;
     m.add_function(wrap_pyfunction!(phantom::chest, m)?)?;
     m.add_function(wrap_pyfunction!(phantom::describe_chest, m)?)?;
-    // Spectra, detector response, scatter, meshes, reconstruction: register here.
+    // Real detector physics (spectrum, tissues, detector).
+    m.add_function(wrap_pyfunction!(physics::acquire, m)?)?;
+    m.add_function(wrap_pyfunction!(physics::presets, m)?)?;
+    // Scatter, meshes, reconstruction: register here.
     Ok(())
 }

@@ -237,3 +237,25 @@ def test_rendering_releases_the_gil():
     assert span["end"] - span["start"] > 0.1, "render too fast to tell"
     inside = [x for x in ticks if span["start"] + 0.02 < x < span["end"] - 0.02]
     assert len(inside) > 100
+
+
+def test_acquire_gives_seeded_detector_images_close_to_the_drr():
+    hu = tg.thorax(dims=(48, 40, 24), spacing_mm=(7.0, 6.0, 13.0))
+    geom = tg.Geometry.cone(1000, 1500, tg.Detector(16, 24, 16.0))
+    views = geom.views([tg.Pose(0, 0), tg.Pose(90, 0)])
+    a = tg.acquire(hu, views, seed=3)
+    assert a.shape == (2, 16, 24) and a.dtype == np.float32
+    assert np.isfinite(a).all()
+    assert np.array_equal(a, tg.acquire(hu, views, seed=3))
+    assert not np.array_equal(a, tg.acquire(hu, views, seed=4))
+    # 120 kVp behind the body is close to the 60 keV DRR (within 15 % on the body).
+    drr = tg.project(hu.to_mu(60.0), views)
+    body = drr > 1.0
+    assert abs(a[body].sum() / drr[body].sum() - 1.0) < 0.15
+    raw = tg.acquire(hu, views[0], signal="raw", kvp=100, energy_bins=10)
+    assert raw.shape == (16, 24) and (raw == np.round(raw)).all()
+    assert "kv-flat-panel-120kvp" in tg.presets()
+    with pytest.raises(ValueError, match="unknown acquisition preset 'nope'"):
+        tg.acquire(hu, views, preset="nope")
+    with pytest.raises(ValueError, match="tube potential 30 kV"):
+        tg.acquire(hu, views, kvp=30)

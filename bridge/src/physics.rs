@@ -1,0 +1,116 @@
+//! `tomograf.acquire`: what a real detector records (polychromatic beam, tissues, detector
+//! noise and blur, flat-field correction), with the GIL released. See docs/physics.md.
+
+use crate::errors;
+use crate::geometry::PyView;
+use crate::volume::PyVolume;
+use numpy::{IntoPyArray, PyArrayDyn};
+use pyo3::prelude::*;
+use tomograf_sim::acquisition::{Acquisition, PRESETS};
+use tomograf_sim::detector::Output;
+use tomograf_sim::{Projector, View};
+
+/// Names of the acquisition presets (``"ideal-drr"`` is :func:`project` itself).
+#[pyfunction]
+pub fn presets() -> Vec<&'static str> {
+    PRESETS.to_vec()
+}
+
+/// Acquires one view or a list of views of a CT volume in **HU** with real detector
+/// physics: a preset (``"kv-flat-panel-120kvp"`` or ``"cbct-100kvp"``), optionally with
+/// another tube voltage ``kvp`` (kVp, whole numbers 40–150), exposure ``mas`` (mA·s per
+/// view), ``energy_bins`` (rebinned spectrum; default 1 keV bins) and ``signal``
+/// (``"raw"`` ADU/counts, ``"flat-field"`` transmission, or ``"log-line-integral"``, the
+/// default). Noise is seeded by ``seed``: view ``i`` of the list has its own stream, so the
+/// result depends only on the inputs, never on the thread count.
+///
+/// Returns float32 ``(rows, cols)`` for one view, ``(views, rows, cols)`` for a list; a
+/// photon-counting detector adds a channel axis after the views axis.
+#[pyfunction]
+#[pyo3(signature = (hu, views, preset="kv-flat-panel-120kvp", kvp=None, mas=None, energy_bins=None, signal=None, seed=0, projector="siddon"))]
+#[allow(clippy::too_many_arguments)]
+pub fn acquire<'py>(
+    py: Python<'py>,
+    hu: &PyVolume,
+    views: &Bound<'py, PyAny>,
+    preset: &str,
+    kvp: Option<f64>,
+    mas: Option<f64>,
+    energy_bins: Option<usize>,
+    signal: Option<&str>,
+    seed: u64,
+    projector: &str,
+) -> PyResult<Bound<'py, PyArrayDyn<f32>>> {
+    let proj = match projector {
+        "siddon" => Projector::Siddon,
+        "trilinear" => Projector::Trilinear { step_voxels: 0.5 },
+        other => {
+            return Err(errors::value(format!(
+                "unknown projector '{other}': expected 'siddon' or 'trilinear'"
+            )));
+        }
+    };
+    let mut acq = Acquisition::preset(preset).map_err(errors::sim)?;
+    if let Some(k) = kvp {
+        acq.spectrum.kvp = Some(k);
+    }
+    if let Some(m) = mas {
+        acq.spectrum.mas = m;
+    }
+    if energy_bins.is_some() {
+        acq.spectrum.bins = energy_bins;
+    }
+    if let Some(s) = signal {
+        acq.output = match s {
+            "raw" => Output::Raw,
+            "flat-field" => Output::FlatField,
+            "log-line-integral" => Output::LogLineIntegral,
+            other => {
+                return Err(errors::value(format!(
+                    "unknown signal '{other}': expected 'raw', 'flat-field' or 'log-line-integral'"
+                )));
+            }
+        };
+    }
+    let (list, single): (Vec<View>, bool) = match views.cast::<PyView>() {
+        Ok(v) => (vec![v.get().inner], true),
+        Err(_) => {
+            let vs: Vec<PyView> = views.extract().map_err(|_| {
+                errors::value("views must be a tomograf.View or a sequence of them")
+            })?;
+            (vs.into_iter().map(|v| v.inner).collect(), false)
+        }
+    };
+    if list.is_empty() {
+        return Err(errors::value("no views to acquire"));
+    }
+    let (rows, cols) = (list[0].rows, list[0].cols);
+    if list.iter().any(|v| v.rows != rows || v.cols != cols) {
+        return Err(errors::value(
+            "all views in one call must have the same rows × cols",
+        ));
+    }
+    let vol = &hu.inner;
+    let channels = acq.detector.channels();
+    let out = py.detach(|| -> PyResult<Vec<f32>> {
+        let prepared = acq.prepare(vol, seed).map_err(errors::sim)?;
+        let mut data = Vec::with_capacity(list.len() * channels * rows * cols);
+        for (i, view) in list.iter().enumerate() {
+            for img in prepared.acquire(proj, view, i).map_err(errors::sim)? {
+                data.extend(img.data);
+            }
+        }
+        Ok(data)
+    })?;
+    let mut shape = Vec::new();
+    if !single {
+        shape.push(list.len());
+    }
+    if channels > 1 {
+        shape.push(channels);
+    }
+    shape.extend([rows, cols]);
+    let arr =
+        ndarray::ArrayD::from_shape_vec(shape, out).map_err(|e| errors::value(e.to_string()))?;
+    Ok(arr.into_pyarray(py))
+}
