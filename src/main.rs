@@ -2,12 +2,19 @@
 
 mod bench;
 mod dataset;
+mod demo;
+mod evaluate;
 mod output;
 mod project;
+mod reconstruct;
 mod scene;
+mod train;
 
 use anyhow::Result;
 use clap::{Parser, Subcommand};
+
+#[global_allocator]
+static GLOBAL: mimalloc::MiMalloc = mimalloc::MiMalloc;
 
 #[derive(Debug, Parser)]
 #[command(name = "tomograf", version, about, long_about = None)]
@@ -31,6 +38,14 @@ enum Command {
     Scan(project::ScanArgs),
     /// Make a training or test set: normalised CTs and their projections, with a manifest.
     Dataset(dataset::DatasetArgs),
+    /// Train TomoGRAF on a data set (checkpoints, resume, CSV metrics, loss plot).
+    Train(train::TrainArgs),
+    /// Reconstruct a CT (NIfTI, HU) from 1–10 projections with a trained checkpoint.
+    Reconstruct(reconstruct::ReconstructArgs),
+    /// Score reconstructions against ground truth (PSNR, 3D SSIM, RMSE in HU) with baselines.
+    Evaluate(evaluate::EvaluateArgs),
+    /// Phantoms → projections → 1-view reconstruction with the shipped checkpoint → metrics.
+    Demo(demo::DemoArgs),
 }
 
 fn main() {
@@ -62,5 +77,9 @@ fn run(cli: Cli) -> Result<()> {
         Command::Bench(args) => bench::run(args),
         Command::Scan(args) => project::scan(args),
         Command::Dataset(args) => dataset::run(args),
+        Command::Train(args) => train::run(args),
+        Command::Reconstruct(args) => reconstruct::run(args),
+        Command::Evaluate(args) => evaluate::run(args),
+        Command::Demo(args) => demo::run(args),
     }
 }
