@@ -93,11 +93,12 @@ pub fn run(args: EvaluateArgs) -> Result<()> {
     // (views, method) → scores over items.
     let mut table: Vec<(usize, String, Vec<Scores>)> = Vec::new();
     let mut csv = String::from("item,views,method,psnr_db,ssim,rmse_hu,iterations,seconds\n");
-    let mut push = |views: usize, method: &str, s: Scores| {
-        match table.iter_mut().find(|(v, m, _)| *v == views && m == method) {
-            Some(e) => e.2.push(s),
-            None => table.push((views, method.to_string(), vec![s])),
-        }
+    let mut push = |views: usize, method: &str, s: Scores| match table
+        .iter_mut()
+        .find(|(v, m, _)| *v == views && m == method)
+    {
+        Some(e) => e.2.push(s),
+        None => table.push((views, method.to_string(), vec![s])),
     };
     let mut secs_per_iter = Vec::new();
     for (n, item) in items.iter().enumerate() {
@@ -105,8 +106,21 @@ pub fn run(args: EvaluateArgs) -> Result<()> {
             let poses = paper_poses(count)?;
             let refs = references(item, &poses)?;
             let t0 = Instant::now();
-            eprintln!("item {} ({}/{}), {count} view(s)", item.id, n + 1, items.len());
-            let rec = run_one(&args.checkpoint, item, &poses, Some(&infer), args.seed, &device, true)?;
+            eprintln!(
+                "item {} ({}/{}), {count} view(s)",
+                item.id,
+                n + 1,
+                items.len()
+            );
+            let rec = run_one(
+                &args.checkpoint,
+                item,
+                &poses,
+                Some(&infer),
+                args.seed,
+                &device,
+                true,
+            )?;
             let secs = t0.elapsed().as_secs_f64();
             secs_per_iter.push(secs / rec.iterations.max(1) as f64);
             let s = score(item, &rec.volume)?;
@@ -142,9 +156,8 @@ pub fn run(args: EvaluateArgs) -> Result<()> {
     }
     std::fs::write(args.output.join("results.csv"), &csv)?;
     let (spi, _) = mean_std(&secs_per_iter);
-    let mut md = format!(
-        "| views | method | PSNR (dB) | SSIM | RMSE (HU) |\n|---:|---|---:|---:|---:|\n"
-    );
+    let mut md =
+        format!("| views | method | PSNR (dB) | SSIM | RMSE (HU) |\n|---:|---|---:|---:|---:|\n");
     for (v, m, s) in &table {
         let f = |g: fn(&Scores) -> f64| mean_std(&s.iter().map(g).collect::<Vec<_>>());
         let (p, ps) = f(|s| s.psnr);
@@ -176,9 +189,20 @@ fn slices(v: &Volume) -> [Vec<f32>; 3] {
     let d = v.data();
     let at = |i: usize, j: usize, k: usize| d[i + nx * (j + ny * k)];
     let (mi, mj, mk) = (nx / 2, ny / 2, nz / 2);
-    let axial = (0..ny).flat_map(|j| (0..nx).map(move |i| (i, j))).map(|(i, j)| at(i, j, mk)).collect();
-    let coronal = (0..nz).rev().flat_map(|k| (0..nx).map(move |i| (i, k))).map(|(i, k)| at(i, mj, k)).collect();
-    let sagittal = (0..nz).rev().flat_map(|k| (0..ny).map(move |j| (j, k))).map(|(j, k)| at(mi, j, k)).collect();
+    let axial = (0..ny)
+        .flat_map(|j| (0..nx).map(move |i| (i, j)))
+        .map(|(i, j)| at(i, j, mk))
+        .collect();
+    let coronal = (0..nz)
+        .rev()
+        .flat_map(|k| (0..nx).map(move |i| (i, k)))
+        .map(|(i, k)| at(i, mj, k))
+        .collect();
+    let sagittal = (0..nz)
+        .rev()
+        .flat_map(|k| (0..ny).map(move |j| (j, k)))
+        .map(|(j, k)| at(mi, j, k))
+        .collect();
     [axial, coronal, sagittal]
 }
 
@@ -197,7 +221,12 @@ fn figures(item: &Item, model: &Volume, mean: &Volume, stem: &Path) -> Result<()
         gt.spacing(),
         gt.origin(),
         gt.direction(),
-        model.data().iter().zip(gt.data()).map(|(a, b)| ((a - b).abs() * 4.0).min(1.0)).collect(),
+        model
+            .data()
+            .iter()
+            .zip(gt.data())
+            .map(|(a, b)| ((a - b).abs() * 4.0).min(1.0))
+            .collect(),
     )?;
     let cols = [gt, model, mean, &residual].map(slices);
     let gap = 2;
@@ -207,20 +236,35 @@ fn figures(item: &Item, model: &Volume, mean: &Volume, stem: &Path) -> Result<()
         for (r, tile) in s.iter().enumerate() {
             for y in 0..n {
                 for x in 0..n {
-                    img[(r * (n + gap) + y) * w + c * (n + gap) + x] = tile[y * n + x].clamp(0.0, 1.0);
+                    img[(r * (n + gap) + y) * w + c * (n + gap) + x] =
+                        tile[y * n + x].clamp(0.0, 1.0);
                 }
             }
         }
     }
-    let p = Projection { rows: h, cols: w, data: img };
-    tomograf_datasets::image::write_png(&PathBuf::from(format!("{}_slices.png", stem.display())), &p, (0.0, 1.0))?;
+    let p = Projection {
+        rows: h,
+        cols: w,
+        data: img,
+    };
+    tomograf_datasets::image::write_png(
+        &PathBuf::from(format!("{}_slices.png", stem.display())),
+        &p,
+        (0.0, 1.0),
+    )?;
     let line = |v: &Volume| -> Vec<(f64, f64)> {
         let s = &slices(v)[0];
-        (0..n).map(|i| (i as f64, f64::from(s[(n / 2) * n + i]))).collect()
+        (0..n)
+            .map(|i| (i as f64, f64::from(s[(n / 2) * n + i])))
+            .collect()
     };
     plot_lines(
         &PathBuf::from(format!("{}_profile.png", stem.display())),
-        &[("truth", line(gt)), ("TomoGRAF", line(model)), ("mean", line(mean))],
+        &[
+            ("truth", line(gt)),
+            ("TomoGRAF", line(model)),
+            ("mean", line(mean)),
+        ],
     )
 }
 
@@ -244,7 +288,8 @@ pub fn plot_lines(path: &Path, series: &[(&str, Vec<(f64, f64)>)]) -> Result<()>
         y1 = y0 + 1.0;
     }
     let root = BitMapBackend::new(path, (640, 400)).into_drawing_area();
-    root.fill(&WHITE).map_err(|e| anyhow::anyhow!("plot: {e}"))?;
+    root.fill(&WHITE)
+        .map_err(|e| anyhow::anyhow!("plot: {e}"))?;
     let mut chart = ChartBuilder::on(&root)
         .margin(10)
         .build_cartesian_2d(x0..x1, y0..y1)
@@ -252,9 +297,13 @@ pub fn plot_lines(path: &Path, series: &[(&str, Vec<(f64, f64)>)]) -> Result<()>
     let colours = [BLUE, RED, GREEN, BLACK, MAGENTA];
     for (n, (_, s)) in series.iter().enumerate() {
         chart
-            .draw_series(LineSeries::new(s.iter().copied(), colours[n % 5].stroke_width(2)))
+            .draw_series(LineSeries::new(
+                s.iter().copied(),
+                colours[n % 5].stroke_width(2),
+            ))
             .map_err(|e| anyhow::anyhow!("plot: {e}"))?;
     }
-    root.present().map_err(|e| anyhow::anyhow!("plot {}: {e}", path.display()))?;
+    root.present()
+        .map_err(|e| anyhow::anyhow!("plot {}: {e}", path.display()))?;
     Ok(())
 }

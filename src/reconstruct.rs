@@ -85,7 +85,7 @@ pub fn run_one(
     poses: &[Pose],
     infer: Option<&InferConfig>,
     seed: u64,
-    device: &burn::tensor::Device,
+    device: &tomograf_model::Device,
     show: bool,
 ) -> Result<Reconstruction> {
     let (config, state, field) = checkpoint::load_generator(ck, device)?;
@@ -112,9 +112,11 @@ pub fn run_one(
         ProgressBar::hidden()
     };
     bar.set_style(
-        ProgressStyle::with_template("{spinner} it {pos}/{len} [{bar:30}] {elapsed} (eta {eta}) {msg}")
-            .expect("valid template")
-            .progress_chars("=> "),
+        ProgressStyle::with_template(
+            "{spinner} it {pos}/{len} [{bar:30}] {elapsed} (eta {eta}) {msg}",
+        )
+        .expect("valid template")
+        .progress_chars("=> "),
     );
     let rec = reconstruct(
         field,
@@ -160,12 +162,23 @@ pub fn run(args: ReconstructArgs) -> Result<()> {
     if let Some(n) = args.iterations {
         infer.iterations = n;
     }
-    let rec = run_one(&args.checkpoint, &item, &poses, Some(&infer), args.seed, &device, true)?;
+    let rec = run_one(
+        &args.checkpoint,
+        &item,
+        &poses,
+        Some(&infer),
+        args.seed,
+        &device,
+        true,
+    )?;
     write_hu(&item, &rec.volume, &args.output)?;
     eprintln!(
         "{} iterations, PSNR per view {:?} dB: {}",
         rec.iterations,
-        rec.psnr.iter().map(|p| (p * 100.0).round() / 100.0).collect::<Vec<_>>(),
+        rec.psnr
+            .iter()
+            .map(|p| (p * 100.0).round() / 100.0)
+            .collect::<Vec<_>>(),
         args.output.display()
     );
     Ok(())

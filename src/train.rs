@@ -97,7 +97,10 @@ pub fn run(args: TrainArgs) -> Result<()> {
         let secs = t0.elapsed().as_secs_f64();
         if m.iteration % trainer.config.log_every == 0 || m.iteration == total {
             rows.push(row(&m, secs));
-            bar.set_message(format!("D {:.3} G {:.3} L1(V) {:.3}", m.loss_d, m.loss_g, m.l1_volume));
+            bar.set_message(format!(
+                "D {:.3} G {:.3} L1(V) {:.3}",
+                m.loss_d, m.loss_g, m.l1_volume
+            ));
         }
         if m.iteration % trainer.config.checkpoint_every == 0 || m.iteration == total {
             save(&trainer, scale, &mean, &ck, &csv_path, &rows, &args.output)?;
@@ -118,7 +121,15 @@ pub fn run(args: TrainArgs) -> Result<()> {
 fn row(m: &StepMetrics, secs: f64) -> String {
     format!(
         "{},{secs:.4},{:.6},{:.6},{:.6},{:.6},{:.6},{:.6},{:.6},{:.6}",
-        m.iteration, m.loss_d, m.loss_g, m.hinge_v, m.hinge_p, m.recon_v, m.recon_p, m.l1_volume, m.l1_patch
+        m.iteration,
+        m.loss_d,
+        m.loss_g,
+        m.hinge_v,
+        m.hinge_p,
+        m.recon_v,
+        m.recon_p,
+        m.l1_volume,
+        m.l1_patch
     )
 }
 

@@ -12,8 +12,12 @@ pub trait Baseline {
     fn name(&self) -> &str;
     /// The normalised density on `grid`'s geometry from `refs` (line integrals;
     /// `scale` maps normalised density to mu).
-    fn reconstruct(&self, refs: &[Reference], grid: &Volume, scale: &DensityScale)
-    -> Result<Volume>;
+    fn reconstruct(
+        &self,
+        refs: &[Reference],
+        grid: &Volume,
+        scale: &DensityScale,
+    ) -> Result<Volume>;
 }
 
 /// The voxel-wise mean of the training CTs (normalised, on their common `n³` grid): it

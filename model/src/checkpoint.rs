@@ -60,7 +60,11 @@ pub fn save(
     )
     .map_err(|e| err(&tmp, e))?;
     let p = tmp.join("generator.bpk");
-    trainer.field.clone().save_file(&p).map_err(|e| err(&p, e))?;
+    trainer
+        .field
+        .clone()
+        .save_file(&p)
+        .map_err(|e| err(&p, e))?;
     let p = tmp.join("d1.bpk");
     trainer.d1.clone().save_file(&p).map_err(|e| err(&p, e))?;
     let p = tmp.join("d2.bpk");
@@ -87,8 +91,12 @@ pub fn save(
 
 fn read_meta(dir: &Path) -> Result<(TrainConfig, State)> {
     let cp = dir.join("config.toml");
-    let text = std::fs::read_to_string(&cp)
-        .map_err(|e| err(&cp, format!("{e} (is {} a checkpoint folder?)", dir.display())))?;
+    let text = std::fs::read_to_string(&cp).map_err(|e| {
+        err(
+            &cp,
+            format!("{e} (is {} a checkpoint folder?)", dir.display()),
+        )
+    })?;
     let config = TrainConfig::parse(&text).map_err(|e| err(&cp, e))?;
     let sp = dir.join("state.json");
     let bytes = std::fs::read(&sp).map_err(|e| err(&sp, e))?;
@@ -136,7 +144,10 @@ pub fn load_mean(dir: &Path) -> Result<Option<MeanVolume>> {
     let shape: Vec<u64> = npy.shape().to_vec();
     let data: Vec<f32> = npy.into_vec().map_err(|e| err(&p, e))?;
     let [nz, ny, nx] = shape[..] else {
-        return Err(err(&p, format!("expected a 3D array, found shape {shape:?}")));
+        return Err(err(
+            &p,
+            format!("expected a 3D array, found shape {shape:?}"),
+        ));
     };
     Ok(Some(MeanVolume {
         data,

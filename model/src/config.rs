@@ -189,7 +189,9 @@ mod tests {
         c.model.patch = 6;
         let e = c.validate().unwrap_err().to_string();
         assert!(e.contains("patch M = 6"), "{e}");
-        let e = TrainConfig::load("/nonexistent.toml").unwrap_err().to_string();
+        let e = TrainConfig::load("/nonexistent.toml")
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("not a preset"), "{e}");
     }
 }

@@ -47,9 +47,10 @@ impl Item {
     /// Index of the projection taken at pose `(θ, φ)` (degrees, to 1e-6), if any.
     pub fn find_pose(&self, pose: Pose) -> Option<usize> {
         self.poses.iter().position(|p| {
-            (p.theta_deg - pose.theta_deg).rem_euclid(360.0).min(
-                (pose.theta_deg - p.theta_deg).rem_euclid(360.0),
-            ) < 1e-6
+            (p.theta_deg - pose.theta_deg)
+                .rem_euclid(360.0)
+                .min((pose.theta_deg - p.theta_deg).rem_euclid(360.0))
+                < 1e-6
                 && (p.phi_deg - pose.phi_deg).abs() < 1e-6
         })
     }
@@ -128,9 +129,7 @@ pub fn load_item(dir: &Path) -> Result<Item> {
     }
     let cp = dir.join(&item.ct);
     let ct = if cp.exists() {
-        Some(
-            tomograf_datasets::nifti::read_nifti(&cp).map_err(|e| ModelError::file(&cp, e))?,
-        )
+        Some(tomograf_datasets::nifti::read_nifti(&cp).map_err(|e| ModelError::file(&cp, e))?)
     } else {
         None
     };
@@ -167,7 +166,11 @@ pub fn load_dataset(dir: &Path, split: Option<&str>) -> Result<Vec<Item>> {
     let mp = dir.join("manifest.jsonl");
     let text = String::from_utf8(read(&mp)?).map_err(|e| ModelError::file(&mp, e))?;
     let mut items = Vec::new();
-    for (n, line) in text.lines().enumerate().filter(|(_, l)| !l.trim().is_empty()) {
+    for (n, line) in text
+        .lines()
+        .enumerate()
+        .filter(|(_, l)| !l.trim().is_empty())
+    {
         let m: ManifestLine = serde_json::from_str(line)
             .map_err(|e| ModelError::file(&mp, format!("line {}: {e}", n + 1)))?;
         if split.is_some_and(|s| s != m.split) {
@@ -179,7 +182,9 @@ pub fn load_dataset(dir: &Path, split: Option<&str>) -> Result<Vec<Item>> {
         !items.is_empty(),
         "{}: no items{}",
         mp.display(),
-        split.map(|s| format!(" in split '{s}'")).unwrap_or_default()
+        split
+            .map(|s| format!(" in split '{s}'"))
+            .unwrap_or_default()
     );
     Ok(items)
 }

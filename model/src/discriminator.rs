@@ -52,8 +52,13 @@ impl PatchDiscriminator {
     /// Logits of head `k` and the decoder's reconstruction.
     pub fn forward(&self, x: Tensor<4>, k: usize) -> (Tensor<1>, Tensor<4>) {
         let b = x.dims()[0];
-        let f = leaky_relu(self.c2.forward(leaky_relu(self.c1.forward(x), SLOPE)), SLOPE);
-        let recon = self.dec2.forward(leaky_relu(self.dec1.forward(f.clone()), SLOPE));
+        let f = leaky_relu(
+            self.c2.forward(leaky_relu(self.c1.forward(x), SLOPE)),
+            SLOPE,
+        );
+        let recon = self
+            .dec2
+            .forward(leaky_relu(self.dec1.forward(f.clone()), SLOPE));
         let h = leaky_relu(self.c3.forward(f), SLOPE);
         let logit = self.heads[k].forward(h).reshape([b as i32, -1]).mean_dim(1);
         (logit.reshape([b]), recon)
@@ -100,8 +105,13 @@ impl VolumeDiscriminator {
     /// Logits of head `k` and the decoder's reconstruction.
     pub fn forward(&self, x: Tensor<5>, k: usize) -> (Tensor<1>, Tensor<5>) {
         let b = x.dims()[0];
-        let f = leaky_relu(self.c2.forward(leaky_relu(self.c1.forward(x), SLOPE)), SLOPE);
-        let recon = self.dec2.forward(leaky_relu(self.dec1.forward(f.clone()), SLOPE));
+        let f = leaky_relu(
+            self.c2.forward(leaky_relu(self.c1.forward(x), SLOPE)),
+            SLOPE,
+        );
+        let recon = self
+            .dec2
+            .forward(leaky_relu(self.dec1.forward(f.clone()), SLOPE));
         let h = leaky_relu(self.c3.forward(f), SLOPE);
         let logit = self.heads[k].forward(h).reshape([b as i32, -1]).mean_dim(1);
         (logit.reshape([b]), recon)

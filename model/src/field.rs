@@ -76,7 +76,9 @@ impl RadianceField {
         let x = encode(points.reshape([b * n, 3]), self.freq_x);
         let expand = |z: Tensor<2>| {
             let m = z.dims()[1];
-            z.unsqueeze_dim::<3>(1).expand([b, n, m]).reshape([b * n, m])
+            z.unsqueeze_dim::<3>(1)
+                .expand([b, n, m])
+                .reshape([b * n, m])
         };
         let mut h = Tensor::cat(vec![x, expand(z_sh)], 1);
         for layer in &self.shape {

@@ -35,4 +35,5 @@ pub mod render;
 pub mod train;
 pub mod trilinear;
 
+pub use burn::tensor::Device;
 pub use error::{ModelError, Result};

@@ -41,7 +41,8 @@ pub fn global_ssim(a: Tensor<2>, b: Tensor<2>) -> Tensor<1> {
     let va = (da.clone() * da.clone()).mean_dim(1);
     let vb = (db.clone() * db.clone()).mean_dim(1);
     let cov = (da * db).mean_dim(1);
-    let num = (ma.clone() * mb.clone()).mul_scalar(2.0).add_scalar(c1) * cov.mul_scalar(2.0).add_scalar(c2);
+    let num = (ma.clone() * mb.clone()).mul_scalar(2.0).add_scalar(c1)
+        * cov.mul_scalar(2.0).add_scalar(c2);
     let den = (ma.clone() * ma + mb.clone() * mb).add_scalar(c1) * (va + vb).add_scalar(c2);
     (num / den).reshape([bsz])
 }
@@ -60,7 +61,11 @@ pub fn hinge_generator(fake: Tensor<1>) -> Tensor<1> {
 /// it raises the PSNR.
 pub fn neg_psnr(a: Tensor<2>, b: Tensor<2>) -> Tensor<1> {
     let d = a - b;
-    (d.clone() * d).mean().add_scalar(1e-10).log().mul_scalar(10.0 / std::f64::consts::LN_10)
+    (d.clone() * d)
+        .mean()
+        .add_scalar(1e-10)
+        .log()
+        .mul_scalar(10.0 / std::f64::consts::LN_10)
 }
 
 /// Negative log-likelihood of codes under N(0, I), per element, constants dropped:

@@ -59,7 +59,8 @@ pub fn ssim3d(a: &[f32], b: &[f32], dims: [usize; 3], range: f64) -> Result<f64>
                 let (x, y) = (f64::from(a[n]), f64::from(b[n]));
                 let v = [x, y, x * x, y * y, x * y];
                 for (t, val) in tables.iter_mut().zip(v) {
-                    t[at(i + 1, j + 1, k + 1)] = val + t[at(i, j + 1, k + 1)]
+                    t[at(i + 1, j + 1, k + 1)] = val
+                        + t[at(i, j + 1, k + 1)]
                         + t[at(i + 1, j, k + 1)]
                         + t[at(i + 1, j + 1, k)]
                         - t[at(i, j, k + 1)]
@@ -134,7 +135,12 @@ mod tests {
         let my = ys.iter().sum::<f64>() / n;
         let vx = xs.iter().map(|x| (x - mx).powi(2)).sum::<f64>() / (n - 1.0);
         let vy = ys.iter().map(|y| (y - my).powi(2)).sum::<f64>() / (n - 1.0);
-        let cxy = xs.iter().zip(&ys).map(|(x, y)| (x - mx) * (y - my)).sum::<f64>() / (n - 1.0);
+        let cxy = xs
+            .iter()
+            .zip(&ys)
+            .map(|(x, y)| (x - mx) * (y - my))
+            .sum::<f64>()
+            / (n - 1.0);
         let (c1, c2) = (1e-4, 9e-4);
         ((2.0 * mx * my + c1) * (2.0 * cxy + c2)) / ((mx * mx + my * my + c1) * (vx + vy + c2))
     }

@@ -88,16 +88,19 @@ pub fn reconstruct(
     check_references(refs)?;
     let m = &config.model;
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
-    let codes = Codes::new(normals(&mut rng, m.z_shape), normals(&mut rng, m.z_app), 1, device);
+    let codes = Codes::new(
+        normals(&mut rng, m.z_shape),
+        normals(&mut rng, m.z_app),
+        1,
+        device,
+    );
     let mut tuned = Tuned { field, codes };
     let mut opt = rmsprop();
     let perceptual = SsimL1;
     let mut psnr = vec![f64::NEG_INFINITY; refs.len()];
     let mut losses_seen = Vec::new();
     let mut iterations = 0;
-    while iterations < infer.iterations
-        && !psnr.iter().all(|&p| p >= infer.psnr_threshold)
-    {
+    while iterations < infer.iterations && !psnr.iter().all(|&p| p >= infer.psnr_threshold) {
         let i = rng.random_range(0..refs.len());
         let r = &refs[i];
         let pixels = if infer.patch == 0 {
@@ -121,7 +124,10 @@ pub fn reconstruct(
             ),
             step_mm: Tensor::from_data(TensorData::new(s.step_mm.clone(), [1, n]), device),
             pose: Tensor::from_data(
-                TensorData::new(r.pose.frame().to_source.as_vec3().to_array().to_vec(), [1, 3]),
+                TensorData::new(
+                    r.pose.frame().to_source.as_vec3().to_array().to_vec(),
+                    [1, 3],
+                ),
                 device,
             ),
             rays: n,
@@ -179,7 +185,11 @@ pub fn render_volume(tuned: &Tuned, grid: &Volume, pose: Pose, device: &Device) 
         let end = (start + CHUNK).min(total);
         let mut pts = Vec::with_capacity((end - start) * 3);
         for n in start..end {
-            let (i, j, k) = (n % dims[0], (n / dims[0]) % dims[1], n / (dims[0] * dims[1]));
+            let (i, j, k) = (
+                n % dims[0],
+                (n / dims[0]) % dims[1],
+                n / (dims[0] * dims[1]),
+            );
             pts.extend([coord(i, 0), coord(j, 1), coord(k, 2)]);
         }
         let p = Tensor::<3>::from_data(TensorData::new(pts, [1, end - start, 3]), device);
@@ -188,10 +198,18 @@ pub fn render_volume(tuned: &Tuned, grid: &Volume, pose: Pose, device: &Device) 
             .field
             .density(p, pose_t, tuned.codes.shape.val(), tuned.codes.app.val())
             .detach();
-        out.extend(d.into_data().try_to_vec::<f32>().map_err(|e| {
-            crate::ModelError::Invalid(format!("reading densities back: {e:?}"))
-        })?);
+        out.extend(
+            d.into_data().try_to_vec::<f32>().map_err(|e| {
+                crate::ModelError::Invalid(format!("reading densities back: {e:?}"))
+            })?,
+        );
         start = end;
     }
-    Ok(Volume::new(dims, grid.spacing(), grid.origin(), grid.direction(), out)?)
+    Ok(Volume::new(
+        dims,
+        grid.spacing(),
+        grid.origin(),
+        grid.direction(),
+        out,
+    )?)
 }

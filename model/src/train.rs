@@ -121,12 +121,20 @@ impl Trainer {
             proj_scale.is_finite() && proj_scale > 0.0,
             "projection scale {proj_scale} must be > 0"
         );
+        // burn's RNG is global: hold a lock from seeding to the last initialisation so
+        // networks made concurrently (other threads, other tests) cannot interleave draws.
+        static INIT: std::sync::Mutex<()> = std::sync::Mutex::new(());
+        let guard = INIT.lock().unwrap_or_else(|e| e.into_inner());
         device.seed(config.seed);
         let m = &config.model;
+        let field = RadianceField::new(m, device);
+        let d1 = VolumeDiscriminator::new(m.disc_channels, config.n_aug, device);
+        let d2 = PatchDiscriminator::new(m.disc_channels, config.n_aug, device);
+        drop(guard);
         Ok(Self {
-            field: RadianceField::new(m, device),
-            d1: VolumeDiscriminator::new(m.disc_channels, config.n_aug, device),
-            d2: PatchDiscriminator::new(m.disc_channels, config.n_aug, device),
+            field,
+            d1,
+            d2,
             opt_g: rmsprop(),
             opt_d1: rmsprop(),
             opt_d2: rmsprop(),
@@ -227,7 +235,8 @@ impl Trainer {
         let batch = self.batch(items, &mut rng)?;
         let m = &self.config.model;
         let (bsz, side, q) = (self.config.batch, m.patch, m.samples);
-        let (density, integral) = render_field(&self.field, &batch.codes, &batch.rays, &batch.scale);
+        let (density, integral) =
+            render_field(&self.field, &batch.codes, &batch.rays, &batch.scale);
         // V' [B, 1, Q, M, M] and P' [B, 1, M, M] in the real data's layout and units.
         let fake_v = density
             .reshape([bsz, side, side, q])
@@ -260,12 +269,14 @@ impl Trainer {
             let tp = adaptive_avg_pool2d(real_p, [side / 4, side / 4]);
             let h_v = losses::hinge_discriminator(lr_v, lf_v);
             let h_p = losses::hinge_discriminator(lr_p, lf_p);
-            let r_v = self
-                .perceptual
-                .distance(rec_v.reshape([bsz as i32, -1]), tv.reshape([bsz as i32, -1]));
-            let r_p = self
-                .perceptual
-                .distance(rec_p.reshape([bsz as i32, -1]), tp.reshape([bsz as i32, -1]));
+            let r_v = self.perceptual.distance(
+                rec_v.reshape([bsz as i32, -1]),
+                tv.reshape([bsz as i32, -1]),
+            );
+            let r_p = self.perceptual.distance(
+                rec_p.reshape([bsz as i32, -1]),
+                tp.reshape([bsz as i32, -1]),
+            );
             if k == 0 {
                 parts = [h_v.clone(), h_p.clone(), r_v.clone(), r_p.clone()]
                     .map(|t| t.into_scalar::<f32>() as f64);
@@ -313,7 +324,9 @@ impl Trainer {
             l1_volume,
             l1_patch,
         };
-        let finite = [metrics.loss_d, metrics.loss_g].iter().all(|v| v.is_finite());
+        let finite = [metrics.loss_d, metrics.loss_g]
+            .iter()
+            .all(|v| v.is_finite());
         ensure!(
             finite,
             "iteration {}: loss is not finite (D {}, G {}); lower the learning rates",

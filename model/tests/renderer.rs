@@ -19,7 +19,10 @@ fn model_drr(vol: &Volume, view: &View, q: usize) -> Vec<f32> {
         .mu(vt.sample(&s.grid))
         .reshape([1, pixels.len(), q]);
     let step = Tensor::<2>::from_data(TensorData::new(s.step_mm, [1, pixels.len()]), &dev);
-    line_integral(mu, step).into_data().try_to_vec::<f32>().unwrap()
+    line_integral(mu, step)
+        .into_data()
+        .try_to_vec::<f32>()
+        .unwrap()
 }
 
 fn sim_drr(vol: &Volume, view: &View) -> Vec<f32> {
@@ -57,9 +60,20 @@ fn uniform_volume_gives_mu_times_chord_in_both() {
     // A uniform field: both renderers must give mu × (clipped chord), exactly up to f32
     // rounding (relative 1e-5), independent of the sample count.
     let centre = DVec3::new(3.0, -5.0, 20.0);
-    let vol = Volume::centred([9, 11, 13], DVec3::new(2.0, 2.5, 3.0), centre, vec![0.02; 9 * 11 * 13])
-        .unwrap();
-    let g = geometry(centre, Beam::Cone { sad_mm: 300.0, sid_mm: 500.0 });
+    let vol = Volume::centred(
+        [9, 11, 13],
+        DVec3::new(2.0, 2.5, 3.0),
+        centre,
+        vec![0.02; 9 * 11 * 13],
+    )
+    .unwrap();
+    let g = geometry(
+        centre,
+        Beam::Cone {
+            sad_mm: 300.0,
+            sid_mm: 500.0,
+        },
+    );
     for pose in [Pose::AP, Pose::new(37.0, 21.0)] {
         let view = g.view(pose).unwrap();
         let m = model_drr(&vol, &view, 7);
@@ -86,7 +100,13 @@ fn random_volume_matches_sim_trilinear_and_converges_as_h_squared() {
         .map(|i| 0.03 * ((i as u64).wrapping_mul(2654435761) % 1000) as f32 / 1000.0)
         .collect();
     let vol = Volume::centred(dims, DVec3::new(2.0, 1.5, 2.5), centre, data).unwrap();
-    for beam in [Beam::Cone { sad_mm: 250.0, sid_mm: 400.0 }, Beam::Parallel] {
+    for beam in [
+        Beam::Cone {
+            sad_mm: 250.0,
+            sid_mm: 400.0,
+        },
+        Beam::Parallel,
+    ] {
         let g = geometry(centre, beam);
         for pose in [Pose::new(30.0, 20.0), Pose::new(200.0, -10.0)] {
             let view = g.view(pose).unwrap();

@@ -22,12 +22,17 @@ fn same_seed_same_run_and_resume_continues_exactly() {
     let dev = device();
     let run = |steps: usize| {
         let mut t = Trainer::new(config.clone(), scale, &dev).unwrap();
-        (0..steps).map(|_| t.step(&items).unwrap()).collect::<Vec<_>>()
+        (0..steps)
+            .map(|_| t.step(&items).unwrap())
+            .collect::<Vec<_>>()
     };
     let a = run(3);
     let b = run(3);
     assert_eq!(a, b, "same seed, same losses");
-    assert!(a.iter().all(|m| m.loss_d.is_finite() && m.loss_g.is_finite()));
+    assert!(
+        a.iter()
+            .all(|m| m.loss_d.is_finite() && m.loss_g.is_finite())
+    );
 
     // Save after 2 steps, load, take the third: identical to the unbroken run.
     let dir = tempfile::tempdir().unwrap();
@@ -39,7 +44,11 @@ fn same_seed_same_run_and_resume_continues_exactly() {
     checkpoint::save(&t, items[0].scale, Some(&mean), &ck).unwrap();
     let (mut r, state) = checkpoint::load_trainer(&ck, &dev).unwrap();
     assert_eq!(state.iteration, 2);
-    assert_eq!(r.step(&items).unwrap(), a[2], "resumed step equals the unbroken run's");
+    assert_eq!(
+        r.step(&items).unwrap(),
+        a[2],
+        "resumed step equals the unbroken run's"
+    );
     let m = checkpoint::load_mean(&ck).unwrap().unwrap();
     assert_eq!((m.dims, m.data), (mean.dims, mean.data));
 
@@ -54,9 +63,26 @@ fn same_seed_same_run_and_resume_continues_exactly() {
             &dev,
         )
     };
-    let v1 = render_volume(&Tuned { field: t.field.clone(), codes: codes() }, ct, Pose::AP, &dev)
-        .unwrap();
-    let v2 = render_volume(&Tuned { field: g, codes: codes() }, ct, Pose::AP, &dev).unwrap();
+    let v1 = render_volume(
+        &Tuned {
+            field: t.field.clone(),
+            codes: codes(),
+        },
+        ct,
+        Pose::AP,
+        &dev,
+    )
+    .unwrap();
+    let v2 = render_volume(
+        &Tuned {
+            field: g,
+            codes: codes(),
+        },
+        ct,
+        Pose::AP,
+        &dev,
+    )
+    .unwrap();
     assert_eq!(v1.data(), v2.data());
 }
 
@@ -82,7 +108,16 @@ fn inference_loss_falls_when_fitting_one_volume() {
         let mut infer = config.infer.clone();
         infer.tune = tune;
         let rec = reconstruct(
-            t.field.clone(), &config, scale, &item.scale, &refs, ct, &infer, 7, &dev, |_, _| {},
+            t.field.clone(),
+            &config,
+            scale,
+            &item.scale,
+            &refs,
+            ct,
+            &infer,
+            7,
+            &dev,
+            |_, _| {},
         )
         .unwrap();
         assert_eq!(rec.iterations, 40);
@@ -103,7 +138,16 @@ fn wrong_inputs_are_named() {
     let ct = item.ct.as_ref().unwrap();
     let run = |refs: &[Reference]| {
         reconstruct(
-            t.field.clone(), &config, 1.0, &item.scale, refs, ct, &config.infer, 0, &dev, |_, _| {},
+            t.field.clone(),
+            &config,
+            1.0,
+            &item.scale,
+            refs,
+            ct,
+            &config.infer,
+            0,
+            &dev,
+            |_, _| {},
         )
         .unwrap_err()
         .to_string()
@@ -116,7 +160,10 @@ fn wrong_inputs_are_named() {
         image: vec![0.0; 10],
     };
     let e = run(&[bad]);
-    assert!(e.contains("image has 10 values but its view's detector is 16×16"), "{e}");
+    assert!(
+        e.contains("image has 10 values but its view's detector is 16×16"),
+        "{e}"
+    );
     assert!(Trainer::new(config.clone(), 0.0, &dev).is_err());
     let mut no_ct = item.clone();
     no_ct.ct = None;
