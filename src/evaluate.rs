@@ -156,8 +156,8 @@ pub fn run(args: EvaluateArgs) -> Result<()> {
     }
     std::fs::write(args.output.join("results.csv"), &csv)?;
     let (spi, _) = mean_std(&secs_per_iter);
-    let mut md =
-        format!("| views | method | PSNR (dB) | SSIM | RMSE (HU) |\n|---:|---|---:|---:|---:|\n");
+    let mut md = "| views | method | PSNR (dB) | SSIM | RMSE (HU) |\n|---:|---|---:|---:|---:|\n"
+        .to_string();
     for (v, m, s) in &table {
         let f = |g: fn(&Scores) -> f64| mean_std(&s.iter().map(g).collect::<Vec<_>>());
         let (p, ps) = f(|s| s.psnr);

@@ -134,12 +134,12 @@ impl TrainConfig {
     pub fn validate(&self) -> Result<()> {
         let m = &self.model;
         ensure!(
-            m.patch >= 4 && m.patch % 4 == 0,
+            m.patch >= 4 && m.patch.is_multiple_of(4),
             "patch M = {} must be a positive multiple of 4",
             m.patch
         );
         ensure!(
-            m.samples >= 4 && m.samples % 4 == 0,
+            m.samples >= 4 && m.samples.is_multiple_of(4),
             "samples Q = {} must be a positive multiple of 4",
             m.samples
         );
