@@ -24,9 +24,10 @@ pub struct DemoArgs {
     /// View counts.
     #[arg(long, value_delimiter = ',', default_value = "1")]
     pub views: Vec<usize>,
-    /// Override the checkpoint's inference iteration cap.
-    #[arg(long)]
-    pub iterations: Option<usize>,
+    /// Inference iteration cap (the checkpoint's own cap when 0); kept low so the demo
+    /// takes minutes on a CPU.
+    #[arg(long, default_value_t = 40)]
+    pub iterations: usize,
     /// Backend: flex (CPU, default), ndarray, cuda, wgpu (as compiled in).
     #[arg(long)]
     pub backend: Option<String>,
@@ -81,7 +82,7 @@ pub fn run(args: DemoArgs) -> Result<()> {
         views: args.views,
         split: None,
         items: None,
-        iterations: args.iterations,
+        iterations: (args.iterations > 0).then_some(args.iterations),
         tune: None,
         seed: 0,
         backend: args.backend,
