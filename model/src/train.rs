@@ -130,6 +130,18 @@ impl Trainer {
         let field = RadianceField::new(m, device);
         let d1 = VolumeDiscriminator::new(m.disc_channels, config.n_aug, device);
         let d2 = PatchDiscriminator::new(m.disc_channels, config.n_aug, device);
+        // Parameters are initialised lazily, on first use: use every one now, under the lock.
+        let (side, q) = (m.patch, m.samples);
+        let _ = field.density(
+            Tensor::zeros([1, 1, 3], device),
+            Tensor::zeros([1, 3], device),
+            Tensor::zeros([1, m.z_shape], device),
+            Tensor::zeros([1, m.z_app], device),
+        );
+        for k in 0..config.n_aug {
+            let _ = d1.forward(Tensor::zeros([1, 1, q, side, side], device), k);
+            let _ = d2.forward(Tensor::zeros([1, 1, side, side], device), k);
+        }
         drop(guard);
         Ok(Self {
             field,
