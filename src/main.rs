@@ -4,14 +4,21 @@ mod bench;
 mod bench_accel;
 mod bench_physics;
 mod dataset;
+mod demo;
+mod evaluate;
 mod output;
 mod physics;
 mod project;
 mod recon_cmd;
+mod reconstruct;
 mod scene;
+mod train;
 
 use anyhow::Result;
 use clap::{Parser, Subcommand};
+
+#[global_allocator]
+static GLOBAL: mimalloc::MiMalloc = mimalloc::MiMalloc;
 
 #[derive(Debug, Parser)]
 #[command(name = "tomograf", version, about, long_about = None)]
@@ -37,6 +44,14 @@ enum Command {
     Dataset(dataset::DatasetArgs),
     /// Classical reconstruction (FDK, SART, SART-TV, SIRT) from projections with geometry.
     ReconstructClassical(Box<recon_cmd::ReconArgs>),
+    /// Train TomoGRAF on a data set (checkpoints, resume, CSV metrics, loss plot).
+    Train(train::TrainArgs),
+    /// Reconstruct a CT (NIfTI, HU) from 1–10 projections with a trained checkpoint.
+    Reconstruct(reconstruct::ReconstructArgs),
+    /// Score reconstructions against ground truth (PSNR, 3D SSIM, RMSE in HU) with baselines.
+    Evaluate(evaluate::EvaluateArgs),
+    /// Phantoms → projections → 1-view reconstruction with the shipped checkpoint → metrics.
+    Demo(demo::DemoArgs),
 }
 
 fn main() {
@@ -69,5 +84,9 @@ fn run(cli: Cli) -> Result<()> {
         Command::Scan(args) => project::scan(args),
         Command::Dataset(args) => dataset::run(args),
         Command::ReconstructClassical(args) => recon_cmd::run(*args),
+        Command::Train(args) => train::run(args),
+        Command::Reconstruct(args) => reconstruct::run(args),
+        Command::Evaluate(args) => evaluate::run(args),
+        Command::Demo(args) => demo::run(args),
     }
 }

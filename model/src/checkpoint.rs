@@ -1,0 +1,156 @@
+//! Checkpoints: a folder with `config.toml`, `state.json` (iteration, projection scale,
+//! density scale), the networks as burnpack files (`generator.bpk`, `d1.bpk`, `d2.bpk`)
+//! and the optimizers' state (`opt_g.bpk`, `opt_d1.bpk`, `opt_d2.bpk`).
+//!
+//! A checkpoint is written into `<name>.tmp` and renamed over `<name>`, so an interrupted
+//! save leaves the previous checkpoint intact. Inference needs only the first three files
+//! plus `generator.bpk`.
+
+use crate::baseline::MeanVolume;
+use crate::config::TrainConfig;
+use crate::error::{ModelError, Result};
+use crate::field::RadianceField;
+use crate::render::DensityScale;
+use crate::train::Trainer;
+use burn::module::Module;
+use burn::tensor::Device;
+use serde::{Deserialize, Serialize};
+use std::path::Path;
+
+/// What `state.json` holds.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct State {
+    /// Iterations completed.
+    pub iteration: usize,
+    /// Line integral mapped to 1 in the discriminators' and losses' inputs.
+    pub proj_scale: f64,
+    /// Density → mu map of the training data.
+    pub density_scale: DensityScale,
+}
+
+fn err(path: &Path, e: impl std::fmt::Display) -> ModelError {
+    ModelError::file(path, e)
+}
+
+/// Saves `trainer` (with the training data's density scale and, when given, the mean
+/// training volume as `mean_volume.npy`) to the folder `dir`.
+pub fn save(
+    trainer: &Trainer,
+    density_scale: DensityScale,
+    mean: Option<&MeanVolume>,
+    dir: &Path,
+) -> Result<()> {
+    let name = dir
+        .file_name()
+        .ok_or_else(|| err(dir, "checkpoint path has no folder name"))?;
+    let tmp = dir.with_file_name(format!("{}.tmp", name.to_string_lossy()));
+    if tmp.exists() {
+        std::fs::remove_dir_all(&tmp).map_err(|e| err(&tmp, e))?;
+    }
+    std::fs::create_dir_all(&tmp).map_err(|e| err(&tmp, e))?;
+    std::fs::write(tmp.join("config.toml"), trainer.config.to_toml()).map_err(|e| err(&tmp, e))?;
+    let state = State {
+        iteration: trainer.iteration,
+        proj_scale: trainer.proj_scale,
+        density_scale,
+    };
+    std::fs::write(
+        tmp.join("state.json"),
+        serde_json::to_string_pretty(&state).expect("state serialises"),
+    )
+    .map_err(|e| err(&tmp, e))?;
+    let p = tmp.join("generator.bpk");
+    trainer
+        .field
+        .clone()
+        .save_file(&p)
+        .map_err(|e| err(&p, e))?;
+    let p = tmp.join("d1.bpk");
+    trainer.d1.clone().save_file(&p).map_err(|e| err(&p, e))?;
+    let p = tmp.join("d2.bpk");
+    trainer.d2.clone().save_file(&p).map_err(|e| err(&p, e))?;
+    for (n, o) in [
+        ("opt_g.bpk", &trainer.opt_g),
+        ("opt_d1.bpk", &trainer.opt_d1),
+        ("opt_d2.bpk", &trainer.opt_d2),
+    ] {
+        let p = tmp.join(n);
+        o.save(&p).map_err(|e| err(&p, e))?;
+    }
+    if let Some(m) = mean {
+        let p = tmp.join("mean_volume.npy");
+        tomograf_datasets::image::write_npy(&p, &m.data, &[m.dims[2], m.dims[1], m.dims[0]])
+            .map_err(|e| err(&p, e))?;
+    }
+    if dir.exists() {
+        std::fs::remove_dir_all(dir).map_err(|e| err(dir, e))?;
+    }
+    std::fs::rename(&tmp, dir).map_err(|e| err(dir, e))?;
+    Ok(())
+}
+
+fn read_meta(dir: &Path) -> Result<(TrainConfig, State)> {
+    let cp = dir.join("config.toml");
+    let text = std::fs::read_to_string(&cp).map_err(|e| {
+        err(
+            &cp,
+            format!("{e} (is {} a checkpoint folder?)", dir.display()),
+        )
+    })?;
+    let config = TrainConfig::parse(&text).map_err(|e| err(&cp, e))?;
+    let sp = dir.join("state.json");
+    let bytes = std::fs::read(&sp).map_err(|e| err(&sp, e))?;
+    let state: State = serde_json::from_slice(&bytes).map_err(|e| err(&sp, e))?;
+    Ok((config, state))
+}
+
+/// Loads a whole trainer (to resume training).
+pub fn load_trainer(dir: &Path, device: &Device) -> Result<(Trainer, State)> {
+    let (config, state) = read_meta(dir)?;
+    let mut t = Trainer::new(config, state.proj_scale, device)?;
+    let p = dir.join("generator.bpk");
+    t.field = t.field.try_load_file(&p).map_err(|e| err(&p, e))?;
+    let p = dir.join("d1.bpk");
+    t.d1 = t.d1.try_load_file(&p).map_err(|e| err(&p, e))?;
+    let p = dir.join("d2.bpk");
+    t.d2 = t.d2.try_load_file(&p).map_err(|e| err(&p, e))?;
+    let p = dir.join("opt_g.bpk");
+    t.opt_g = t.opt_g.load(&p).map_err(|e| err(&p, e))?;
+    let p = dir.join("opt_d1.bpk");
+    t.opt_d1 = t.opt_d1.load(&p).map_err(|e| err(&p, e))?;
+    let p = dir.join("opt_d2.bpk");
+    t.opt_d2 = t.opt_d2.load(&p).map_err(|e| err(&p, e))?;
+    t.iteration = state.iteration;
+    Ok((t, state))
+}
+
+/// Loads the generator only (for inference).
+pub fn load_generator(dir: &Path, device: &Device) -> Result<(TrainConfig, State, RadianceField)> {
+    let (config, state) = read_meta(dir)?;
+    let field = RadianceField::new(&config.model, device);
+    let p = dir.join("generator.bpk");
+    let field = field.try_load_file(&p).map_err(|e| err(&p, e))?;
+    Ok((config, state, field))
+}
+
+/// The mean training volume stored with a checkpoint, if any.
+pub fn load_mean(dir: &Path) -> Result<Option<MeanVolume>> {
+    let p = dir.join("mean_volume.npy");
+    if !p.exists() {
+        return Ok(None);
+    }
+    let bytes = std::fs::read(&p).map_err(|e| err(&p, e))?;
+    let npy = npyz::NpyFile::new(&bytes[..]).map_err(|e| err(&p, e))?;
+    let shape: Vec<u64> = npy.shape().to_vec();
+    let data: Vec<f32> = npy.into_vec().map_err(|e| err(&p, e))?;
+    let [nz, ny, nx] = shape[..] else {
+        return Err(err(
+            &p,
+            format!("expected a 3D array, found shape {shape:?}"),
+        ));
+    };
+    Ok(Some(MeanVolume {
+        data,
+        dims: [nx as usize, ny as usize, nz as usize],
+    }))
+}

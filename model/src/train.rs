@@ -1,0 +1,359 @@
+//! One training iteration (Methods 1.2–1.3): sample patches and sub-volumes from the data
+//! set, render the generator's V' and P', update D1 and D2 (hinge + reconstruction, eqs.
+//! 7–10, with DAG, eqs. 11–12), then update the generator against them.
+//!
+//! Everything random comes from a ChaCha8 stream seeded by (config seed, iteration), and
+//! burn's parameter initialisation by the config seed, so the same data, config and seed
+//! give the same training run, and a resumed run continues exactly as an unbroken one.
+
+use crate::augment;
+use crate::config::TrainConfig;
+use crate::data::Item;
+use crate::discriminator::{PatchDiscriminator, VolumeDiscriminator};
+use crate::error::{Result, ensure};
+use crate::field::{Codes, RadianceField};
+use crate::losses::{self, Perceptual, SsimL1};
+use crate::rays::{Patch, bilinear, sample_rays};
+use crate::render::{RayTensors, render_field};
+use burn::module::Module;
+use burn::optim::{GradientsParams, ModuleOptimizer, RmsPropConfig};
+use burn::tensor::module::{adaptive_avg_pool2d, adaptive_avg_pool3d};
+use burn::tensor::{Device, Tensor, TensorData};
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use serde::{Deserialize, Serialize};
+use tomograf_sim::trace::trilinear;
+
+/// RMSprop with PyTorch's defaults (alpha 0.99, momentum 0, eps 1e-8), as GRAF uses.
+pub fn rmsprop() -> ModuleOptimizer {
+    RmsPropConfig::new()
+        .with_alpha(0.99)
+        .with_momentum(0.0)
+        .with_epsilon(1e-8)
+        .init()
+}
+
+/// A stream of standard normal draws (Box–Muller on ChaCha8).
+pub fn normals(rng: &mut impl Rng, n: usize) -> Vec<f32> {
+    (0..n)
+        .map(|_| {
+            let u1: f64 = rng.random_range(f64::EPSILON..1.0);
+            let u2: f64 = rng.random();
+            ((-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos()) as f32
+        })
+        .collect()
+}
+
+/// The largest line integral of the items: projections are divided by it so patches lie in
+/// [0, 1] like the normalised volumes.
+pub fn projection_scale(items: &[Item]) -> Result<f64> {
+    let m = items
+        .iter()
+        .flat_map(|i| i.projections.iter())
+        .fold(0.0f32, |a, &b| a.max(b));
+    ensure!(
+        m.is_finite() && m > 0.0,
+        "all projections are zero: nothing to learn from"
+    );
+    Ok(f64::from(m))
+}
+
+/// Losses of one iteration.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
+pub struct StepMetrics {
+    /// Iteration just completed (1-based).
+    pub iteration: usize,
+    /// Discriminator objective (eqs. 7–12, D side).
+    pub loss_d: f64,
+    /// Generator objective (hinge, eqs. 11–12, G side).
+    pub loss_g: f64,
+    /// D1 hinge (identity transform).
+    pub hinge_v: f64,
+    /// D2 hinge (identity transform).
+    pub hinge_p: f64,
+    /// D1 decoder reconstruction (identity transform).
+    pub recon_v: f64,
+    /// D2 decoder reconstruction (identity transform).
+    pub recon_p: f64,
+    /// L1 between V' and V at the same points (monitoring only; no gradient).
+    pub l1_volume: f64,
+    /// L1 between P' and P, projections scaled to [0, 1] (monitoring only).
+    pub l1_patch: f64,
+}
+
+/// Generator, discriminators and their optimizers.
+pub struct Trainer {
+    /// The configuration.
+    pub config: TrainConfig,
+    /// The generator's radiance field.
+    pub field: RadianceField,
+    /// D1 (sub-volumes).
+    pub d1: VolumeDiscriminator,
+    /// D2 (patches).
+    pub d2: PatchDiscriminator,
+    pub(crate) opt_g: ModuleOptimizer,
+    pub(crate) opt_d1: ModuleOptimizer,
+    pub(crate) opt_d2: ModuleOptimizer,
+    /// Iterations completed.
+    pub iteration: usize,
+    /// Line integral mapped to 1 (see [`projection_scale`]).
+    pub proj_scale: f64,
+    /// The perceptual distance of eqs. 7–8.
+    pub perceptual: Box<dyn Perceptual>,
+    /// Where tensors live.
+    pub device: Device,
+}
+
+/// One batch of real patches P, sub-volumes V and the rays that produced them.
+struct Batch {
+    rays: RayTensors,
+    real_v: Tensor<5>,
+    real_p: Tensor<4>,
+    codes: Codes,
+    scale: crate::render::DensityScale,
+}
+
+impl Trainer {
+    /// Fresh networks for `config` (parameters seeded by `config.seed`).
+    pub fn new(config: TrainConfig, proj_scale: f64, device: &Device) -> Result<Self> {
+        config.validate()?;
+        ensure!(
+            proj_scale.is_finite() && proj_scale > 0.0,
+            "projection scale {proj_scale} must be > 0"
+        );
+        // burn's RNG is global: hold a lock from seeding to the last initialisation so
+        // networks made concurrently (other threads, other tests) cannot interleave draws.
+        static INIT: std::sync::Mutex<()> = std::sync::Mutex::new(());
+        let guard = INIT.lock().unwrap_or_else(|e| e.into_inner());
+        device.seed(config.seed);
+        let m = &config.model;
+        let field = RadianceField::new(m, device);
+        let d1 = VolumeDiscriminator::new(m.disc_channels, config.n_aug, device);
+        let d2 = PatchDiscriminator::new(m.disc_channels, config.n_aug, device);
+        // Parameters are initialised lazily, on first use: use every one now, under the lock.
+        let (side, q) = (m.patch, m.samples);
+        let _ = field.density(
+            Tensor::zeros([1, 1, 3], device),
+            Tensor::zeros([1, 3], device),
+            Tensor::zeros([1, m.z_shape], device),
+            Tensor::zeros([1, m.z_app], device),
+        );
+        for k in 0..config.n_aug {
+            let _ = d1.forward(Tensor::zeros([1, 1, q, side, side], device), k);
+            let _ = d2.forward(Tensor::zeros([1, 1, side, side], device), k);
+        }
+        drop(guard);
+        Ok(Self {
+            field,
+            d1,
+            d2,
+            opt_g: rmsprop(),
+            opt_d1: rmsprop(),
+            opt_d2: rmsprop(),
+            iteration: 0,
+            proj_scale,
+            perceptual: Box::new(SsimL1),
+            config,
+            device: device.clone(),
+        })
+    }
+
+    fn rng(&self) -> ChaCha8Rng {
+        ChaCha8Rng::seed_from_u64(
+            self.config
+                .seed
+                .wrapping_mul(0x9E37_79B9_7F4A_7C15)
+                .wrapping_add(self.iteration as u64),
+        )
+    }
+
+    fn batch(&self, items: &[Item], rng: &mut ChaCha8Rng) -> Result<Batch> {
+        let m = &self.config.model;
+        let (bsz, side, q) = (self.config.batch, m.patch, m.samples);
+        let r = side * side;
+        let mut pts: Vec<f32> = Vec::new();
+        let mut steps: Vec<f32> = Vec::new();
+        let mut poses: Vec<f32> = Vec::new();
+        let mut rv: Vec<f32> = Vec::new();
+        let mut rp: Vec<f32> = Vec::new();
+        let mut scale = None;
+        for _ in 0..bsz {
+            let item = &items[rng.random_range(0..items.len())];
+            let ct = item.ct.as_ref().ok_or_else(|| {
+                crate::ModelError::Invalid(format!(
+                    "item {}: training needs the ground-truth CT (ct.nii.gz)",
+                    item.id
+                ))
+            })?;
+            ensure!(
+                scale.is_none_or(|s| s == item.scale),
+                "items have different HU windows or energies; train on one data set"
+            );
+            scale = Some(item.scale);
+            let v = rng.random_range(0..item.views.len());
+            let patch = Patch::random(rng, item.rows, item.cols, side)?;
+            let pixels = patch.pixels();
+            let s = sample_rays(&item.views[v], ct, &pixels, q, Some(rng))?;
+            pts.extend(s.normalised(ct.dims()));
+            steps.extend(&s.step_mm);
+            poses.extend(item.poses[v].frame().to_source.as_vec3().to_array());
+            let img = item.projection(v);
+            rp.extend(pixels.iter().map(|&(pr, pc)| {
+                (f64::from(bilinear(img, item.rows, item.cols, pr, pc)) / self.proj_scale) as f32
+            }));
+            // V in D1's layout [Q, M, M] from ray-major [M·M, Q].
+            let mut sub = vec![0.0f32; r * q];
+            for (ray, chunk) in s.grid.chunks(q).enumerate() {
+                for (k, g) in chunk.iter().enumerate() {
+                    sub[k * r + ray] = trilinear::sample(ct.data(), ct.dims(), *g) as f32;
+                }
+            }
+            rv.extend(sub);
+        }
+        let dev = &self.device;
+        let codes = Codes::new(
+            normals(rng, bsz * m.z_shape),
+            normals(rng, bsz * m.z_app),
+            bsz,
+            dev,
+        );
+        Ok(Batch {
+            rays: RayTensors {
+                points: Tensor::from_data(TensorData::new(pts, [bsz, r * q, 3]), dev),
+                step_mm: Tensor::from_data(TensorData::new(steps, [bsz, r]), dev),
+                pose: Tensor::from_data(TensorData::new(poses, [bsz, 3]), dev),
+                rays: r,
+                samples: q,
+            },
+            real_v: Tensor::from_data(TensorData::new(rv, [bsz, 1, q, side, side]), dev),
+            real_p: Tensor::from_data(TensorData::new(rp, [bsz, 1, side, side]), dev),
+            codes,
+            scale: scale.expect("batch > 0"),
+        })
+    }
+
+    fn weight(&self, k: usize) -> f64 {
+        if k == 0 {
+            1.0
+        } else {
+            self.config.lambda1 / (self.config.n_aug - 1) as f64
+        }
+    }
+
+    /// One iteration on `items` (sampled with replacement); returns its losses.
+    pub fn step(&mut self, items: &[Item]) -> Result<StepMetrics> {
+        ensure!(!items.is_empty(), "no training items");
+        let mut rng = self.rng();
+        let batch = self.batch(items, &mut rng)?;
+        let m = &self.config.model;
+        let (bsz, side, q) = (self.config.batch, m.patch, m.samples);
+        let (density, integral) =
+            render_field(&self.field, &batch.codes, &batch.rays, &batch.scale);
+        // V' [B, 1, Q, M, M] and P' [B, 1, M, M] in the real data's layout and units.
+        let fake_v = density
+            .reshape([bsz, side, side, q])
+            .permute([0, 3, 1, 2])
+            .unsqueeze_dim::<5>(1);
+        let fake_p = integral
+            .div_scalar(self.proj_scale)
+            .reshape([bsz, 1, side, side]);
+        let l1 = |a: Tensor<5>, b: Tensor<5>| (a - b).abs().mean().into_scalar::<f32>() as f64;
+        let l1_volume = l1(fake_v.clone().detach(), batch.real_v.clone());
+        let l1_patch = (fake_p.clone().detach() - batch.real_p.clone())
+            .abs()
+            .mean()
+            .into_scalar::<f32>() as f64;
+
+        // Discriminators.
+        let (fv, fp) = (fake_v.clone().detach(), fake_p.clone().detach());
+        let lam2 = self.config.lambda2;
+        let mut loss_d: Option<Tensor<1>> = None;
+        let mut parts = [0.0f64; 4];
+        for k in 0..self.config.n_aug {
+            let w = self.weight(k);
+            let real_v = augment::volume(batch.real_v.clone(), k);
+            let real_p = augment::patch(batch.real_p.clone(), k);
+            let (lr_v, rec_v) = self.d1.forward(real_v.clone(), k);
+            let (lf_v, _) = self.d1.forward(augment::volume(fv.clone(), k), k);
+            let (lr_p, rec_p) = self.d2.forward(real_p.clone(), k);
+            let (lf_p, _) = self.d2.forward(augment::patch(fp.clone(), k), k);
+            let tv = adaptive_avg_pool3d(real_v, [q / 4, side / 4, side / 4]);
+            let tp = adaptive_avg_pool2d(real_p, [side / 4, side / 4]);
+            let h_v = losses::hinge_discriminator(lr_v, lf_v);
+            let h_p = losses::hinge_discriminator(lr_p, lf_p);
+            let r_v = self.perceptual.distance(
+                rec_v.reshape([bsz as i32, -1]),
+                tv.reshape([bsz as i32, -1]),
+            );
+            let r_p = self.perceptual.distance(
+                rec_p.reshape([bsz as i32, -1]),
+                tp.reshape([bsz as i32, -1]),
+            );
+            if k == 0 {
+                parts = [h_v.clone(), h_p.clone(), r_v.clone(), r_p.clone()]
+                    .map(|t| t.into_scalar::<f32>() as f64);
+            }
+            let term = (h_v + r_v + (h_p + r_p).mul_scalar(lam2)).mul_scalar(w);
+            loss_d = Some(match loss_d {
+                None => term,
+                Some(l) => l + term,
+            });
+        }
+        let loss_d = loss_d.expect("n_aug ≥ 1");
+        let loss_d_value = loss_d.clone().into_scalar::<f32>() as f64;
+        let mut grads = loss_d.backward();
+        let g1 = GradientsParams::from_module(&mut grads, &self.d1);
+        let g2 = GradientsParams::from_module(&mut grads, &self.d2);
+        self.d1 = self.opt_d1.step(self.config.lr_d, self.d1.clone(), g1);
+        self.d2 = self.opt_d2.step(self.config.lr_d, self.d2.clone(), g2);
+
+        // Generator, against the updated discriminators.
+        let mut loss_g: Option<Tensor<1>> = None;
+        for k in 0..self.config.n_aug {
+            let (lv, _) = self.d1.forward(augment::volume(fake_v.clone(), k), k);
+            let (lp, _) = self.d2.forward(augment::patch(fake_p.clone(), k), k);
+            let term = (losses::hinge_generator(lv) + losses::hinge_generator(lp).mul_scalar(lam2))
+                .mul_scalar(self.weight(k));
+            loss_g = Some(match loss_g {
+                None => term,
+                Some(l) => l + term,
+            });
+        }
+        let loss_g = loss_g.expect("n_aug ≥ 1");
+        let loss_g_value = loss_g.clone().into_scalar::<f32>() as f64;
+        let mut grads = loss_g.backward();
+        let gg = GradientsParams::from_module(&mut grads, &self.field);
+        self.field = self.opt_g.step(self.config.lr_g, self.field.clone(), gg);
+        self.iteration += 1;
+        let metrics = StepMetrics {
+            iteration: self.iteration,
+            loss_d: loss_d_value,
+            loss_g: loss_g_value,
+            hinge_v: parts[0],
+            hinge_p: parts[1],
+            recon_v: parts[2],
+            recon_p: parts[3],
+            l1_volume,
+            l1_patch,
+        };
+        let finite = [metrics.loss_d, metrics.loss_g]
+            .iter()
+            .all(|v| v.is_finite());
+        ensure!(
+            finite,
+            "iteration {}: loss is not finite (D {}, G {}); lower the learning rates",
+            self.iteration,
+            metrics.loss_d,
+            metrics.loss_g
+        );
+        Ok(metrics)
+    }
+
+    /// Parameter count of the generator and of both discriminators.
+    pub fn parameter_counts(&self) -> (usize, usize) {
+        (
+            self.field.num_params(),
+            self.d1.num_params() + self.d2.num_params(),
+        )
+    }
+}

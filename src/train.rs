@@ -1,0 +1,186 @@
+//! `tomograf train`: TomoGRAF training on a data set from `tomograf dataset`, with
+//! checkpoints, resume, CSV metrics, a loss plot and a progress bar.
+
+use anyhow::{Context, Result, bail};
+use clap::Args;
+use indicatif::{ProgressBar, ProgressStyle};
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+use tomograf_model::baseline::MeanVolume;
+use tomograf_model::config::TrainConfig;
+use tomograf_model::train::{StepMetrics, Trainer, projection_scale};
+use tomograf_model::{backend, checkpoint, data};
+
+#[derive(Debug, Args)]
+pub struct TrainArgs {
+    /// Data set folder made by `tomograf dataset` (manifest.jsonl and item folders).
+    pub data: PathBuf,
+    /// Run folder: checkpoint/, metrics.csv, loss.png.
+    #[arg(short, long)]
+    pub output: PathBuf,
+    /// Preset (tiny, small, paper) or a TOML file.
+    #[arg(long, default_value = "small")]
+    pub config: String,
+    /// Override the configuration's iteration count.
+    #[arg(long)]
+    pub iterations: Option<usize>,
+    /// Override the configuration's seed.
+    #[arg(long)]
+    pub seed: Option<u64>,
+    /// Use only the items of this split.
+    #[arg(long)]
+    pub split: Option<String>,
+    /// Continue from the run folder's checkpoint.
+    #[arg(long)]
+    pub resume: bool,
+    /// Backend: flex (CPU, default), ndarray, cuda, wgpu (as compiled in).
+    #[arg(long)]
+    pub backend: Option<String>,
+}
+
+const HEADER: &str =
+    "iteration,seconds,loss_d,loss_g,hinge_v,hinge_p,recon_v,recon_p,l1_volume,l1_patch";
+
+pub fn run(args: TrainArgs) -> Result<()> {
+    let device = backend::device(args.backend.as_deref().unwrap_or(backend::default_name()))?;
+    let items = data::load_dataset(&args.data, args.split.as_deref())
+        .with_context(|| format!("loading the data set {}", args.data.display()))?;
+    let scale = items[0].scale;
+    let ck = args.output.join("checkpoint");
+    let mut trainer = if args.resume {
+        let (t, state) = checkpoint::load_trainer(&ck, &device)
+            .with_context(|| format!("resuming from {}", ck.display()))?;
+        eprintln!("resuming at iteration {}", state.iteration);
+        t
+    } else {
+        if ck.exists() {
+            bail!(
+                "{} already holds a checkpoint: pass --resume to continue it or choose another --output",
+                ck.display()
+            );
+        }
+        let mut config = TrainConfig::load(&args.config)?;
+        if let Some(s) = args.seed {
+            config.seed = s;
+        }
+        Trainer::new(config, projection_scale(&items)?, &device)?
+    };
+    if let Some(n) = args.iterations {
+        trainer.config.iterations = n;
+    }
+    let mean = MeanVolume::from_volumes(items.iter().filter_map(|i| i.ct.as_ref()))?;
+    std::fs::create_dir_all(&args.output)?;
+    std::fs::write(args.output.join("config.toml"), trainer.config.to_toml())?;
+    let csv_path = args.output.join("metrics.csv");
+    let mut rows = keep_rows(&csv_path, trainer.iteration)?;
+    let (g, d) = trainer.parameter_counts();
+    eprintln!(
+        "{} item(s), config '{}', {} generator and {} discriminator parameters",
+        items.len(),
+        trainer.config.name,
+        g,
+        d
+    );
+    let total = trainer.config.iterations;
+    let bar = ProgressBar::new(total as u64).with_position(trainer.iteration.min(total) as u64);
+    bar.set_style(
+        ProgressStyle::with_template(
+            "{spinner} it {pos}/{len} [{bar:30}] {elapsed} (eta {eta}) {msg}",
+        )
+        .expect("valid template")
+        .progress_chars("=> "),
+    );
+    while trainer.iteration < total {
+        let t0 = Instant::now();
+        let m = trainer.step(&items)?;
+        let secs = t0.elapsed().as_secs_f64();
+        if m.iteration % trainer.config.log_every == 0 || m.iteration == total {
+            rows.push(row(&m, secs));
+            bar.set_message(format!(
+                "D {:.3} G {:.3} L1(V) {:.3}",
+                m.loss_d, m.loss_g, m.l1_volume
+            ));
+        }
+        if m.iteration % trainer.config.checkpoint_every == 0 || m.iteration == total {
+            save(&trainer, scale, &mean, &ck, &csv_path, &rows, &args.output)?;
+        }
+        bar.inc(1);
+    }
+    bar.finish_and_clear();
+    save(&trainer, scale, &mean, &ck, &csv_path, &rows, &args.output)?;
+    eprintln!(
+        "trained {} iterations: {}, {}",
+        trainer.iteration,
+        ck.display(),
+        csv_path.display()
+    );
+    Ok(())
+}
+
+fn row(m: &StepMetrics, secs: f64) -> String {
+    format!(
+        "{},{secs:.4},{:.6},{:.6},{:.6},{:.6},{:.6},{:.6},{:.6},{:.6}",
+        m.iteration,
+        m.loss_d,
+        m.loss_g,
+        m.hinge_v,
+        m.hinge_p,
+        m.recon_v,
+        m.recon_p,
+        m.l1_volume,
+        m.l1_patch
+    )
+}
+
+/// The CSV rows of iterations ≤ `upto` already on disk (a resumed run drops the rest).
+fn keep_rows(path: &Path, upto: usize) -> Result<Vec<String>> {
+    let Ok(text) = std::fs::read_to_string(path) else {
+        return Ok(Vec::new());
+    };
+    Ok(text
+        .lines()
+        .skip(1)
+        .filter(|l| {
+            l.split(',')
+                .next()
+                .and_then(|v| v.parse::<usize>().ok())
+                .is_some_and(|i| i <= upto)
+        })
+        .map(str::to_string)
+        .collect())
+}
+
+fn save(
+    trainer: &Trainer,
+    scale: tomograf_model::render::DensityScale,
+    mean: &MeanVolume,
+    ck: &Path,
+    csv_path: &Path,
+    rows: &[String],
+    out: &Path,
+) -> Result<()> {
+    checkpoint::save(trainer, scale, Some(mean), ck)?;
+    let mut f = std::fs::File::create(csv_path)?;
+    writeln!(f, "{HEADER}")?;
+    for r in rows {
+        writeln!(f, "{r}")?;
+    }
+    let series = |col: usize| -> Vec<(f64, f64)> {
+        rows.iter()
+            .filter_map(|r| {
+                let v: Vec<f64> = r.split(',').filter_map(|x| x.parse().ok()).collect();
+                Some((*v.first()?, *v.get(col)?))
+            })
+            .collect()
+    };
+    crate::evaluate::plot_lines(
+        &out.join("loss.png"),
+        &[
+            ("loss_d", series(2)),
+            ("loss_g", series(3)),
+            ("l1_volume", series(8)),
+            ("l1_patch", series(9)),
+        ],
+    )
+}
