@@ -97,7 +97,8 @@ impl ScatterEngine {
         if energies_kev.is_empty() || energies_kev.len() != photons.len() {
             return bad("scatter: the spectrum has no bins or mismatched counts".into());
         }
-        if photons.iter().any(|p| !(p.is_finite() && *p >= 0.0)) || !(mas.is_finite() && mas > 0.0) {
+        if photons.iter().any(|p| !(p.is_finite() && *p >= 0.0)) || !(mas.is_finite() && mas > 0.0)
+        {
             return bad("scatter: spectrum counts must be finite and ≥ 0 and mAs > 0".into());
         }
         if let Some(e) = energies_kev
