@@ -345,6 +345,8 @@ fn bad_settings_are_named() {
     assert!(err(est).contains("smoothing"));
     let bad: Result<ScatterModel, _> = toml::from_str("model = \"monte-karlo\"");
     assert!(bad.is_err());
+    let typo = toml::from_str::<ScatterModel>("model = \"monte-carlo\"\nphoton = 5");
+    assert!(typo.unwrap_err().to_string().contains("photon"));
     let ok: ScatterModel = toml::from_str("model = \"monte-carlo\"\nphotons = 500").unwrap();
     assert!(matches!(
         ok,

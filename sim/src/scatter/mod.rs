@@ -25,7 +25,7 @@ use serde::{Deserialize, Serialize};
 /// How scatter is modelled (a scene's `[scatter]` table, `model = "none" | "estimate" |
 /// "monte-carlo"`).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, Default)]
-#[serde(tag = "model", rename_all = "kebab-case")]
+#[serde(tag = "model", rename_all = "kebab-case", deny_unknown_fields)]
 pub enum ScatterModel {
     /// No scatter (costs nothing).
     #[default]
