@@ -372,3 +372,21 @@ fn bad_settings_are_named() {
         .unwrap_err();
     assert!(e.to_string().contains("cone beam"), "{e}");
 }
+
+#[test]
+fn scattering_factors_have_their_physical_limits() {
+    // F(0, Z) = Z (all electrons scatter in phase) and S(x → ∞, Z) → Z (every electron
+    // scatters as a free one): limits of the definitions, independent of the tables' source.
+    for z in [1u8, 6, 8, 20, 53, 82] {
+        let zf = f64::from(z);
+        assert!(
+            (form_factor(z, 0.0).unwrap() - zf).abs() < 1e-3 * zf,
+            "F(0, {z})"
+        );
+        let s = incoherent_function(z, 40.0).unwrap();
+        assert!((s - zf).abs() < 0.01 * zf, "S(40, {z}) = {s}");
+        assert!(incoherent_function(z, 0.0).unwrap().abs() < 1e-9);
+        assert!(form_factor(z, 40.0).unwrap() < 0.05 * zf);
+    }
+    assert!(form_factor(0, 1.0).is_err() && incoherent_function(93, 1.0).is_err());
+}
