@@ -93,7 +93,8 @@ pub fn acquisition(scene: &Scene) -> Result<Option<(Acquisition, u64)>> {
         || d.response.is_some()
         || d.thresholds_kev.is_some()
         || a.signal.is_some()
-        || a.seed.is_some();
+        || a.seed.is_some()
+        || scene.scatter.is_some();
     let mut acq = match a.preset.as_deref() {
         None | Some("ideal-drr") if !asks => return Ok(None),
         Some("ideal-drr") => bail!(
@@ -115,6 +116,7 @@ pub fn acquisition(scene: &Scene) -> Result<Option<(Acquisition, u64)>> {
                 materials: TissueModel::schneider(),
                 detector: DetectorModel::ideal(),
                 output: Output::LogLineIntegral,
+                scatter: Default::default(),
             }
         }
     };
@@ -168,6 +170,10 @@ pub fn acquisition(scene: &Scene) -> Result<Option<(Acquisition, u64)>> {
             "log-line-integral" => Output::LogLineIntegral,
             other => bail!("unknown signal '{other}': use raw, flat-field or log-line-integral"),
         };
+    }
+    if let Some(s) = &scene.scatter {
+        s.validate()?;
+        acq.scatter = s.clone();
     }
     acq.detector.validate()?;
     Ok(Some((acq, a.seed.unwrap_or(0))))

@@ -52,6 +52,11 @@
 //! bins = 20                         # rebin (default: 1 keV)
 //! mas = 2.0
 //!
+//! [scatter]                         # docs/scatter.md; default model = "none"
+//! model = "monte-carlo"             # or "estimate" (photons, grid, smoothing)
+//! photons = 100000
+//! grid = 16
+//!
 //! [materials]
 //! model = "schneider"               # or "five-tissue", "water"
 //! calibration_kev = 70.0
@@ -121,6 +126,8 @@ pub struct Scene {
     pub materials: Option<MaterialsSection>,
     #[serde(default)]
     pub mesh: Vec<MeshEntry>,
+    /// Scattered radiation (docs/scatter.md); absent = none.
+    pub scatter: Option<tomograf_sim::scatter::ScatterModel>,
 }
 
 /// Which physics between the traced paths and the image (see `crate::physics`).

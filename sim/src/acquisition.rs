@@ -17,6 +17,7 @@ use crate::geometry::View;
 use crate::material::{self, Material};
 use crate::polychromatic::SpectralIntegrator;
 use crate::render::{MassThickness, Projection, Projector, Renderer};
+use crate::scatter::{ScatterEngine, ScatterImages, ScatterModel, estimator, transport};
 use crate::spectrum::{Filter, Spectrum};
 use crate::tissue::TissueModel;
 use crate::volume::Volume;
@@ -128,6 +129,9 @@ pub struct Acquisition {
     /// What the image holds: raw signal, flat-field-corrected transmission, or −log.
     #[serde(default)]
     pub output: Output,
+    /// Scattered radiation (default none: primary only, at no cost).
+    #[serde(default)]
+    pub scatter: ScatterModel,
 }
 
 /// Names of the acquisition presets ([`Acquisition::preset`]); `ideal-drr` is the
@@ -147,12 +151,14 @@ impl Acquisition {
                 materials: TissueModel::schneider(),
                 detector: DetectorModel::kv_flat_panel(),
                 output: Output::LogLineIntegral,
+                scatter: ScatterModel::None,
             }),
             "cbct-100kvp" => Ok(Self {
                 spectrum: SpectrumSpec::tungsten(100.0, &[("al", 2.5), ("cu", 0.2)], 0.4),
                 materials: TissueModel::schneider(),
                 detector: DetectorModel::cbct(),
                 output: Output::LogLineIntegral,
+                scatter: ScatterModel::None,
             }),
             "ideal-drr" => Err(SimError::OutOfRange(
                 "'ideal-drr' is the monochromatic projector itself, not an acquisition".into(),
@@ -192,6 +198,46 @@ impl Acquisition {
             None => vec![1.0; energies.len()],
         };
         let weights = self.detector.channel_weights(&energies, &absorption)?;
+        let scatter = if self.scatter.is_none() {
+            None
+        } else {
+            self.scatter.validate()?;
+            let e_max = energies.iter().copied().fold(1.0, f64::max);
+            let medium = transport::Medium::new(&composition, &materials, e_max)?;
+            // The detector's response on the medium's 1 keV grid (scattered energies).
+            let grid: Vec<f64> = (0..=e_max.ceil() as usize)
+                .map(|k| k as f64 + 1.0)
+                .collect();
+            let grid_table = |m: &Material| {
+                grid.iter()
+                    .map(|&e| m.mass_attenuation(e.min(500.0)))
+                    .collect::<Result<Vec<f64>>>()
+            };
+            let absorption = match &self.detector.scintillator {
+                Some(s) => {
+                    let m = material::by_name(&s.material)?;
+                    let mu: Vec<f64> = grid_table(&m)?
+                        .iter()
+                        .map(|a| a * m.density() / 10.0)
+                        .collect();
+                    s.absorption(&mu)?
+                }
+                None => vec![1.0; grid.len()],
+            };
+            let w = self.detector.channel_weights(&grid, &absorption)?;
+            let response = estimator::Response {
+                mean: w.mean,
+                second_moment: w.second_moment,
+            };
+            let engine = ScatterEngine::new(
+                medium,
+                response,
+                energies.clone(),
+                spectrum.fluence(),
+                self.spectrum.mas,
+            )?;
+            Some((self.scatter.clone(), engine))
+        };
         let integrator =
             SpectralIntegrator::new(energies, spectrum.fluence(), attenuation, &weights)?;
         Ok(Prepared {
@@ -202,6 +248,7 @@ impl Acquisition {
             mas: self.spectrum.mas,
             seed,
             flat: Mutex::new(None),
+            scatter,
         })
     }
 }
@@ -219,6 +266,8 @@ pub struct Prepared {
     /// open field is the same (every view of a circular orbit) share one calibration, as
     /// on a real system.
     flat: Mutex<Option<(Vec<f64>, FlatField)>>,
+    /// The scatter model and its engine, when scatter is modelled.
+    scatter: Option<(ScatterModel, ScatterEngine)>,
 }
 
 impl Prepared {
@@ -246,9 +295,41 @@ impl Prepared {
         view: &View,
     ) -> Result<(ExpectedImage, ExpectedImage)> {
         let t = self.mass_thickness(projector, view)?;
-        let object = self.integrator.expected(&t, view, self.mas)?;
+        let mut object = self.integrator.expected(&t, view, self.mas)?;
+        self.add_scatter(&mut object, view, 0)?;
         let open = self.integrator.open(view, self.mas)?;
         Ok((object, open))
+    }
+
+    /// The scatter images of view number `index` (`None` when scatter is not modelled).
+    /// Their random streams derive from the seed and `index` alone.
+    pub fn scatter(&self, view: &View, index: usize) -> Result<Option<ScatterImages>> {
+        match &self.scatter {
+            None => Ok(None),
+            Some((model, engine)) => engine.run(
+                model,
+                view,
+                frame_seed(self.seed ^ SCATTER_STREAM, index as u64 + 1),
+            ),
+        }
+    }
+
+    /// Adds view `index`'s expected scatter signal (mean and second moment) to `object`.
+    fn add_scatter(&self, object: &mut ExpectedImage, view: &View, index: usize) -> Result<()> {
+        if let Some(s) = self.scatter(view, index)? {
+            let total = s.total();
+            object
+                .mean
+                .iter_mut()
+                .zip(&total.mean)
+                .for_each(|(a, b)| *a += b);
+            object
+                .second_moment
+                .iter_mut()
+                .zip(&total.second_moment)
+                .for_each(|(a, b)| *a += b);
+        }
+        Ok(())
     }
 
     /// Acquired view number `index`: one image per detector channel, as the acquisition's
@@ -262,7 +343,8 @@ impl Prepared {
         index: usize,
     ) -> Result<Vec<Projection>> {
         let t = self.mass_thickness(projector, view)?;
-        let object = self.integrator.expected(&t, view, self.mas)?;
+        let mut object = self.integrator.expected(&t, view, self.mas)?;
+        self.add_scatter(&mut object, view, index)?;
         let raw = self
             .detector
             .record(&object, frame_seed(self.seed, index as u64 + 1))?;
@@ -280,6 +362,9 @@ impl Prepared {
         flat.apply(&raw, self.output)
     }
 }
+
+/// Mixed into the acquisition seed for the scatter's random streams (distinct from noise).
+const SCATTER_STREAM: u64 = 0x5CA7_7E2D_0000_0001;
 
 /// The noise seed of frame `frame` (0: calibration, i + 1: view i) from an acquisition seed:
 /// SplitMix64 of the pair, so neighbouring seeds and frames give unrelated streams.

@@ -23,6 +23,7 @@ pub mod polychromatic;
 pub mod ray;
 pub mod recon;
 pub mod render;
+pub mod scatter;
 pub mod spectrum;
 pub mod tissue;
 pub mod trace;

@@ -1,0 +1,129 @@
+//! Scattered radiation: Monte Carlo photon transport through the patient's composition with
+//! forced detection, and a fast estimate of it.
+//!
+//! * [`cross_sections`] — where a scattered photon goes (KN × S, Thomson × F²);
+//! * [`transport`] — Woodcock tracking and interaction sampling in the voxel composition;
+//! * [`estimator`] — the point-detector (forced detection) estimator on a coarse grid;
+//! * [`engine`] — photons from the source, batches, seeds, the separate images;
+//! * [`estimate`] — the fast estimate (coarse, few photons, smoothed).
+//!
+//! The scatter images are expected detector signal (mean and second moment per channel),
+//! in the same units as the primary's [`crate::detector::ExpectedImage`], so the
+//! acquisition adds them before the detector records (see docs/scatter.md).
+
+pub mod cross_sections;
+pub mod engine;
+pub mod estimate;
+pub mod estimator;
+pub mod transport;
+
+pub use engine::{ScatterEngine, ScatterImages};
+
+use crate::error::{Result, SimError};
+use serde::{Deserialize, Serialize};
+
+/// How scatter is modelled (a scene's `[scatter]` table, `model = "none" | "estimate" |
+/// "monte-carlo"`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, Default)]
+#[serde(tag = "model", rename_all = "kebab-case", deny_unknown_fields)]
+pub enum ScatterModel {
+    /// No scatter (costs nothing).
+    #[default]
+    None,
+    /// The fast estimate: a coarse Monte Carlo with few photons, smoothed.
+    #[serde(rename_all = "snake_case")]
+    Estimate {
+        /// Photon histories (default 5 000).
+        #[serde(default = "default_estimate_photons")]
+        photons: u64,
+        /// Scoring points per detector side (default 8).
+        #[serde(default = "default_estimate_grid")]
+        grid: usize,
+        /// Gaussian smoothing of the coarse grid, σ in grid cells (default 1).
+        #[serde(default = "default_smoothing")]
+        smoothing: f64,
+    },
+    /// Full Monte Carlo with forced detection.
+    #[serde(rename_all = "snake_case")]
+    MonteCarlo {
+        /// Photon histories per view (default 100 000).
+        #[serde(default = "default_photons")]
+        photons: u64,
+        /// Scoring points per detector side, interpolated to every pixel (default 16).
+        #[serde(default = "default_grid")]
+        grid: usize,
+        /// Most scatters followed per history (default 50).
+        #[serde(default = "default_max_order")]
+        max_order: u32,
+    },
+}
+
+fn default_estimate_photons() -> u64 {
+    5_000
+}
+fn default_estimate_grid() -> usize {
+    8
+}
+fn default_smoothing() -> f64 {
+    1.0
+}
+fn default_photons() -> u64 {
+    100_000
+}
+fn default_grid() -> usize {
+    16
+}
+fn default_max_order() -> u32 {
+    50
+}
+
+/// Most photons per view a scene may ask for (beyond it a run would take hours).
+pub const MAX_PHOTONS: u64 = 1_000_000_000;
+/// Most scoring points per side.
+pub const MAX_GRID: usize = 512;
+
+impl ScatterModel {
+    /// Checks the settings, naming the bad one.
+    pub fn validate(&self) -> Result<()> {
+        let bad = |m: String| Err(SimError::OutOfRange(format!("[scatter] {m}")));
+        let (photons, grid) = match *self {
+            ScatterModel::None => return Ok(()),
+            ScatterModel::Estimate {
+                photons,
+                grid,
+                smoothing,
+            } => {
+                if !(smoothing.is_finite() && (0.0..=100.0).contains(&smoothing)) {
+                    return bad(format!(
+                        "smoothing = {smoothing}; give a σ in grid cells in 0–100"
+                    ));
+                }
+                (photons, grid)
+            }
+            ScatterModel::MonteCarlo {
+                photons,
+                grid,
+                max_order,
+            } => {
+                if max_order == 0 {
+                    return bad("max_order = 0; give ≥ 1 (1: single scatter only)".into());
+                }
+                (photons, grid)
+            }
+        };
+        if !(1..=MAX_PHOTONS).contains(&photons) {
+            return bad(format!("photons = {photons}; give 1 to {MAX_PHOTONS}"));
+        }
+        if !(1..=MAX_GRID).contains(&grid) {
+            return bad(format!(
+                "grid = {grid}; give 1 to {MAX_GRID} points per side"
+            ));
+        }
+        Ok(())
+    }
+
+    /// Whether scatter is modelled at all.
+    pub fn is_none(&self) -> bool {
+        matches!(self, ScatterModel::None)
+    }
+}

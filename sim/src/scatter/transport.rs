@@ -1,0 +1,307 @@
+//! Photon transport through a voxel composition: Woodcock (delta) tracking with a global
+//! majorant, interactions sampled from the material tables — photoelectric absorption
+//! (no fluorescence: the energy is taken as deposited locally), Compton (Klein–Nishina ×
+//! S) and Rayleigh (Thomson × F²).
+//!
+//! Units: positions mm (world LPS), energies keV, mass attenuation cm²/g, densities g/cm³,
+//! linear attenuation mm⁻¹.
+
+use super::cross_sections::{ScatterFactors, compton_ratio};
+use crate::composition::{Composition, unpack};
+use crate::error::{Result, SimError};
+use crate::material::Material;
+use crate::ray::{GridRay, Ray};
+use crate::trace::{MaterialPaths, siddon};
+use glam::DVec3;
+use rand::Rng;
+
+/// Lowest energy tracked (keV); a photon scattered below it is counted as absorbed.
+pub const E_CUTOFF_KEV: f64 = 1.0;
+
+/// One material's interaction data on a 1 keV grid (index k ↔ k + 1 keV).
+#[derive(Debug, Clone)]
+struct MaterialData {
+    factors: ScatterFactors,
+    /// [photoelectric, incoherent, coherent, total] cm²/g, Compton norm, Rayleigh norm.
+    tab: Vec<[f64; 6]>,
+}
+
+/// The medium a photon crosses: the composition and, per material, its cross sections.
+#[derive(Debug, Clone)]
+pub struct Medium {
+    composition: Composition,
+    materials: Vec<MaterialData>,
+    /// Global majorant per 1 keV grid point, mm⁻¹.
+    majorant: Vec<f64>,
+    e_max_kev: f64,
+}
+
+/// What happened at a real collision: the photon's state before it.
+#[derive(Debug, Clone, Copy)]
+pub struct Collision {
+    /// Position, world mm.
+    pub position: DVec3,
+    /// Energy, keV.
+    pub energy_kev: f64,
+    /// Material index at the site.
+    pub material: usize,
+    /// Probability that the collision is photoelectric / Compton / Rayleigh.
+    pub p_photo: f64,
+    /// Compton probability.
+    pub p_compton: f64,
+    /// Rayleigh probability.
+    pub p_rayleigh: f64,
+}
+
+/// The fate of one analog photon history ([`Medium::walk`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Fate {
+    /// Left the volume without interacting.
+    Transmitted,
+    /// Left the volume after at least one scatter.
+    Escaped,
+    /// Absorbed (photoelectric, or scattered below [`E_CUTOFF_KEV`], or past the order limit).
+    Absorbed,
+}
+
+impl Medium {
+    /// Tabulates every material of `composition` (`materials` in its index order) from
+    /// 1 keV to `e_max_kev` (the spectrum's highest energy).
+    pub fn new(composition: &Composition, materials: &[Material], e_max_kev: f64) -> Result<Self> {
+        if materials.len() != composition.materials().len() {
+            return Err(SimError::OutOfRange(format!(
+                "{} materials given for a composition of {}",
+                materials.len(),
+                composition.materials().len()
+            )));
+        }
+        if !(e_max_kev.is_finite() && (E_CUTOFF_KEV..=500.0).contains(&e_max_kev)) {
+            return Err(SimError::OutOfRange(format!(
+                "scatter needs energies in 1–500 keV; the spectrum reaches {e_max_kev} keV"
+            )));
+        }
+        let n = e_max_kev.ceil() as usize + 1;
+        let present = composition.present();
+        let mut rho_max = vec![0.0f64; materials.len()];
+        for &v in composition.packed().data() {
+            let (r, m) = unpack(v);
+            rho_max[m] = rho_max[m].max(f64::from(r));
+        }
+        let mut data = Vec::with_capacity(materials.len());
+        for (i, m) in materials.iter().enumerate() {
+            let factors = ScatterFactors::new(m)?;
+            let mut tab = Vec::new();
+            if present[i] {
+                for k in 0..n {
+                    let e = (k as f64 + 1.0).min(500.0);
+                    let x = m.interactions(e)?;
+                    tab.push([
+                        x.photoelectric,
+                        x.incoherent,
+                        x.coherent,
+                        x.total(),
+                        factors.compton_norm(e),
+                        factors.rayleigh_norm(e),
+                    ]);
+                }
+            }
+            data.push(MaterialData { factors, tab });
+        }
+        let majorant = (0..n)
+            .map(|k| {
+                data.iter()
+                    .zip(&rho_max)
+                    .filter(|(d, _)| !d.tab.is_empty())
+                    .map(|(d, r)| d.tab[k][3] * r / 10.0)
+                    .fold(0.0, f64::max)
+                    * (1.0 + 1e-9)
+            })
+            .collect();
+        Ok(Self {
+            composition: composition.clone(),
+            materials: data,
+            majorant,
+            e_max_kev,
+        })
+    }
+
+    /// Highest tabulated energy, keV.
+    pub fn e_max_kev(&self) -> f64 {
+        self.e_max_kev
+    }
+
+    /// Linear interpolation of column `col` of material `m`'s table at `e`.
+    #[inline]
+    fn table(&self, m: usize, e: f64, col: usize) -> f64 {
+        let t = &self.materials[m].tab;
+        let x = (e - 1.0).clamp(0.0, (t.len() - 1) as f64);
+        let i = (x as usize).min(t.len() - 2);
+        let f = x - i as f64;
+        t[i][col] * (1.0 - f) + t[i + 1][col] * f
+    }
+
+    #[inline]
+    fn majorant(&self, e: f64) -> f64 {
+        let x = (e - 1.0).clamp(0.0, (self.majorant.len() - 1) as f64);
+        let i = (x as usize).min(self.majorant.len() - 2);
+        // The maximum of the two bracketing knots bounds the interpolated tables.
+        self.majorant[i].max(self.majorant[i + 1])
+    }
+
+    /// Mass attenuation (cm²/g) of material `m` at `e` keV (total).
+    pub fn mass_attenuation(&self, m: usize, e: f64) -> f64 {
+        if self.materials[m].tab.is_empty() {
+            return 0.0;
+        }
+        self.table(m, e, 3)
+    }
+
+    /// Per-material Σρℓ (g/cm³·mm) along the segment `from` → `to`.
+    pub fn paths(&self, from: DVec3, to: DVec3) -> [f64; crate::composition::MAX_MATERIALS] {
+        let packed = self.composition.packed();
+        let mut acc = MaterialPaths::new(packed.data());
+        if let Some(g) = GridRay::clip(packed, &Ray::segment(from, to)) {
+            siddon::trace(packed.dims(), &g, &mut acc);
+        }
+        *acc.sums()
+    }
+
+    /// Transmission exp(−Σ μ/ρ·ρℓ) at energy `e` for paths from [`Medium::paths`].
+    pub fn transmission(&self, sums: &[f64], e: f64) -> f64 {
+        let mut tau = 0.0;
+        for (m, &s) in sums.iter().enumerate().take(self.materials.len()) {
+            if s > 0.0 {
+                tau += self.mass_attenuation(m, e) * s / 10.0;
+            }
+        }
+        (-tau).exp()
+    }
+
+    /// Flies a photon from `p` along unit `d` to its next real collision (Woodcock):
+    /// `None` if it leaves the volume first.
+    pub fn fly<R: Rng>(&self, p: DVec3, d: DVec3, e: f64, rng: &mut R) -> Option<Collision> {
+        let packed = self.composition.packed();
+        let ray = Ray {
+            origin: p,
+            direction: d,
+            t_min: 0.0,
+            t_max: f64::INFINITY,
+        };
+        let g = GridRay::clip(packed, &ray)?;
+        let dims = packed.dims();
+        let data = packed.data();
+        let maj = self.majorant(e);
+        if maj <= 0.0 {
+            return None;
+        }
+        let mut t = g.t_enter.max(0.0);
+        loop {
+            t += -(1.0 - rng.random::<f64>()).ln() / maj;
+            if t >= g.t_exit {
+                return None;
+            }
+            let at = g.at(t);
+            let (i, j, k) = (at[0] as usize, at[1] as usize, at[2] as usize);
+            if i >= dims[0] || j >= dims[1] || k >= dims[2] {
+                continue;
+            }
+            let (rho, m) = unpack(data[i + dims[0] * (j + dims[1] * k)]);
+            if rho <= 0.0 {
+                continue;
+            }
+            let rho = f64::from(rho);
+            let tot = self.table(m, e, 3);
+            if rng.random::<f64>() * maj < tot * rho / 10.0 {
+                let (pe, inc) = (self.table(m, e, 0), self.table(m, e, 1));
+                return Some(Collision {
+                    position: p + d * t,
+                    energy_kev: e,
+                    material: m,
+                    p_photo: pe / tot,
+                    p_compton: inc / tot,
+                    p_rayleigh: 1.0 - (pe + inc) / tot,
+                });
+            }
+        }
+    }
+
+    /// Compton density p(μ) (sr⁻¹) and E′ at a collision towards cos θ = `mu`.
+    #[inline]
+    pub fn compton_towards(&self, c: &Collision, mu: f64) -> (f64, f64) {
+        let e = c.energy_kev;
+        let d = &self.materials[c.material];
+        let norm = self.table(c.material, e, 4);
+        (
+            d.factors.compton_density(e, mu, norm),
+            e * compton_ratio(e, mu),
+        )
+    }
+
+    /// Rayleigh density p(μ) (sr⁻¹) at a collision towards cos θ = `mu`.
+    #[inline]
+    pub fn rayleigh_towards(&self, c: &Collision, mu: f64) -> f64 {
+        let e = c.energy_kev;
+        let norm = self.table(c.material, e, 5);
+        self.materials[c.material]
+            .factors
+            .rayleigh_density(e, mu, norm)
+    }
+
+    /// Samples a scatter at a collision: Compton with probability p_c/(p_c + p_r), else
+    /// Rayleigh. Returns (new direction, new energy, was Compton).
+    pub fn scatter<R: Rng>(&self, c: &Collision, d: DVec3, rng: &mut R) -> (DVec3, f64, bool) {
+        let f = &self.materials[c.material].factors;
+        let compton = rng.random::<f64>() * (c.p_compton + c.p_rayleigh) < c.p_compton;
+        let (mu, e) = if compton {
+            let (mu, r) = f.sample_compton(c.energy_kev, rng);
+            (mu, c.energy_kev * r)
+        } else {
+            (f.sample_rayleigh(c.energy_kev, rng), c.energy_kev)
+        };
+        let phi = 2.0 * std::f64::consts::PI * rng.random::<f64>();
+        (rotate(d, mu, phi), e, compton)
+    }
+
+    /// One analog history from `p` along `d` at `e` keV, at most `max_order` scatters:
+    /// its fate, scatter count and, if it left the volume, its exit direction and energy.
+    pub fn walk<R: Rng>(
+        &self,
+        mut p: DVec3,
+        mut d: DVec3,
+        mut e: f64,
+        max_order: u32,
+        rng: &mut R,
+    ) -> (Fate, u32, DVec3, f64) {
+        let mut order = 0;
+        loop {
+            let Some(c) = self.fly(p, d, e, rng) else {
+                let fate = if order == 0 {
+                    Fate::Transmitted
+                } else {
+                    Fate::Escaped
+                };
+                return (fate, order, d, e);
+            };
+            if rng.random::<f64>() < c.p_photo || order >= max_order {
+                return (Fate::Absorbed, order, d, e);
+            }
+            let (nd, ne, _) = self.scatter(&c, d, rng);
+            order += 1;
+            if ne < E_CUTOFF_KEV {
+                return (Fate::Absorbed, order, nd, ne);
+            }
+            p = c.position;
+            d = nd;
+            e = ne;
+        }
+    }
+}
+
+/// `d` turned by polar cos θ = `mu` and azimuth `phi` (radians) about itself; unit result.
+pub fn rotate(d: DVec3, mu: f64, phi: f64) -> DVec3 {
+    let sin = (1.0 - mu * mu).max(0.0).sqrt();
+    let a = if d.x.abs() < 0.9 { DVec3::X } else { DVec3::Y };
+    let e1 = d.cross(a).normalize();
+    let e2 = d.cross(e1);
+    (d * mu + (e1 * phi.cos() + e2 * phi.sin()) * sin).normalize()
+}
