@@ -2,13 +2,12 @@
 //! noise and blur, flat-field correction), with the GIL released. See docs/physics.md.
 
 use crate::errors;
-use crate::geometry::PyView;
 use crate::volume::PyVolume;
 use numpy::{IntoPyArray, PyArrayDyn};
 use pyo3::prelude::*;
+use tomograf_sim::Projector;
 use tomograf_sim::acquisition::{Acquisition, PRESETS};
 use tomograf_sim::detector::Output;
-use tomograf_sim::{Projector, View};
 
 /// Names of the acquisition presets (``"ideal-drr"`` is :func:`project` itself).
 #[pyfunction]
@@ -72,24 +71,8 @@ pub fn acquire<'py>(
             }
         };
     }
-    let (list, single): (Vec<View>, bool) = match views.cast::<PyView>() {
-        Ok(v) => (vec![v.get().inner], true),
-        Err(_) => {
-            let vs: Vec<PyView> = views.extract().map_err(|_| {
-                errors::value("views must be a tomograf.View or a sequence of them")
-            })?;
-            (vs.into_iter().map(|v| v.inner).collect(), false)
-        }
-    };
-    if list.is_empty() {
-        return Err(errors::value("no views to acquire"));
-    }
+    let (list, single) = crate::render::view_list(views)?;
     let (rows, cols) = (list[0].rows, list[0].cols);
-    if list.iter().any(|v| v.rows != rows || v.cols != cols) {
-        return Err(errors::value(
-            "all views in one call must have the same rows × cols",
-        ));
-    }
     let vol = &hu.inner;
     let channels = acq.detector.channels();
     let out = py.detach(|| -> PyResult<Vec<f32>> {

@@ -48,6 +48,32 @@ fn check_mu(mu: &Volume) -> PyResult<()> {
     Ok(())
 }
 
+/// The views of a `views` argument (one `View`, or a non-empty sequence of views of one
+/// size), and whether it was a single view.
+pub(crate) fn view_list(views: &Bound<'_, PyAny>) -> PyResult<(Vec<View>, bool)> {
+    let (list, single): (Vec<View>, bool) = match views.cast::<PyView>() {
+        Ok(v) => (vec![v.get().inner], true),
+        Err(_) => {
+            let vs: Vec<PyView> = views.extract().map_err(|_| {
+                errors::value("views must be a tomograf.View or a sequence of them")
+            })?;
+            (vs.into_iter().map(|v| v.inner).collect(), false)
+        }
+    };
+    let Some(first) = list.first() else {
+        return Err(errors::value("no views to render"));
+    };
+    if list
+        .iter()
+        .any(|v| v.rows != first.rows || v.cols != first.cols)
+    {
+        return Err(errors::value(
+            "all views in one call must have the same rows × cols",
+        ));
+    }
+    Ok((list, single))
+}
+
 /// Renders one view or a list of views of an attenuation volume (mm⁻¹).
 ///
 /// ``projector``: ``"siddon"`` (exact, nearest-voxel field) or ``"trilinear"``
@@ -70,24 +96,8 @@ pub fn project<'py>(
 ) -> PyResult<Bound<'py, PyArrayDyn<f32>>> {
     let proj = self::projector(projector, step_voxels)?;
     let q = self::quantity(quantity, i0)?;
-    let (list, single): (Vec<View>, bool) = match views.cast::<PyView>() {
-        Ok(v) => (vec![v.get().inner], true),
-        Err(_) => {
-            let vs: Vec<PyView> = views.extract().map_err(|_| {
-                errors::value("views must be a tomograf.View or a sequence of them")
-            })?;
-            (vs.into_iter().map(|v| v.inner).collect(), false)
-        }
-    };
-    if list.is_empty() {
-        return Err(errors::value("no views to render"));
-    }
+    let (list, single) = view_list(views)?;
     let (rows, cols) = (list[0].rows, list[0].cols);
-    if list.iter().any(|v| v.rows != rows || v.cols != cols) {
-        return Err(errors::value(
-            "all views in one call must have the same rows × cols",
-        ));
-    }
     let vol = &mu.inner;
     let out = py.detach(|| -> PyResult<Vec<f32>> {
         check_mu(vol)?;
