@@ -104,12 +104,13 @@ impl SpectralIntegrator {
         // Bins that add less than 1e-12 of every channel's open-field signal (the far tails
         // of a filtered spectrum, bins outside every counting window) are dropped: they
         // change no result beyond 1e-12 relative and would cost as much as the others.
+        let totals: Vec<f64> = channels.iter().map(|c| c.first.iter().sum()).collect();
         let keep: Vec<bool> = (0..bins)
             .map(|b| {
-                channels.iter().any(|c| {
-                    let total: f64 = c.first.iter().sum();
-                    c.first[b] > 1e-12 * total
-                })
+                channels
+                    .iter()
+                    .zip(&totals)
+                    .any(|(c, total)| c.first[b] > 1e-12 * total)
             })
             .collect();
         let pick = |v: &[f64]| -> Vec<f64> {
