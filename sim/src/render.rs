@@ -374,11 +374,16 @@ impl<'a> Renderer<'a> {
         let mut data = vec![0.0f64; view.rows * view.cols * k];
         let packets = self.projector == Projector::Siddon && packet::available();
         let packed = self.materials > 0;
-        data.par_chunks_mut(view.cols * k)
+        // The packet tracer takes rows in pairs (see `packet::trace_rows_with`).
+        let rows_per_task = if packets { packet::TILE_ROWS } else { 1 };
+        data.par_chunks_mut(view.cols * k * rows_per_task)
             .enumerate()
-            .for_each(|(r, row)| {
-                let r = r as f64;
-                let world: Vec<Ray> = (0..view.cols).map(|c| view.ray(r, c as f64)).collect();
+            .for_each(|(task, row)| {
+                let first = task * rows_per_task;
+                let rows = row.len() / (view.cols * k);
+                let world: Vec<Ray> = (first..first + rows)
+                    .flat_map(|r| (0..view.cols).map(move |c| view.ray(r as f64, c as f64)))
+                    .collect();
                 let rays: Vec<Option<GridRay>> = world.iter().map(|w| self.clip(w)).collect();
                 // Rays through meshes: the mesh part and its intervals (attenuation only).
                 let meshed: Vec<Option<(f64, Vec<MeshInterval>)>> = match self.meshes.as_deref() {
@@ -390,27 +395,25 @@ impl<'a> Renderer<'a> {
                             (!iv.is_empty()).then_some((l, iv))
                         })
                         .collect(),
-                    _ => vec![None; view.cols],
+                    _ => vec![None; world.len()],
                 };
-                let mut handled = vec![false; view.cols];
+                let mut handled = vec![false; world.len()];
                 if let (true, Some(kernel)) = (packets, packet::kernel()) {
                     // The whole row through the SIMD tracer where its rays allow (it walks
                     // whole layers: empty-space skipping applies to the scalar rays only).
                     let (field, dims, t) = (self.mu.data(), self.mu.dims(), self.packet_threshold);
-                    if packed {
-                        packet::trace_row_materials_with(
-                            kernel,
-                            field,
-                            dims,
-                            &rays,
-                            t,
-                            k,
-                            row,
-                            &mut handled,
-                        );
-                    } else {
-                        packet::trace_row_with(kernel, field, dims, &rays, t, row, &mut handled);
-                    }
+                    let k = if packed { k } else { 0 };
+                    packet::trace_rows_with(
+                        kernel,
+                        field,
+                        dims,
+                        &rays,
+                        view.cols,
+                        t,
+                        k,
+                        row,
+                        &mut handled,
+                    );
                 }
                 for (c, px) in row.chunks_mut(k).enumerate() {
                     if packed {

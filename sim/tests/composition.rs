@@ -190,3 +190,64 @@ fn every_simd_kernel_matches_the_scalar_tracer() {
         assert!(packets > 1000, "the SIMD kernels must have handled rays");
     }
 }
+
+#[test]
+fn tiles_of_rows_match_the_scalar_tracer() {
+    use tomograf_sim::GridRay;
+    use tomograf_sim::trace::{MaterialPaths, packet, siddon};
+    let c = random_composition(12, [15, 11, 13], 5);
+    let p = c.packed();
+    let g = Geometry {
+        beam: Beam::Cone {
+            sad_mm: 200.0,
+            sid_mm: 400.0,
+        },
+        detector: Detector::new(7, 19, 1.3),
+        isocentre: p.centre(),
+    };
+    let k = c.materials().len();
+    let mut handled_rays = 0;
+    for theta in [0.0, 50.0, 115.0] {
+        let view = g.view(Pose::new(theta, 10.0)).unwrap();
+        // Seven rows at once: a tile of four, then three.
+        let rays: Vec<Option<GridRay>> = (0..view.rows)
+            .flat_map(|row| (0..view.cols).map(move |col| (row, col)))
+            .map(|(row, col)| GridRay::clip(p, &view.ray(row as f64, col as f64)))
+            .collect();
+        for kernel in packet::supported() {
+            let mut out = vec![0.0; rays.len() * k];
+            let mut handled = vec![false; rays.len()];
+            packet::trace_rows_with(
+                kernel,
+                p.data(),
+                p.dims(),
+                &rays,
+                view.cols,
+                0.0,
+                k,
+                &mut out,
+                &mut handled,
+            );
+            for (n, ray) in rays.iter().enumerate().filter(|(n, _)| handled[*n]) {
+                handled_rays += 1;
+                let mut acc = MaterialPaths::new(p.data());
+                if let Some(ray) = ray {
+                    siddon::trace(p.dims(), ray, &mut acc);
+                }
+                for m in 0..k {
+                    let (a, b) = (out[n * k + m], acc.sums()[m]);
+                    assert!(
+                        (a - b).abs() <= 1e-9 * b.abs() + 1e-12,
+                        "{kernel:?} θ={theta} ray {n} material {m}: {a} vs {b}"
+                    );
+                }
+            }
+        }
+    }
+    if packet::available() {
+        assert!(
+            handled_rays > 300,
+            "the SIMD kernels must have handled rays"
+        );
+    }
+}

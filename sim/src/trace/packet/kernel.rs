@@ -1,0 +1,328 @@
+//! The kernel body shared by every instruction set (`packet_kernel!`).
+
+/// The kernel body, instantiated per instruction set. The caller supplies the vector and
+/// mask types, the lane count and the primitives (all `#[inline]` with the set's target
+/// features): `splat`, `zero`, `min`, `max`, `add`, `sub`, `mul`, `fmadd` (a·b + c),
+/// `floor`, `gt`, `le`, `ne` (lane masks), `or` (of masks), `none` (no lane set),
+/// `select` (mask ? a : b), `load`/`store` (from/to `[f64; LANES]`), `gather` (f32
+/// values at f64-valued indices, widened to f64), and for compositions `gather_packed`
+/// (density and material index of packed values), `eq`, `and` and `add_where` (s + w where
+/// the mask is set).
+#[cfg(target_arch = "x86_64")]
+macro_rules! packet_kernel {
+    ($features:literal, $lanes:literal, $vec:ty, $mask:ty, { $($prims:item)* }) => {
+        use super::packet_key;
+        /// The label bits of a packed composition value (`crate::composition`).
+        const LABEL_MASK: i32 = crate::composition::MAX_MATERIALS as i32 - 1;
+        use crate::ray::GridRay;
+        #[allow(unused_imports)]
+        use std::arch::x86_64::*;
+
+        type V = $vec;
+        type M = $mask;
+        const LANES: usize = $lanes;
+
+        $($prims)*
+
+        /// Per-lane constants of one other axis.
+        struct Axis {
+            g0: V,
+            gd: V,
+            inv: V,
+            /// ±1 per lane (0 where the ray does not move along the axis).
+            step: V,
+            /// max(step, 0): offset from a voxel index to the plane crossed next.
+            ahead: V,
+        }
+
+        /// Per-lane constants of a packet of rays.
+        struct Packet {
+            g0m: V,
+            invm: V,
+            t_in: V,
+            t_out: V,
+            ax1: Axis,
+            ax2: Axis,
+        }
+
+        /// Grid constants of one other axis.
+        struct Other {
+            last: V,
+            stride: V,
+        }
+
+        #[target_feature(enable = $features)]
+        fn lanes(rays: &[Option<GridRay>], f: impl Fn(&GridRay) -> f64) -> V {
+            load(std::array::from_fn(|l| rays.get(l).and_then(Option::as_ref).map_or(0.0, &f)))
+        }
+
+        #[target_feature(enable = $features)]
+        fn axis(rays: &[Option<GridRay>], a: usize) -> Axis {
+            let step = lanes(rays, |r| {
+                if r.gd[a] > 0.0 {
+                    1.0
+                } else if r.gd[a] < 0.0 {
+                    -1.0
+                } else {
+                    0.0
+                }
+            });
+            Axis {
+                g0: lanes(rays, |r| r.g0[a]),
+                gd: lanes(rays, |r| r.gd[a]),
+                // Lanes that do not move along the axis never use their crossing parameter
+                // (it is selected away), so any finite value will do.
+                inv: lanes(rays, |r| if r.gd[a] != 0.0 { r.inv[a] } else { 0.0 }),
+                step,
+                ahead: max(step, zero()),
+            }
+        }
+
+        /// Voxel index along an axis at parameter `t`, clamped into the grid.
+        #[inline]
+        #[target_feature(enable = $features)]
+        fn index_at(ax: &Axis, o: &Other, t: V) -> V {
+            min(max(floor(fmadd(t, ax.gd, ax.g0)), zero()), o.last)
+        }
+
+        /// For one other axis in a layer where some lane changes voxel, from the indices
+        /// `a` at the entry and `b` at the exit: the parameter where the index changes
+        /// (`t_b` if it does not) and the change of linear index.
+        #[inline]
+        #[target_feature(enable = $features)]
+        fn cross(ax: &Axis, o: &Other, a: V, b: V, t_a: V, t_b: V) -> (V, V) {
+            // Indices are whole numbers: the lane moved iff (b − a)·step ≥ 1, and then by
+            // one step (at most one plane per layer).
+            let moved = gt(mul(sub(b, a), ax.step), zero());
+            let t_c = mul(sub(add(a, ax.ahead), ax.g0), ax.inv);
+            let t_c = min(max(t_c, t_a), t_b);
+            (select(moved, t_c, t_b), select(moved, mul(ax.step, o.stride), zero()))
+        }
+
+        /// Where a packet stands at a layer's entry plane: the (clamped) parameter and the
+        /// other axes' voxel indices there.
+        #[derive(Clone, Copy)]
+        struct Entry {
+            t: V,
+            a1: V,
+            a2: V,
+        }
+
+        #[inline]
+        #[target_feature(enable = $features)]
+        fn entry(p: &Packet, o1: &Other, o2: &Other, plane: V) -> Entry {
+            let t = min(max(mul(sub(plane, p.g0m), p.invm), p.t_in), p.t_out);
+            Entry { t, a1: index_at(&p.ax1, o1, t), a2: index_at(&p.ax2, o2, t) }
+        }
+
+        /// Adds one packet's contribution from the voxel layer entered at `e` and left at
+        /// plane `p_b` (`base_m`: the layer's part of the linear voxel index) to `sums`; `e`
+        /// becomes the next layer's entry (the same values a fresh [`entry`] would compute).
+        /// `PACKED`: `field` is a packed composition and `sums` the packet's composition
+        /// state ([`add_material`]); otherwise `field` is mu and `sums[0]` the line integral.
+        #[inline]
+        #[target_feature(enable = $features)]
+        #[allow(clippy::too_many_arguments)]
+        fn layer<const PACKED: bool>(
+            field: &[f32],
+            p: &Packet,
+            o1: &Other,
+            o2: &Other,
+            e: &mut Entry,
+            p_b: V,
+            base_m: V,
+            sums: &mut [V],
+        ) {
+            let t_a = e.t;
+            let t_b = min(max(mul(sub(p_b, p.g0m), p.invm), p.t_in), p.t_out);
+            let (a1, a2) = (e.a1, e.a2);
+            let (b1, b2) = (index_at(&p.ax1, o1, t_b), index_at(&p.ax2, o2, t_b));
+            let base = fmadd(a1, o1.stride, fmadd(a2, o2.stride, base_m));
+            *e = Entry { t: t_b, a1: b1, a2: b2 };
+            if none(or(ne(b1, a1), ne(b2, a2))) {
+                // No lane leaves its voxel inside this layer: one segment per lane.
+                let len = sub(t_b, t_a);
+                if PACKED {
+                    let (rho, label) = gather_packed(field, base);
+                    add_material(sums, label, mul(rho, len));
+                } else {
+                    sums[0] = add(sums[0], mul(gather(field, base), len));
+                }
+                return;
+            }
+            // Some lane changes voxel (an index moving against the ray's direction, which
+            // only rounding could cause, counts as no change).
+            let (c1, d1) = cross(&p.ax1, o1, a1, b1, t_a, t_b);
+            let (c2, d2) = cross(&p.ax2, o2, a2, b2, t_a, t_b);
+            let (ca, cb) = (min(c1, c2), max(c1, c2));
+            let va = add(base, select(le(c1, c2), d1, d2));
+            let vb = add(base, add(d1, d2));
+            let (l0, l1, l2) = (sub(ca, t_a), sub(cb, ca), sub(t_b, cb));
+            if PACKED {
+                let (r0, m0) = gather_packed(field, base);
+                let (r1, m1) = gather_packed(field, va);
+                let (r2, m2) = gather_packed(field, vb);
+                let (w0, w1, w2) = (mul(r0, l0), mul(r1, l1), mul(r2, l2));
+                if all(and(eq(m0, m1), eq(m1, m2))) {
+                    // Each lane stays in one material over the layer (the usual case).
+                    add_material(sums, m0, add(add(w0, w1), w2));
+                } else {
+                    add_material(sums, m0, w0);
+                    add_material(sums, m1, w1);
+                    add_material(sums, m2, w2);
+                }
+            } else {
+                let v = mul(gather(field, base), l0);
+                let v = fmadd(gather(field, va), l1, v);
+                sums[0] = add(sums[0], fmadd(gather(field, vb), l2, v));
+            }
+        }
+
+        /// Adds ρ·ℓ `w` of material `label` (per lane) to a packet's composition state
+        /// `[current material, its running sum, sum of material 0, 1, …]`: while a lane
+        /// stays in one material its contributions go to the running sum; when it changes
+        /// material the running sum is moved to the old material's sum. So the cost per
+        /// segment does not grow with the number of materials, only per change.
+        #[inline]
+        #[target_feature(enable = $features)]
+        fn add_material(state: &mut [V], label: V, w: V) {
+            let (cur, run) = (state[0], state[1]);
+            let change = ne(label, cur);
+            if none(change) {
+                state[1] = add(run, w);
+                return;
+            }
+            for (m, s) in state[2..].iter_mut().enumerate() {
+                *s = add_where(and(change, eq(cur, splat(m as f64))), *s, run);
+            }
+            state[1] = select(change, w, add(run, w));
+            state[0] = select(change, label, cur);
+        }
+
+        /// Moves the running sums of a packet's composition state to their materials.
+        #[inline]
+        #[target_feature(enable = $features)]
+        fn flush_materials(state: &mut [V]) {
+            let (cur, run) = (state[0], state[1]);
+            for (m, s) in state[2..].iter_mut().enumerate() {
+                *s = add_where(eq(cur, splat(m as f64)), *s, run);
+            }
+            state[1] = zero();
+        }
+
+        /// Traces a row: `k` sums per ray into `out[n·k..(n+1)·k]` (see [`layer`]).
+        #[target_feature(enable = $features)]
+        pub(super) fn trace_row<const PACKED: bool>(
+            field: &[f32],
+            dims: [usize; 3],
+            rays: &[Option<GridRay>],
+            min_crossings: f64,
+            k: usize,
+            out: &mut [f64],
+            handled: &mut [bool],
+        ) {
+            let strides = [1usize, dims[0], dims[0] * dims[1]];
+            let span = |s: usize| s..(s + LANES).min(rays.len());
+            // Packets of neighbouring rays, grouped by shared dominant axis and direction.
+            let chunks: Vec<(usize, Option<(usize, bool)>)> = rays
+                .chunks(LANES)
+                .enumerate()
+                .map(|(i, c)| (i * LANES, packet_key(c, min_crossings)))
+                .collect();
+            for m in 0..3 {
+                for positive in [true, false] {
+                    let members: Vec<usize> = chunks
+                        .iter()
+                        .filter(|(_, k)| *k == Some((m, positive)))
+                        .map(|(start, _)| *start)
+                        .collect();
+                    if members.is_empty() {
+                        continue;
+                    }
+                    let (o1, o2) = ((m + 1) % 3, (m + 2) % 3);
+                    let other = |a: usize| Other {
+                        last: splat((dims[a] - 1) as f64),
+                        stride: splat(strides[a] as f64),
+                    };
+                    let (oth1, oth2) = (other(o1), other(o2));
+                    let packets: Vec<Packet> = members
+                        .iter()
+                        .map(|&s| {
+                            let r = &rays[span(s)];
+                            Packet {
+                                g0m: lanes(r, |g| g.g0[m]),
+                                invm: lanes(r, |g| g.inv[m]),
+                                t_in: lanes(r, |g| g.t_enter),
+                                t_out: lanes(r, |g| g.t_exit),
+                                ax1: axis(r, o1),
+                                ax2: axis(r, o2),
+                            }
+                        })
+                        .collect();
+                    // Voxel layers along m that any ray of the group touches.
+                    let n_m = dims[m] as i64;
+                    let (mut lo, mut hi) = (n_m, -1i64);
+                    for &s in &members {
+                        for r in rays[span(s)].iter().flatten() {
+                            for t in [r.t_enter, r.t_exit] {
+                                let l = ((r.g0[m] + t * r.gd[m]).floor() as i64).clamp(0, n_m - 1);
+                                lo = lo.min(l);
+                                hi = hi.max(l);
+                            }
+                        }
+                    }
+                    let (first, last, dir) = if positive { (lo, hi, 1i64) } else { (hi, lo, -1i64) };
+                    let entry_plane = |j: i64| (if positive { j } else { j + 1 }) as f64;
+                    // Per packet: the line integral, or the composition state of `add_material`
+                    // (current material — none yet —, running sum, k material sums).
+                    let slot = if PACKED { k + 2 } else { 1 };
+                    let mut sums = vec![zero(); packets.len() * slot];
+                    if PACKED {
+                        sums.chunks_mut(slot).for_each(|s| s[0] = splat(-1.0));
+                    }
+                    let start = splat(entry_plane(first));
+                    let mut entries: Vec<Entry> =
+                        packets.iter().map(|p| entry(p, &oth1, &oth2, start)).collect();
+                    let mut j = first;
+                    loop {
+                        let p_b = splat(entry_plane(j + dir));
+                        let base_m = splat((j as usize * strides[m]) as f64);
+                        for ((p, sum), e) in packets.iter().zip(sums.chunks_mut(slot)).zip(entries.iter_mut()) {
+                            layer::<PACKED>(field, p, &oth1, &oth2, e, p_b, base_m, sum);
+                        }
+                        if j == last {
+                            break;
+                        }
+                        j += dir;
+                    }
+                    for (&s, sum) in members.iter().zip(sums.chunks_mut(slot)) {
+                        let sum = if PACKED {
+                            flush_materials(sum);
+                            &sum[2..]
+                        } else {
+                            &sum[..]
+                        };
+                        for (m, sum) in sum.iter().enumerate() {
+                            let v = store(*sum);
+                            for n in span(s) {
+                                out[n * k + m] = if rays[n].is_some() { v[n - s] } else { 0.0 };
+                            }
+                        }
+                        for n in span(s) {
+                            handled[n] = true;
+                        }
+                    }
+                }
+            }
+            // Packets whose rays all miss: nothing to add.
+            for (start, key) in &chunks {
+                if key.is_none() && rays[span(*start)].iter().all(Option::is_none) {
+                    for n in span(*start) {
+                        out[n * k..(n + 1) * k].fill(0.0);
+                        handled[n] = true;
+                    }
+                }
+            }
+        }
+    };
+}
