@@ -1,0 +1,212 @@
+//! End to end through the command line: `dataset` → `train` (and `--resume`) →
+//! `reconstruct` → `evaluate`, at the `tiny` configuration (seconds), plus the errors a
+//! user meets with wrong inputs.
+
+mod common;
+
+use common::{ok, tomograf};
+use std::path::Path;
+
+/// The losses of `metrics.csv` (every column but the wall-clock `seconds`).
+fn losses(run: &Path) -> Vec<String> {
+    let text = std::fs::read_to_string(run.join("metrics.csv")).unwrap();
+    let mut lines = text.lines();
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    let keep: Vec<usize> = (0..header.len())
+        .filter(|&i| header[i] != "seconds")
+        .collect();
+    lines
+        .map(|l| {
+            let f: Vec<&str> = l.split(',').collect();
+            keep.iter().map(|&i| f[i]).collect::<Vec<_>>().join(",")
+        })
+        .collect()
+}
+
+fn tiny_dataset(dir: &Path) {
+    ok(&tomograf(&[
+        "dataset",
+        "-o",
+        dir.to_str().unwrap(),
+        "--phantoms",
+        "2",
+        "--size",
+        "16",
+        "--views",
+        "10",
+    ]));
+}
+
+#[test]
+fn train_resume_reconstruct_evaluate() {
+    let tmp = tempfile::tempdir().unwrap();
+    let data = tmp.path().join("data");
+    tiny_dataset(&data);
+    let run = tmp.path().join("run");
+    let train = |extra: &[&str]| {
+        let mut args = vec![
+            "train",
+            data.to_str().unwrap(),
+            "-o",
+            run.to_str().unwrap(),
+            "--config",
+            "tiny",
+        ];
+        args.extend_from_slice(extra);
+        tomograf(&args)
+    };
+    ok(&train(&["--iterations", "3"]));
+    for f in ["metrics.csv", "loss.png", "checkpoint/generator.bpk"] {
+        assert!(run.join(f).is_file(), "train wrote no {f}");
+    }
+    assert_eq!(losses(&run).len(), 3, "one metrics row per iteration");
+    ok(&train(&["--resume", "--iterations", "5"]));
+    let resumed = losses(&run);
+    assert_eq!(resumed.len(), 5, "resume continues to 5 iterations");
+
+    // Reconstruct one item from its AP view: a NIfTI volume of finite HU.
+    let vol = tmp.path().join("rec.nii.gz");
+    ok(&tomograf(&[
+        "reconstruct",
+        data.join("00000").to_str().unwrap(),
+        "--checkpoint",
+        run.join("checkpoint").to_str().unwrap(),
+        "--views",
+        "1",
+        "--iterations",
+        "3",
+        "-o",
+        vol.to_str().unwrap(),
+    ]));
+    assert!(vol.is_file());
+
+    // Evaluate at 1 and 2 views: every method scored for every item and view count.
+    let eval = tmp.path().join("eval");
+    ok(&tomograf(&[
+        "evaluate",
+        data.to_str().unwrap(),
+        "--checkpoint",
+        run.join("checkpoint").to_str().unwrap(),
+        "--views",
+        "1,2",
+        "--iterations",
+        "2",
+        "-o",
+        eval.to_str().unwrap(),
+    ]));
+    let csv = std::fs::read_to_string(eval.join("results.csv")).unwrap();
+    for views in ["1", "2"] {
+        for method in ["TomoGRAF", "mean training volume", "FDK", "SART-TV"] {
+            let rows: Vec<&str> = csv
+                .lines()
+                .filter(|l| {
+                    let f: Vec<&str> = l.split(',').collect();
+                    f.len() > 5 && f[1] == views && f[2] == method
+                })
+                .collect();
+            assert_eq!(rows.len(), 2, "{method} at {views} view(s): {csv}");
+            for r in rows {
+                let f: Vec<&str> = r.split(',').collect();
+                let psnr: f64 = f[3].parse().unwrap();
+                assert!(psnr.is_finite(), "{r}");
+            }
+        }
+    }
+    assert!(eval.join("results.md").is_file());
+}
+
+#[test]
+fn training_does_not_depend_on_the_thread_count() {
+    let tmp = tempfile::tempdir().unwrap();
+    let data = tmp.path().join("data");
+    tiny_dataset(&data);
+    let mut runs = Vec::new();
+    for threads in ["1", "2"] {
+        let run = tmp.path().join(format!("run{threads}"));
+        ok(&tomograf(&[
+            "--threads",
+            threads,
+            "train",
+            data.to_str().unwrap(),
+            "-o",
+            run.to_str().unwrap(),
+            "--config",
+            "tiny",
+            "--iterations",
+            "3",
+        ]));
+        runs.push(losses(&run));
+    }
+    assert_eq!(runs[0], runs[1], "losses with 1 and 2 threads");
+}
+
+#[test]
+fn wrong_inputs_are_named() {
+    let tmp = tempfile::tempdir().unwrap();
+    let missing = tmp.path().join("no-such-set");
+    let out = tomograf(&[
+        "train",
+        missing.to_str().unwrap(),
+        "-o",
+        tmp.path().join("run").to_str().unwrap(),
+        "--config",
+        "tiny",
+    ]);
+    assert!(!out.status.success());
+    let e = String::from_utf8_lossy(&out.stderr);
+    assert!(e.contains("no-such-set"), "{e}");
+
+    let data = tmp.path().join("data");
+    tiny_dataset(&data);
+    let out = tomograf(&[
+        "train",
+        data.to_str().unwrap(),
+        "-o",
+        tmp.path().join("run").to_str().unwrap(),
+        "--config",
+        "no-such-preset",
+    ]);
+    assert!(!out.status.success());
+    let e = String::from_utf8_lossy(&out.stderr);
+    assert!(e.contains("no-such-preset"), "{e}");
+    let out = tomograf(&[
+        "reconstruct",
+        data.join("00000").to_str().unwrap(),
+        "--checkpoint",
+        crate_checkpoint().to_str().unwrap(),
+        "--views",
+        "0",
+        "-o",
+        tmp.path().join("r.nii.gz").to_str().unwrap(),
+    ]);
+    assert!(!out.status.success());
+    let e = String::from_utf8_lossy(&out.stderr);
+    assert!(e.contains("view"), "{e}");
+    assert!(!tmp.path().join("r.nii.gz").exists(), "no output on error");
+
+    // The shipped checkpoint is for 64³ volumes and 64² projections: a 16³ item with 16²
+    // projections does not fit it.
+    let out = tomograf(&[
+        "reconstruct",
+        data.join("00000").to_str().unwrap(),
+        "--checkpoint",
+        crate_checkpoint().to_str().unwrap(),
+        "--views",
+        "1",
+        "-o",
+        tmp.path().join("r.nii.gz").to_str().unwrap(),
+    ]);
+    assert!(
+        !out.status.success(),
+        "a 16³ item through a 64³ checkpoint must fail"
+    );
+    let e = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        e.contains("16"),
+        "the error names the size that does not fit: {e}"
+    );
+}
+
+fn crate_checkpoint() -> std::path::PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("model/checkpoints/demo")
+}
