@@ -8,6 +8,7 @@ use anyhow::{Result, bail};
 use clap::Args;
 use tomograf_sim::acquisition::{Acquisition, PRESETS, SpectrumSpec};
 use tomograf_sim::detector::{DetectorModel, Output};
+use tomograf_sim::scatter::ScatterModel;
 use tomograf_sim::tissue::TissueModel;
 
 /// Flags of `tomograf project` and `tomograf dataset` for real detector physics.
@@ -17,7 +18,8 @@ pub struct PhysicsArgs {
     /// or cbct-100kvp. See docs/physics.md.
     #[arg(long)]
     pub preset: Option<String>,
-    /// Tungsten-anode tube voltage, kVp (40–150); replaces the preset's spectrum.
+    /// Tungsten-anode tube voltage, kVp (40–150); replaces the preset's (which keeps its
+    /// filtration and mA·s).
     #[arg(long)]
     pub kvp: Option<f64>,
     /// Exposure per view, mA·s.
@@ -33,6 +35,19 @@ pub struct PhysicsArgs {
     /// [default: log-line-integral].
     #[arg(long)]
     pub signal: Option<String>,
+    /// Detector model: ideal (no noise, no blur), kv-flat-panel, cbct or photon-counting;
+    /// replaces the preset's detector (e.g. `--preset kv-flat-panel-120kvp
+    /// --detector-model ideal`: the polychromatic beam without detector noise or blur).
+    #[arg(long)]
+    pub detector_model: Option<String>,
+    /// Scattered radiation: none (default), estimate (fast: coarse Monte Carlo, smoothed)
+    /// or monte-carlo (forced detection). See docs/scatter.md.
+    #[arg(long)]
+    pub scatter: Option<String>,
+    /// Photon histories per view of the scatter model [default: 5000 for estimate,
+    /// 100000 for monte-carlo].
+    #[arg(long)]
+    pub scatter_photons: Option<u64>,
 }
 
 impl PhysicsArgs {
@@ -47,8 +62,19 @@ impl PhysicsArgs {
         if self.signal.is_some() {
             s.acquisition.signal = self.signal.clone();
         }
+        if self.detector_model.is_some() {
+            s.detector.model = self.detector_model.clone();
+        }
+        if let Some(model) = scatter_model(self.scatter.as_deref(), self.scatter_photons)? {
+            s.scatter = Some(model);
+        }
         if let Some(kvp) = self.kvp {
-            let old = s.spectrum.take();
+            // A preset's beam keeps its filtration and exposure at the new voltage.
+            let old = match (s.spectrum.take(), s.acquisition.preset.as_deref()) {
+                (Some(old), _) => Some(old),
+                (None, Some(p)) if p != "ideal-drr" => Some(Acquisition::preset(p)?.spectrum),
+                (None, _) => None,
+            };
             s.spectrum = Some(SpectrumSpec {
                 kvp: Some(kvp),
                 energy_kev: None,
@@ -74,6 +100,33 @@ impl PhysicsArgs {
         }
         Ok(())
     }
+}
+
+/// The scatter model `--scatter NAME` and `--scatter-photons N` ask for; `None` when
+/// neither is given or the name is `none` (the default: primary only). The other settings
+/// take sim's defaults for the model (those of a scene's `[scatter]` table).
+pub fn scatter_model(name: Option<&str>, photons: Option<u64>) -> Result<Option<ScatterModel>> {
+    let name = match (name, photons) {
+        (None, None) | (Some("none"), None) => return Ok(None),
+        (None | Some("none"), Some(_)) => {
+            bail!("--scatter-photons needs --scatter estimate or --scatter monte-carlo")
+        }
+        (Some(n @ ("estimate" | "monte-carlo")), _) => n,
+        (Some(other), _) => {
+            bail!("unknown --scatter '{other}': use none, estimate or monte-carlo")
+        }
+    };
+    let mut model: ScatterModel = toml::from_str(&format!("model = \"{name}\""))?;
+    if let Some(n) = photons {
+        match &mut model {
+            ScatterModel::Estimate { photons, .. } | ScatterModel::MonteCarlo { photons, .. } => {
+                *photons = n
+            }
+            _ => {}
+        }
+    }
+    model.validate()?;
+    Ok(Some(model))
 }
 
 /// The acquisition the flags alone ask for (no scene file), with its noise seed.
