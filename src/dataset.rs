@@ -171,6 +171,8 @@ pub fn run(args: DatasetArgs) -> Result<()> {
     if args.size < 2 || args.views == 0 {
         bail!("--size must be at least 2 and --views at least 1");
     }
+    // Bad physics flags are named before any work.
+    physics::from_args(&args.physics)?;
     let (shard, shards) = args
         .shard
         .as_deref()

@@ -95,7 +95,7 @@ pub struct Scale {
 impl Scale {
     pub fn parse(name: &str) -> Result<Self> {
         let (size, views, train, test, config, photons) = match name {
-            "tiny" => (16, 10, 4, 2, "tiny", 1_000),
+            "tiny" => (16, 10, 4, 2, "tiny", 100),
             "small" => (64, 36, 32, 8, "small", 5_000),
             other => bail!("unknown --scale '{other}': use tiny or small"),
         };

@@ -318,9 +318,19 @@ fn draw(study: &Study, file: &str, caption: String, series: Series) -> Result<Bl
         .map(|(n, p)| (n.as_str(), p.clone()))
         .collect();
     plot_points(&path, &named)?;
+    let (lo, hi) = series
+        .iter()
+        .flat_map(|(_, p)| p.iter().map(|q| q.1))
+        .filter(|y| y.is_finite())
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), y| {
+            (a.min(y), b.max(y))
+        });
     Ok(Block::Image(
         relative(&study.dir, &path),
-        format!("{caption} Colours: {}.", colours(&series)),
+        format!(
+            "{caption} Colours: {}. The y axis spans {lo:.3} to {hi:.3} (plus 5 % margins).",
+            colours(&series)
+        ),
     ))
 }
 
@@ -364,7 +374,10 @@ fn plots(study: &Study, stats: &[Stat]) -> Result<Vec<Block>> {
                 for c in ["FDK", "SART-TV"] {
                     series.push((c.into(), vs_views(None, last, c, m)));
                 }
-                format!("{} vs views, tested on `{last}`.", m.name())
+                format!(
+                    "{} vs views (x axis: 1 to 10 views), tested on `{last}`.",
+                    m.name()
+                )
             }
             Kind::DomainShift => {
                 let t = &s.train_sets[0];
@@ -374,7 +387,10 @@ fn plots(study: &Study, stats: &[Stat]) -> Result<Vec<Block>> {
                         vs_views(Some(t), test, "TomoGRAF", m),
                     ));
                 }
-                format!("{} of TomoGRAF vs views, per test set.", m.name())
+                format!(
+                    "{} of TomoGRAF vs views (x axis: 1 to 10 views), per test set.",
+                    m.name()
+                )
             }
         };
         b.push(draw(
@@ -409,7 +425,7 @@ fn plots(study: &Study, stats: &[Stat]) -> Result<Vec<Block>> {
                 (
                     format!("{}_vs_level.png", m.file()),
                     format!(
-                        "{} from 1 view vs realism level tested on ({index}).",
+                        "{} from 1 view vs the realism level tested on (x axis: {index}).",
                         m.name()
                     ),
                 )
@@ -430,7 +446,7 @@ fn plots(study: &Study, stats: &[Stat]) -> Result<Vec<Block>> {
                 }
                 (
                     format!("{}_vs_shift.png", m.file()),
-                    format!("{} vs test set ({index}).", m.name()),
+                    format!("{} vs test set (x axis: {index}).", m.name()),
                 )
             }
         };
