@@ -11,6 +11,7 @@
 //! work across machines: see docs/studies.md.
 
 pub mod levels;
+mod render;
 mod report;
 
 use crate::dataset::DatasetArgs;
