@@ -236,3 +236,43 @@ pub fn acquisition(scene: &Scene) -> Result<Option<(Acquisition, u64)>> {
 pub fn item_seed(seed: u64, index: usize) -> u64 {
     tomograf_sim::acquisition::frame_seed(seed ^ 0xD47A_5E7D_A7A5_E7D0, index as u64)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn scatter_flags_pick_the_model_and_keep_sims_defaults() {
+        assert_eq!(scatter_model(None, None).unwrap(), None);
+        assert_eq!(scatter_model(Some("none"), None).unwrap(), None);
+        // The defaults are those of a scene's `[scatter] model = "estimate"` table.
+        let scene: ScatterModel = toml::from_str("model = \"estimate\"").unwrap();
+        assert_eq!(scatter_model(Some("estimate"), None).unwrap(), Some(scene));
+        match scatter_model(Some("monte-carlo"), Some(123)).unwrap() {
+            Some(ScatterModel::MonteCarlo { photons, .. }) => assert_eq!(photons, 123),
+            other => panic!("{other:?}"),
+        }
+        let e = scatter_model(Some("estimate"), Some(0))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("photons = 0"), "{e}");
+        let e = scatter_model(Some("fog"), None).unwrap_err().to_string();
+        assert!(e.contains("unknown --scatter 'fog'"), "{e}");
+    }
+
+    #[test]
+    fn kvp_on_a_preset_keeps_its_filtration_and_exposure() {
+        let args = PhysicsArgs {
+            preset: Some("kv-flat-panel-120kvp".into()),
+            kvp: Some(80.0),
+            detector_model: Some("ideal".into()),
+            ..PhysicsArgs::default()
+        };
+        let (acq, _) = from_args(&args).unwrap().unwrap();
+        let preset = Acquisition::preset("kv-flat-panel-120kvp").unwrap();
+        assert_eq!(acq.spectrum.kvp, Some(80.0));
+        assert_eq!(acq.spectrum.filtration, preset.spectrum.filtration);
+        assert_eq!(acq.spectrum.mas, preset.spectrum.mas);
+        assert_eq!(acq.detector, DetectorModel::ideal());
+    }
+}
