@@ -111,19 +111,6 @@ struct ItemRecord {
     angles_deg: Vec<[f64; 2]>,
 }
 
-fn parse_shard(text: &str) -> Result<(usize, usize)> {
-    let bad = || anyhow::anyhow!("--shard '{text}' must be I/N with 0 ≤ I < N, e.g. 0/4");
-    let (i, n) = text.split_once('/').ok_or_else(bad)?;
-    let (i, n): (usize, usize) = (
-        i.trim().parse().map_err(|_| bad())?,
-        n.trim().parse().map_err(|_| bad())?,
-    );
-    if n == 0 || i >= n {
-        return Err(bad());
-    }
-    Ok((i, n))
-}
-
 /// Inputs expanded: files as given; a folder with DICOM files is one series, any other
 /// folder contributes its NIfTI files and series sub-folders, sorted by path.
 fn expand(inputs: &[PathBuf]) -> Result<Vec<PathBuf>> {
@@ -184,10 +171,12 @@ pub fn run(args: DatasetArgs) -> Result<()> {
     if args.size < 2 || args.views == 0 {
         bail!("--size must be at least 2 and --views at least 1");
     }
+    // Bad physics flags are named before any work.
+    physics::from_args(&args.physics)?;
     let (shard, shards) = args
         .shard
         .as_deref()
-        .map(parse_shard)
+        .map(crate::evaluate::parse_shard)
         .transpose()?
         .unwrap_or((0, 1));
     let mut sources: Vec<Source> = expand(&args.inputs)?

@@ -86,7 +86,7 @@ pub fn run(args: DemoArgs) -> Result<()> {
     eprintln!("2/2 reconstructing and scoring");
     crate::evaluate::run(crate::evaluate::EvaluateArgs {
         data: test,
-        checkpoint: args.checkpoint,
+        checkpoint: Some(args.checkpoint),
         output: args.output.clone(),
         views: args.views,
         split: None,
@@ -95,6 +95,8 @@ pub fn run(args: DemoArgs) -> Result<()> {
         tune: None,
         seed: 0,
         backend: args.backend,
+        shard: None,
+        merge: false,
     })?;
     eprintln!(
         "results: {0}/results.md, figures: {0}/*_slices.png, {0}/*_profile.png",

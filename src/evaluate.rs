@@ -1,29 +1,37 @@
 //! `tomograf evaluate`: reconstruct every test item from 1/2/5/10 views and compare with
 //! the ground truth — PSNR, 3D SSIM and RMSE in HU, mean ± std per view count, next to the
 //! baselines from the same views — as a markdown table, a CSV and PNG figures.
+//!
+//! Each item's scores go to `items/<id>.csv` (written atomically) as soon as it is done, so
+//! a re-run skips finished items, and `--shard I/N` scores items `I, I+N, …` only; the
+//! shards' `items/` folders (one shared output folder, or copied together) are combined
+//! into `results.md` / `results.csv` by `--merge`. Without `--checkpoint` only the
+//! classical baselines (FDK, SART-TV) are scored.
 
+use crate::figures::slices_and_profile;
 use crate::reconstruct::{paper_poses, references, run_one, write_hu};
 use anyhow::{Context, Result, bail};
 use clap::Args;
-use plotters::prelude::*;
+use serde::{Deserialize, Serialize};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
-use tomograf_model::baseline::Baseline;
+use tomograf_datasets::atomic::write_atomic;
+use tomograf_model::baseline::{Baseline, Fdk, SartTv};
 use tomograf_model::config::Tune;
 use tomograf_model::data::Item;
 use tomograf_model::metrics::{mean_std, psnr, rmse, ssim3d};
 use tomograf_model::{backend, checkpoint, data};
-use tomograf_sim::{Projection, Volume};
+use tomograf_sim::Volume;
 
 #[derive(Debug, Args)]
 pub struct EvaluateArgs {
     /// Test data set folder (made by `tomograf dataset`, with --views a multiple of 10).
     pub data: PathBuf,
-    /// Checkpoint folder written by `tomograf train`.
+    /// Checkpoint folder written by `tomograf train` (without it: FDK and SART-TV only).
     #[arg(long)]
-    pub checkpoint: PathBuf,
-    /// Output folder: results.md, results.csv, figures, reconstructions.
+    pub checkpoint: Option<PathBuf>,
+    /// Output folder: results.md, results.csv, items/, figures, reconstructions.
     #[arg(short, long)]
     pub output: PathBuf,
     /// View counts to evaluate.
@@ -47,6 +55,14 @@ pub struct EvaluateArgs {
     /// Backend: flex (CPU, default), ndarray, cuda, wgpu (as compiled in).
     #[arg(long)]
     pub backend: Option<String>,
+    /// Score only items I, I+N, … (0-based I/N), for running across machines; combine
+    /// the shards' results with --merge.
+    #[arg(long)]
+    pub shard: Option<String>,
+    /// Score nothing: combine the finished items' scores under --output into results.md
+    /// and results.csv (errors naming the items still missing).
+    #[arg(long)]
+    pub merge: bool,
 }
 
 /// Metrics of one reconstruction.
@@ -69,100 +85,379 @@ pub fn score(item: &Item, volume: &Volume) -> Result<Scores> {
     })
 }
 
+/// `I/N` with 0 ≤ I < N.
+pub fn parse_shard(text: &str) -> Result<(usize, usize)> {
+    let bad = || anyhow::anyhow!("--shard '{text}' must be I/N with 0 ≤ I < N, e.g. 0/4");
+    let (i, n) = text.split_once('/').ok_or_else(bad)?;
+    let (i, n): (usize, usize) = (
+        i.trim().parse().map_err(|_| bad())?,
+        n.trim().parse().map_err(|_| bad())?,
+    );
+    if n == 0 || i >= n {
+        return Err(bad());
+    }
+    Ok((i, n))
+}
+
+/// What an evaluation computes; `job.json` of its output folder, so results of different
+/// settings are never mixed in one folder.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Job {
+    /// Item ids to score (after --split and --items), in order.
+    pub items: Vec<String>,
+    pub views: Vec<usize>,
+    /// Score TomoGRAF (and the mean training volume) from a checkpoint.
+    pub model: bool,
+    /// Score FDK and SART-TV.
+    pub classical: bool,
+    /// Inference seed, iteration cap and what is tuned (model only).
+    pub seed: u64,
+    pub iterations: Option<usize>,
+    pub tune: Option<Tune>,
+}
+
+/// One score: an item, a view count, a method.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Row {
+    pub item: String,
+    pub views: usize,
+    pub method: String,
+    pub scores: Scores,
+    pub iterations: usize,
+    pub seconds: f64,
+}
+
+const ITEM_HEADER: &str = "item,views,method,psnr_db,ssim,rmse_hu,iterations,seconds";
+
+impl PartialEq for Scores {
+    fn eq(&self, o: &Self) -> bool {
+        (self.psnr, self.ssim, self.rmse_hu) == (o.psnr, o.ssim, o.rmse_hu)
+    }
+}
+
+/// Where and how to evaluate, for [`evaluate`] (the CLI's and the studies' entry point).
+pub struct Evaluation<'a> {
+    pub data: &'a Path,
+    pub checkpoint: Option<&'a Path>,
+    pub output: &'a Path,
+    pub views: &'a [usize],
+    pub split: Option<&'a str>,
+    pub items: Option<usize>,
+    pub iterations: Option<usize>,
+    pub tune: Option<Tune>,
+    pub seed: u64,
+    pub backend: Option<&'a str>,
+    pub shard: (usize, usize),
+    /// Also score FDK and SART-TV.
+    pub classical: bool,
+    /// Show inference progress bars.
+    pub show: bool,
+}
+
 pub fn run(args: EvaluateArgs) -> Result<()> {
-    let device = backend::device(args.backend.as_deref().unwrap_or(backend::default_name()))?;
-    if args.views.is_empty() || args.views.contains(&0) {
+    let shard = args
+        .shard
+        .as_deref()
+        .map(parse_shard)
+        .transpose()?
+        .unwrap_or((0, 1));
+    if args.merge {
+        let md = merge(&args.output)?;
+        println!("{md}");
+        return Ok(());
+    }
+    let e = Evaluation {
+        data: &args.data,
+        checkpoint: args.checkpoint.as_deref(),
+        output: &args.output,
+        views: &args.views,
+        split: args.split.as_deref(),
+        items: args.items,
+        iterations: args.iterations,
+        tune: args.tune,
+        seed: args.seed,
+        backend: args.backend.as_deref(),
+        shard,
+        classical: true,
+        show: true,
+    };
+    let made = evaluate(&e)?;
+    if shard.1 > 1 {
+        eprintln!(
+            "shard {}/{}: {made} item(s) scored into {}; when every shard is done, run `tomograf evaluate {} -o {} --merge`",
+            shard.0,
+            shard.1,
+            args.output.join("items").display(),
+            args.data.display(),
+            args.output.display()
+        );
+    } else {
+        let md = merge(&args.output)?;
+        println!("{md}");
+    }
+    Ok(())
+}
+
+/// Scores this shard's items not yet scored under `e.output/items/`; returns how many it
+/// scored. Figures (slices, residual, profile) and the reconstruction are written for the
+/// data set's first item, by the shard that holds it.
+pub fn evaluate(e: &Evaluation) -> Result<usize> {
+    if e.views.is_empty() || e.views.contains(&0) {
         bail!("view counts must be ≥ 1 (view count 0 given)");
     }
-    let mut items = data::load_dataset(&args.data, args.split.as_deref())?;
-    if let Some(n) = args.items {
+    let mut items = data::load_dataset(e.data, e.split)?;
+    if let Some(n) = e.items {
         items.truncate(n.max(1));
     }
-    let (config, _, _) = checkpoint::load_generator(&args.checkpoint, &device)?;
-    let mut infer = config.infer.clone();
-    if let Some(t) = args.tune {
-        infer.tune = t;
-    }
-    if let Some(n) = args.iterations {
-        infer.iterations = n;
-    }
-    let mean = checkpoint::load_mean(&args.checkpoint)?
-        .context("the checkpoint has no mean_volume.npy (written by `tomograf train`)")?;
-    let baselines: Vec<Box<dyn Baseline>> = vec![
-        Box::new(mean),
-        Box::new(tomograf_model::baseline::Fdk),
-        Box::new(tomograf_model::baseline::SartTv),
-    ];
-    std::fs::create_dir_all(&args.output)?;
-    // (views, method) → scores over items.
-    let mut table: Vec<(usize, String, Vec<Scores>)> = Vec::new();
-    let mut csv = String::from("item,views,method,psnr_db,ssim,rmse_hu,iterations,seconds\n");
-    let mut push = |views: usize, method: &str, s: Scores| match table
-        .iter_mut()
-        .find(|(v, m, _)| *v == views && m == method)
-    {
-        Some(e) => e.2.push(s),
-        None => table.push((views, method.to_string(), vec![s])),
+    let device = backend::device(e.backend.unwrap_or(backend::default_name()))?;
+    let job = Job {
+        items: items.iter().map(|i| i.id.clone()).collect(),
+        views: e.views.to_vec(),
+        model: e.checkpoint.is_some(),
+        classical: e.classical,
+        seed: e.seed,
+        iterations: e.iterations,
+        tune: e.tune,
     };
-    let mut secs_per_iter = Vec::new();
+    if !job.model && !job.classical {
+        bail!("nothing to evaluate: give a checkpoint or score the classical baselines");
+    }
+    std::fs::create_dir_all(e.output.join("items"))
+        .with_context(|| format!("cannot create {}", e.output.display()))?;
+    check_job(e.output, &job)?;
+    let model = match e.checkpoint {
+        Some(ck) => {
+            let (config, _, _) = checkpoint::load_generator(ck, &device)
+                .with_context(|| format!("checkpoint {}", ck.display()))?;
+            let mut infer = config.infer.clone();
+            if let Some(t) = e.tune {
+                infer.tune = t;
+            }
+            if let Some(n) = e.iterations {
+                infer.iterations = n;
+            }
+            let mean = checkpoint::load_mean(ck)?
+                .context("the checkpoint has no mean_volume.npy (written by `tomograf train`)")?;
+            Some((ck, infer, mean))
+        }
+        None => None,
+    };
+    let classical: Vec<Box<dyn Baseline>> = if e.classical {
+        vec![Box::new(Fdk), Box::new(SartTv)]
+    } else {
+        Vec::new()
+    };
+    let (shard, shards) = e.shard;
+    let mut made = 0;
     for (n, item) in items.iter().enumerate() {
-        for &count in &args.views {
+        let path = item_path(e.output, &item.id);
+        if n % shards != shard || path.exists() {
+            continue;
+        }
+        let mut rows = Vec::new();
+        for &count in e.views {
             let poses = paper_poses(count)?;
             let refs = references(item, &poses)?;
-            let t0 = Instant::now();
-            eprintln!(
-                "item {} ({}/{}), {count} view(s)",
-                item.id,
-                n + 1,
-                items.len()
-            );
-            let rec = run_one(
-                &args.checkpoint,
-                item,
-                &poses,
-                Some(&infer),
-                args.seed,
-                &device,
-                true,
-            )?;
-            let secs = t0.elapsed().as_secs_f64();
-            secs_per_iter.push(secs / rec.iterations.max(1) as f64);
-            let s = score(item, &rec.volume)?;
-            let _ = writeln!(
-                csv,
-                "{},{count},TomoGRAF,{:.4},{:.5},{:.2},{},{secs:.2}",
-                item.id, s.psnr, s.ssim, s.rmse_hu, rec.iterations
-            );
-            push(count, "TomoGRAF", s);
             let grid = item.ct.as_ref().context("item has no ground-truth CT")?;
-            let mut others = Vec::new();
-            for b in &baselines {
+            let mut volumes: Vec<Volume> = Vec::new();
+            if let Some((ck, infer, mean)) = &model {
+                if e.show {
+                    eprintln!(
+                        "item {} ({}/{}), {count} view(s)",
+                        item.id,
+                        n + 1,
+                        items.len()
+                    );
+                }
+                let t0 = Instant::now();
+                let rec = run_one(ck, item, &poses, Some(infer), e.seed, &device, e.show)?;
+                let seconds = t0.elapsed().as_secs_f64();
+                rows.push(Row {
+                    item: item.id.clone(),
+                    views: count,
+                    method: "TomoGRAF".into(),
+                    scores: score(item, &rec.volume)?,
+                    iterations: rec.iterations,
+                    seconds,
+                });
+                volumes.push(rec.volume);
+                let v = mean.reconstruct(&refs, grid, &item.scale)?;
+                rows.push(Row {
+                    item: item.id.clone(),
+                    views: count,
+                    method: mean.name().into(),
+                    scores: score(item, &v)?,
+                    iterations: 0,
+                    seconds: 0.0,
+                });
+                volumes.push(v);
+            }
+            for b in &classical {
+                let t0 = Instant::now();
                 let v = b.reconstruct(&refs, grid, &item.scale)?;
-                let s = score(item, &v)?;
-                let _ = writeln!(
-                    csv,
-                    "{},{count},{},{:.4},{:.5},{:.2},0,0",
-                    item.id,
-                    b.name(),
-                    s.psnr,
-                    s.ssim,
-                    s.rmse_hu
-                );
-                push(count, b.name(), s);
-                others.push(v);
+                rows.push(Row {
+                    item: item.id.clone(),
+                    views: count,
+                    method: b.name().into(),
+                    scores: score(item, &v)?,
+                    iterations: 0,
+                    seconds: t0.elapsed().as_secs_f64(),
+                });
+                volumes.push(v);
             }
             if n == 0 {
-                let stem = args.output.join(format!("{}_{count}view", item.id));
-                write_hu(item, &rec.volume, &stem.with_extension("nii.gz"))?;
-                figures(item, &rec.volume, &others[0], &stem)?;
+                let stem = e.output.join(format!("{}_{count}view", item.id));
+                write_hu(item, &volumes[0], &stem.with_extension("nii.gz"))?;
+                let refs: Vec<&Volume> = volumes.iter().collect();
+                slices_and_profile(item, &refs, &stem)?;
             }
         }
+        write_rows(&path, &rows)?;
+        made += 1;
     }
-    std::fs::write(args.output.join("results.csv"), &csv)?;
-    let (spi, _) = mean_std(&secs_per_iter);
+    Ok(made)
+}
+
+fn item_path(output: &Path, id: &str) -> PathBuf {
+    output.join("items").join(format!("{id}.csv"))
+}
+
+/// Writes `job.json`, or checks that the one already there asks for the same evaluation.
+fn check_job(output: &Path, job: &Job) -> Result<()> {
+    let path = output.join("job.json");
+    if let Ok(bytes) = std::fs::read(&path) {
+        let old: Job = serde_json::from_slice(&bytes)
+            .with_context(|| format!("{} is not an evaluation's job.json", path.display()))?;
+        if old != *job {
+            bail!(
+                "{} holds results of another evaluation (other items, views, methods, seed or \
+                 inference settings); choose another --output or remove it",
+                output.display()
+            );
+        }
+        return Ok(());
+    }
+    crate::output::write_json(&path, &serde_json::to_value(job)?)
+}
+
+fn write_rows(path: &Path, rows: &[Row]) -> Result<()> {
+    let mut text = format!("{ITEM_HEADER}\n");
+    for r in rows {
+        let _ = writeln!(
+            text,
+            "{},{},{},{:.6},{:.6},{:.4},{},{:.3}",
+            r.item,
+            r.views,
+            r.method,
+            r.scores.psnr,
+            r.scores.ssim,
+            r.scores.rmse_hu,
+            r.iterations,
+            r.seconds
+        );
+    }
+    write_atomic(path, |w| std::io::Write::write_all(w, text.as_bytes()))?;
+    Ok(())
+}
+
+fn parse_rows(path: &Path) -> Result<Vec<Row>> {
+    let text =
+        std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))?;
+    let mut rows = Vec::new();
+    for (n, line) in text.lines().enumerate().skip(1) {
+        let bad = || anyhow::anyhow!("{} line {}: not a score row", path.display(), n + 1);
+        let f: Vec<&str> = line.split(',').collect();
+        if f.len() != 8 {
+            return Err(bad());
+        }
+        let num = |i: usize| f[i].parse::<f64>().map_err(|_| bad());
+        rows.push(Row {
+            item: f[0].into(),
+            views: f[1].parse().map_err(|_| bad())?,
+            method: f[2].into(),
+            scores: Scores {
+                psnr: num(3)?,
+                ssim: num(4)?,
+                rmse_hu: num(5)?,
+            },
+            iterations: f[6].parse().map_err(|_| bad())?,
+            seconds: num(7)?,
+        });
+    }
+    Ok(rows)
+}
+
+/// Every score of a finished evaluation folder, in the job's item order; errors naming
+/// the items no shard has scored yet.
+pub fn load_rows(output: &Path) -> Result<Vec<Row>> {
+    let path = output.join("job.json");
+    let job: Job = serde_json::from_slice(
+        &std::fs::read(&path).with_context(|| format!("cannot read {}", path.display()))?,
+    )
+    .with_context(|| format!("{} is not an evaluation's job.json", path.display()))?;
+    let missing: Vec<&str> = job
+        .items
+        .iter()
+        .filter(|id| !item_path(output, id).exists())
+        .map(String::as_str)
+        .collect();
+    if !missing.is_empty() {
+        bail!(
+            "{}: {} of {} item(s) not scored yet ({}); run the missing shards first",
+            output.display(),
+            missing.len(),
+            job.items.len(),
+            missing.join(", ")
+        );
+    }
+    let mut rows = Vec::new();
+    for id in &job.items {
+        rows.extend(parse_rows(&item_path(output, id))?);
+    }
+    Ok(rows)
+}
+
+/// Mean ± std per (views, method) of `rows`, in order of first appearance.
+pub fn summarise(rows: &[Row]) -> Vec<(usize, String, Vec<Scores>)> {
+    let mut table: Vec<(usize, String, Vec<Scores>)> = Vec::new();
+    for r in rows {
+        match table
+            .iter_mut()
+            .find(|(v, m, _)| *v == r.views && *m == r.method)
+        {
+            Some(e) => e.2.push(r.scores),
+            None => table.push((r.views, r.method.clone(), vec![r.scores])),
+        }
+    }
+    table.sort_by_key(|(v, _, _)| *v);
+    table
+}
+
+/// Writes `results.csv` (every score) and `results.md` (mean ± std per view count and
+/// method) from the items' scores; returns the markdown.
+pub fn merge(output: &Path) -> Result<String> {
+    let rows = load_rows(output)?;
+    let mut csv = format!("{ITEM_HEADER}\n");
+    for r in &rows {
+        let _ = writeln!(
+            csv,
+            "{},{},{},{:.4},{:.5},{:.2},{},{:.2}",
+            r.item,
+            r.views,
+            r.method,
+            r.scores.psnr,
+            r.scores.ssim,
+            r.scores.rmse_hu,
+            r.iterations,
+            r.seconds
+        );
+    }
+    write_atomic(&output.join("results.csv"), |w| {
+        std::io::Write::write_all(w, csv.as_bytes())
+    })?;
     let mut md = "| views | method | PSNR (dB) | SSIM | RMSE (HU) |\n|---:|---|---:|---:|---:|\n"
         .to_string();
-    for (v, m, s) in &table {
+    for (v, m, s) in summarise(&rows) {
         let f = |g: fn(&Scores) -> f64| mean_std(&s.iter().map(g).collect::<Vec<_>>());
         let (p, ps) = f(|s| s.psnr);
         let (q, qs) = f(|s| s.ssim);
@@ -172,142 +467,30 @@ pub fn run(args: EvaluateArgs) -> Result<()> {
             "| {v} | {m} | {p:.2} ± {ps:.2} | {q:.3} ± {qs:.3} | {r:.1} ± {rs:.1} |"
         );
     }
-    let _ = writeln!(
-        md,
-        "\n{} test item(s); inference: {} iterations cap, PSNR threshold {} dB, tune {:?}, {:.3} s per iteration on average (including loading and the final volume rendering).",
-        items.len(),
-        infer.iterations,
-        infer.psnr_threshold,
-        infer.tune,
-        spi
-    );
-    std::fs::write(args.output.join("results.md"), &md)?;
-    println!("{md}");
-    Ok(())
-}
-
-/// Three orthogonal mid-slices (axial, coronal, sagittal) of a volume `n³`, `i` fastest,
-/// head up in coronal and sagittal.
-fn slices(v: &Volume) -> [Vec<f32>; 3] {
-    let [nx, ny, nz] = v.dims();
-    let d = v.data();
-    let at = |i: usize, j: usize, k: usize| d[i + nx * (j + ny * k)];
-    let (mi, mj, mk) = (nx / 2, ny / 2, nz / 2);
-    let axial = (0..ny)
-        .flat_map(|j| (0..nx).map(move |i| (i, j)))
-        .map(|(i, j)| at(i, j, mk))
-        .collect();
-    let coronal = (0..nz)
-        .rev()
-        .flat_map(|k| (0..nx).map(move |i| (i, k)))
-        .map(|(i, k)| at(i, mj, k))
-        .collect();
-    let sagittal = (0..nz)
-        .rev()
-        .flat_map(|k| (0..ny).map(move |j| (j, k)))
-        .map(|(j, k)| at(mi, j, k))
-        .collect();
-    [axial, coronal, sagittal]
-}
-
-/// `slices.png` (rows: axial, coronal, sagittal; columns: ground truth, TomoGRAF, mean
-/// volume, |TomoGRAF − truth| × 4; normalised units, window [0, 1]) and `profile.png`
-/// (the row through the centre of the axial slice).
-fn figures(item: &Item, model: &Volume, mean: &Volume, stem: &Path) -> Result<()> {
-    let gt = item.ct.as_ref().context("no ground truth")?;
-    let [nx, ny, nz] = gt.dims();
-    if nx != ny || ny != nz {
-        return Ok(());
-    }
-    let n = nx;
-    let residual = Volume::new(
-        gt.dims(),
-        gt.spacing(),
-        gt.origin(),
-        gt.direction(),
-        model
-            .data()
+    let model: Vec<&Row> = rows.iter().filter(|r| r.method == "TomoGRAF").collect();
+    let items = rows
+        .iter()
+        .map(|r| &r.item)
+        .collect::<std::collections::BTreeSet<_>>()
+        .len();
+    let _ = write!(md, "\n{items} test item(s)");
+    if !model.is_empty() {
+        let spi: Vec<f64> = model
             .iter()
-            .zip(gt.data())
-            .map(|(a, b)| ((a - b).abs() * 4.0).min(1.0))
-            .collect(),
-    )?;
-    let cols = [gt, model, mean, &residual].map(slices);
-    let gap = 2;
-    let (w, h) = (4 * n + 3 * gap, 3 * n + 2 * gap);
-    let mut img = vec![1.0f32; w * h];
-    for (c, s) in cols.iter().enumerate() {
-        for (r, tile) in s.iter().enumerate() {
-            for y in 0..n {
-                for x in 0..n {
-                    img[(r * (n + gap) + y) * w + c * (n + gap) + x] =
-                        tile[y * n + x].clamp(0.0, 1.0);
-                }
-            }
-        }
+            .map(|r| r.seconds / r.iterations.max(1) as f64)
+            .collect();
+        let its: Vec<f64> = model.iter().map(|r| r.iterations as f64).collect();
+        let _ = write!(
+            md,
+            "; inference: {:.0} iterations on average, {:.3} s per iteration (including \
+             loading and the final volume rendering)",
+            mean_std(&its).0,
+            mean_std(&spi).0
+        );
     }
-    let p = Projection {
-        rows: h,
-        cols: w,
-        data: img,
-    };
-    tomograf_datasets::image::write_png(
-        &PathBuf::from(format!("{}_slices.png", stem.display())),
-        &p,
-        (0.0, 1.0),
-    )?;
-    let line = |v: &Volume| -> Vec<(f64, f64)> {
-        let s = &slices(v)[0];
-        (0..n)
-            .map(|i| (i as f64, f64::from(s[(n / 2) * n + i])))
-            .collect()
-    };
-    plot_lines(
-        &PathBuf::from(format!("{}_profile.png", stem.display())),
-        &[
-            ("truth", line(gt)),
-            ("TomoGRAF", line(model)),
-            ("mean", line(mean)),
-        ],
-    )
-}
-
-/// A line plot of named series (no text: the colours are, in order, blue, red, green,
-/// black, magenta); writes a 640×400 PNG.
-pub fn plot_lines(path: &Path, series: &[(&str, Vec<(f64, f64)>)]) -> Result<()> {
-    let pts = series.iter().flat_map(|(_, s)| s.iter());
-    let (mut x0, mut x1, mut y0, mut y1) = (f64::MAX, f64::MIN, f64::MAX, f64::MIN);
-    for &(x, y) in pts {
-        if x.is_finite() && y.is_finite() {
-            x0 = x0.min(x);
-            x1 = x1.max(x);
-            y0 = y0.min(y);
-            y1 = y1.max(y);
-        }
-    }
-    if x0 >= x1 {
-        x1 = x0 + 1.0;
-    }
-    if y0 >= y1 {
-        y1 = y0 + 1.0;
-    }
-    let root = BitMapBackend::new(path, (640, 400)).into_drawing_area();
-    root.fill(&WHITE)
-        .map_err(|e| anyhow::anyhow!("plot: {e}"))?;
-    let mut chart = ChartBuilder::on(&root)
-        .margin(10)
-        .build_cartesian_2d(x0..x1, y0..y1)
-        .map_err(|e| anyhow::anyhow!("plot: {e}"))?;
-    let colours = [BLUE, RED, GREEN, BLACK, MAGENTA];
-    for (n, (_, s)) in series.iter().enumerate() {
-        chart
-            .draw_series(LineSeries::new(
-                s.iter().copied(),
-                colours[n % 5].stroke_width(2),
-            ))
-            .map_err(|e| anyhow::anyhow!("plot: {e}"))?;
-    }
-    root.present()
-        .map_err(|e| anyhow::anyhow!("plot {}: {e}", path.display()))?;
-    Ok(())
+    md.push_str(".\n");
+    write_atomic(&output.join("results.md"), |w| {
+        std::io::Write::write_all(w, md.as_bytes())
+    })?;
+    Ok(md)
 }

@@ -6,12 +6,14 @@ mod bench_physics;
 mod dataset;
 mod demo;
 mod evaluate;
+mod figures;
 mod output;
 mod physics;
 mod project;
 mod recon_cmd;
 mod reconstruct;
 mod scene;
+mod study;
 mod train;
 
 use anyhow::Result;
@@ -52,6 +54,9 @@ enum Command {
     Evaluate(evaluate::EvaluateArgs),
     /// Phantoms → projections → 1-view reconstruction with the shipped checkpoint → metrics.
     Demo(demo::DemoArgs),
+    /// The studies: realism gap (ideal DRR → real detector) and domain shift, with a report.
+    #[command(subcommand)]
+    Study(study::StudyCommand),
 }
 
 fn main() {
@@ -88,5 +93,6 @@ fn run(cli: Cli) -> Result<()> {
         Command::Reconstruct(args) => reconstruct::run(args),
         Command::Evaluate(args) => evaluate::run(args),
         Command::Demo(args) => demo::run(args),
+        Command::Study(c) => study::run(c),
     }
 }

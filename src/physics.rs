@@ -8,6 +8,7 @@ use anyhow::{Result, bail};
 use clap::Args;
 use tomograf_sim::acquisition::{Acquisition, PRESETS, SpectrumSpec};
 use tomograf_sim::detector::{DetectorModel, Output};
+use tomograf_sim::scatter::ScatterModel;
 use tomograf_sim::tissue::TissueModel;
 
 /// Flags of `tomograf project` and `tomograf dataset` for real detector physics.
@@ -17,7 +18,8 @@ pub struct PhysicsArgs {
     /// or cbct-100kvp. See docs/physics.md.
     #[arg(long)]
     pub preset: Option<String>,
-    /// Tungsten-anode tube voltage, kVp (40–150); replaces the preset's spectrum.
+    /// Tungsten-anode tube voltage, kVp (40–150); replaces the preset's (which keeps its
+    /// filtration and mA·s).
     #[arg(long)]
     pub kvp: Option<f64>,
     /// Exposure per view, mA·s.
@@ -33,6 +35,19 @@ pub struct PhysicsArgs {
     /// [default: log-line-integral].
     #[arg(long)]
     pub signal: Option<String>,
+    /// Detector model: ideal (no noise, no blur), kv-flat-panel, cbct or photon-counting;
+    /// replaces the preset's detector (e.g. `--preset kv-flat-panel-120kvp
+    /// --detector-model ideal`: the polychromatic beam without detector noise or blur).
+    #[arg(long)]
+    pub detector_model: Option<String>,
+    /// Scattered radiation: none (default), estimate (fast: coarse Monte Carlo, smoothed)
+    /// or monte-carlo (forced detection). See docs/scatter.md.
+    #[arg(long)]
+    pub scatter: Option<String>,
+    /// Photon histories per view of the scatter model [default: 5000 for estimate,
+    /// 100000 for monte-carlo].
+    #[arg(long)]
+    pub scatter_photons: Option<u64>,
 }
 
 impl PhysicsArgs {
@@ -47,8 +62,19 @@ impl PhysicsArgs {
         if self.signal.is_some() {
             s.acquisition.signal = self.signal.clone();
         }
+        if self.detector_model.is_some() {
+            s.detector.model = self.detector_model.clone();
+        }
+        if let Some(model) = scatter_model(self.scatter.as_deref(), self.scatter_photons)? {
+            s.scatter = Some(model);
+        }
         if let Some(kvp) = self.kvp {
-            let old = s.spectrum.take();
+            // A preset's beam keeps its filtration and exposure at the new voltage.
+            let old = match (s.spectrum.take(), s.acquisition.preset.as_deref()) {
+                (Some(old), _) => Some(old),
+                (None, Some(p)) if p != "ideal-drr" => Some(Acquisition::preset(p)?.spectrum),
+                (None, _) => None,
+            };
             s.spectrum = Some(SpectrumSpec {
                 kvp: Some(kvp),
                 energy_kev: None,
@@ -74,6 +100,33 @@ impl PhysicsArgs {
         }
         Ok(())
     }
+}
+
+/// The scatter model `--scatter NAME` and `--scatter-photons N` ask for; `None` when
+/// neither is given or the name is `none` (the default: primary only). The other settings
+/// take sim's defaults for the model (those of a scene's `[scatter]` table).
+pub fn scatter_model(name: Option<&str>, photons: Option<u64>) -> Result<Option<ScatterModel>> {
+    let name = match (name, photons) {
+        (None, None) | (Some("none"), None) => return Ok(None),
+        (None | Some("none"), Some(_)) => {
+            bail!("--scatter-photons needs --scatter estimate or --scatter monte-carlo")
+        }
+        (Some(n @ ("estimate" | "monte-carlo")), _) => n,
+        (Some(other), _) => {
+            bail!("unknown --scatter '{other}': use none, estimate or monte-carlo")
+        }
+    };
+    let mut model: ScatterModel = toml::from_str(&format!("model = \"{name}\""))?;
+    if let Some(n) = photons {
+        match &mut model {
+            ScatterModel::Estimate { photons, .. } | ScatterModel::MonteCarlo { photons, .. } => {
+                *photons = n
+            }
+            _ => {}
+        }
+    }
+    model.validate()?;
+    Ok(Some(model))
 }
 
 /// The acquisition the flags alone ask for (no scene file), with its noise seed.
@@ -182,4 +235,44 @@ pub fn acquisition(scene: &Scene) -> Result<Option<(Acquisition, u64)>> {
 /// The noise seed of data-set item `index` from the run's noise seed.
 pub fn item_seed(seed: u64, index: usize) -> u64 {
     tomograf_sim::acquisition::frame_seed(seed ^ 0xD47A_5E7D_A7A5_E7D0, index as u64)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn scatter_flags_pick_the_model_and_keep_sims_defaults() {
+        assert_eq!(scatter_model(None, None).unwrap(), None);
+        assert_eq!(scatter_model(Some("none"), None).unwrap(), None);
+        // The defaults are those of a scene's `[scatter] model = "estimate"` table.
+        let scene: ScatterModel = toml::from_str("model = \"estimate\"").unwrap();
+        assert_eq!(scatter_model(Some("estimate"), None).unwrap(), Some(scene));
+        match scatter_model(Some("monte-carlo"), Some(123)).unwrap() {
+            Some(ScatterModel::MonteCarlo { photons, .. }) => assert_eq!(photons, 123),
+            other => panic!("{other:?}"),
+        }
+        let e = scatter_model(Some("estimate"), Some(0))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("photons = 0"), "{e}");
+        let e = scatter_model(Some("fog"), None).unwrap_err().to_string();
+        assert!(e.contains("unknown --scatter 'fog'"), "{e}");
+    }
+
+    #[test]
+    fn kvp_on_a_preset_keeps_its_filtration_and_exposure() {
+        let args = PhysicsArgs {
+            preset: Some("kv-flat-panel-120kvp".into()),
+            kvp: Some(80.0),
+            detector_model: Some("ideal".into()),
+            ..PhysicsArgs::default()
+        };
+        let (acq, _) = from_args(&args).unwrap().unwrap();
+        let preset = Acquisition::preset("kv-flat-panel-120kvp").unwrap();
+        assert_eq!(acq.spectrum.kvp, Some(80.0));
+        assert_eq!(acq.spectrum.filtration, preset.spectrum.filtration);
+        assert_eq!(acq.spectrum.mas, preset.spectrum.mas);
+        assert_eq!(acq.detector, DetectorModel::ideal());
+    }
 }

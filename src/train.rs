@@ -174,7 +174,7 @@ fn save(
             })
             .collect()
     };
-    crate::evaluate::plot_lines(
+    crate::figures::plot_lines(
         &out.join("loss.png"),
         &[
             ("loss_d", series(2)),

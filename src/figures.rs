@@ -1,0 +1,211 @@
+//! PNG figures of `tomograf evaluate`, `tomograf train` and `tomograf study`: orthogonal
+//! slices with a residual map, line plots and histograms (plotters, bitmap backend).
+//!
+//! The build has no font backend, so plots carry no text: series colours are fixed, in
+//! order, by [`COLOUR_NAMES`], and every caller states them in its report.
+
+use anyhow::{Context, Result};
+use plotters::prelude::*;
+use std::path::{Path, PathBuf};
+use tomograf_model::data::Item;
+use tomograf_sim::{Projection, Volume};
+
+/// Series colours, in order.
+const COLOURS: [RGBColor; 8] = [
+    BLUE,
+    RED,
+    GREEN,
+    BLACK,
+    MAGENTA,
+    CYAN,
+    RGBColor(255, 140, 0),
+    RGBColor(128, 128, 128),
+];
+
+/// Names of [`COLOURS`], for captions.
+pub const COLOUR_NAMES: [&str; 8] = [
+    "blue", "red", "green", "black", "magenta", "cyan", "orange", "grey",
+];
+
+/// Three orthogonal mid-slices (axial, coronal, sagittal) of a volume `n³`, `i` fastest,
+/// head up in coronal and sagittal.
+fn slices(v: &Volume) -> [Vec<f32>; 3] {
+    let [nx, ny, nz] = v.dims();
+    let d = v.data();
+    let at = |i: usize, j: usize, k: usize| d[i + nx * (j + ny * k)];
+    let (mi, mj, mk) = (nx / 2, ny / 2, nz / 2);
+    let axial = (0..ny)
+        .flat_map(|j| (0..nx).map(move |i| (i, j)))
+        .map(|(i, j)| at(i, j, mk))
+        .collect();
+    let coronal = (0..nz)
+        .rev()
+        .flat_map(|k| (0..nx).map(move |i| (i, k)))
+        .map(|(i, k)| at(i, mj, k))
+        .collect();
+    let sagittal = (0..nz)
+        .rev()
+        .flat_map(|k| (0..ny).map(move |j| (j, k)))
+        .map(|(j, k)| at(mi, j, k))
+        .collect();
+    [axial, coronal, sagittal]
+}
+
+/// `<stem>_slices.png` (rows: axial, coronal, sagittal; columns: ground truth, each of
+/// `recons` in order, |first − truth| × 4; normalised units, window [0, 1]) and
+/// `<stem>_profile.png` (the row through the centre of the axial slice: truth, then
+/// `recons`, coloured as [`COLOUR_NAMES`]). Volumes that are not cubes are skipped.
+pub fn slices_and_profile(item: &Item, recons: &[&Volume], stem: &Path) -> Result<()> {
+    let gt = item.ct.as_ref().context("no ground truth")?;
+    let [nx, ny, nz] = gt.dims();
+    if nx != ny || ny != nz || recons.is_empty() {
+        return Ok(());
+    }
+    let n = nx;
+    let residual = Volume::new(
+        gt.dims(),
+        gt.spacing(),
+        gt.origin(),
+        gt.direction(),
+        recons[0]
+            .data()
+            .iter()
+            .zip(gt.data())
+            .map(|(a, b)| ((a - b).abs() * 4.0).min(1.0))
+            .collect(),
+    )?;
+    let mut columns = vec![gt];
+    columns.extend(recons.iter().copied());
+    columns.push(&residual);
+    let cols: Vec<[Vec<f32>; 3]> = columns.iter().map(|v| slices(v)).collect();
+    let gap = 2;
+    let k = cols.len();
+    let (w, h) = (k * n + (k - 1) * gap, 3 * n + 2 * gap);
+    let mut img = vec![1.0f32; w * h];
+    for (c, s) in cols.iter().enumerate() {
+        for (r, tile) in s.iter().enumerate() {
+            for y in 0..n {
+                for x in 0..n {
+                    img[(r * (n + gap) + y) * w + c * (n + gap) + x] =
+                        tile[y * n + x].clamp(0.0, 1.0);
+                }
+            }
+        }
+    }
+    let p = Projection {
+        rows: h,
+        cols: w,
+        data: img,
+    };
+    tomograf_datasets::image::write_png(
+        &PathBuf::from(format!("{}_slices.png", stem.display())),
+        &p,
+        (0.0, 1.0),
+    )?;
+    let line = |v: &Volume| -> Vec<(f64, f64)> {
+        let s = &slices(v)[0];
+        (0..n)
+            .map(|i| (i as f64, f64::from(s[(n / 2) * n + i])))
+            .collect()
+    };
+    let mut series = vec![("truth", line(gt))];
+    series.extend(recons.iter().map(|v| ("", line(v))));
+    plot_lines(
+        &PathBuf::from(format!("{}_profile.png", stem.display())),
+        &series,
+    )
+}
+
+/// A line plot of named series (no text: the colours are, in order, [`COLOUR_NAMES`]);
+/// writes a 640×400 PNG. Non-finite points are left out.
+pub fn plot_lines(path: &Path, series: &[(&str, Vec<(f64, f64)>)]) -> Result<()> {
+    draw(path, series, false)
+}
+
+/// As [`plot_lines`], with a dot at every point (for series of a few measured values).
+pub fn plot_points(path: &Path, series: &[(&str, Vec<(f64, f64)>)]) -> Result<()> {
+    draw(path, series, true)
+}
+
+fn draw(path: &Path, series: &[(&str, Vec<(f64, f64)>)], markers: bool) -> Result<()> {
+    let pts = series.iter().flat_map(|(_, s)| s.iter());
+    let (mut x0, mut x1, mut y0, mut y1) = (f64::MAX, f64::MIN, f64::MAX, f64::MIN);
+    for &(x, y) in pts {
+        if x.is_finite() && y.is_finite() {
+            x0 = x0.min(x);
+            x1 = x1.max(x);
+            y0 = y0.min(y);
+            y1 = y1.max(y);
+        }
+    }
+    if x0 >= x1 {
+        x1 = x0 + 1.0;
+    }
+    if y0 >= y1 {
+        y1 = y0 + 1.0;
+    }
+    // A margin of 5 % so lines on the range's edges stay visible.
+    let pad = 0.05 * (y1 - y0);
+    let (y0, y1) = (y0 - pad, y1 + pad);
+    let root = BitMapBackend::new(path, (640, 400)).into_drawing_area();
+    root.fill(&WHITE)
+        .map_err(|e| anyhow::anyhow!("plot: {e}"))?;
+    let mut chart = ChartBuilder::on(&root)
+        .margin(10)
+        .build_cartesian_2d(x0..x1, y0..y1)
+        .map_err(|e| anyhow::anyhow!("plot: {e}"))?;
+    for (n, (_, s)) in series.iter().enumerate() {
+        let colour = COLOURS[n % COLOURS.len()];
+        let finite: Vec<(f64, f64)> = s
+            .iter()
+            .copied()
+            .filter(|(x, y)| x.is_finite() && y.is_finite())
+            .collect();
+        chart
+            .draw_series(LineSeries::new(
+                finite.iter().copied(),
+                colour.stroke_width(2),
+            ))
+            .map_err(|e| anyhow::anyhow!("plot: {e}"))?;
+        if markers {
+            chart
+                .draw_series(finite.iter().map(|&p| Circle::new(p, 4, colour.filled())))
+                .map_err(|e| anyhow::anyhow!("plot: {e}"))?;
+        }
+    }
+    root.present()
+        .map_err(|e| anyhow::anyhow!("plot {}: {e}", path.display()))?;
+    Ok(())
+}
+
+/// Histograms of `series` (values in `[lo, hi]`, `bins` equal bins) drawn as step outlines
+/// in one plot, coloured as [`plot_lines`]; y is the fraction of each series per bin.
+pub fn plot_histograms(
+    path: &Path,
+    series: &[(&str, Vec<f64>)],
+    lo: f64,
+    hi: f64,
+    bins: usize,
+) -> Result<()> {
+    let width = (hi - lo) / bins as f64;
+    let steps: Vec<(&str, Vec<(f64, f64)>)> = series
+        .iter()
+        .map(|(name, values)| {
+            let mut counts = vec![0usize; bins];
+            for &v in values.iter().filter(|v| v.is_finite()) {
+                let b = (((v - lo) / width).floor().max(0.0) as usize).min(bins - 1);
+                counts[b] += 1;
+            }
+            let total = values.len().max(1) as f64;
+            let mut pts = vec![(lo, 0.0)];
+            for (b, &c) in counts.iter().enumerate() {
+                let f = c as f64 / total;
+                pts.push((lo + b as f64 * width, f));
+                pts.push((lo + (b + 1) as f64 * width, f));
+            }
+            pts.push((hi, 0.0));
+            (*name, pts)
+        })
+        .collect();
+    plot_lines(path, &steps)
+}

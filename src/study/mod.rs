@@ -1,0 +1,420 @@
+//! `tomograf study realism-gap` and `tomograf study domain-shift`: generate the data sets,
+//! train the models, evaluate every model on every test set (with FDK and SART-TV from
+//! the same views) and write a report with tables and plots.
+//!
+//! A study folder holds `study.json` (its settings), `data/{train,test}/<set>/`,
+//! `models/<set>/` (a `tomograf train` run; `done.json` when finished),
+//! `eval/<test set>/{classical,model-<train set>}/` (`tomograf evaluate` folders),
+//! `results.csv`, `report.md`, `report.html` and `figures/`. Every step is resumable —
+//! finished items, models and scores are kept and skipped — and every file is written
+//! atomically. Stages (`--stage data|train|evaluate|report`) and `--shard I/N` split the
+//! work across machines: see docs/studies.md.
+
+pub mod levels;
+mod render;
+mod report;
+
+use crate::dataset::DatasetArgs;
+use crate::evaluate::{Evaluation, evaluate, parse_shard};
+use crate::train::TrainArgs;
+use anyhow::{Context, Result, bail};
+use clap::{Args, Subcommand};
+use levels::DataSpec;
+use serde::{Deserialize, Serialize};
+use std::path::{Path, PathBuf};
+
+#[derive(Debug, Subcommand)]
+pub enum StudyCommand {
+    /// Models trained on ever more realistic projections (ideal DRR → + polychromatic →
+    /// + detector noise and blur → + scatter), each evaluated on every level.
+    RealismGap(RealismArgs),
+    /// A model trained on lidc phantoms, tested on shifted populations and exposures.
+    DomainShift(ShiftArgs),
+}
+
+#[derive(Debug, Args)]
+pub struct RealismArgs {
+    #[command(flatten)]
+    pub common: CommonArgs,
+    /// Realism levels to include (default: all): ideal-drr, polychromatic, noise-blur,
+    /// scatter.
+    #[arg(long, value_delimiter = ',')]
+    pub levels: Vec<String>,
+}
+
+#[derive(Debug, Args)]
+pub struct ShiftArgs {
+    #[command(flatten)]
+    pub common: CommonArgs,
+    /// Test sets to include (default: all): lidc, full-chest, table, pacemaker,
+    /// paper-in-house, kvp-80, low-mas.
+    #[arg(long, value_delimiter = ',')]
+    pub shifts: Vec<String>,
+}
+
+#[derive(Debug, Args)]
+pub struct CommonArgs {
+    /// Study folder (re-running it resumes: finished work is kept).
+    #[arg(short, long)]
+    pub output: PathBuf,
+    /// tiny (CI: 16³, a few phantoms, the tiny model; about a minute) or small (the real
+    /// figure: 64³, the small model; hours on a CPU).
+    #[arg(long, default_value = "tiny")]
+    pub scale: String,
+    /// Seed of the phantoms, the detector noise, training and inference.
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    /// Run one stage only: data, train, evaluate or report (default: all, in order).
+    #[arg(long, default_value = "all")]
+    pub stage: String,
+    /// Take part I/N (0-based) of the stage's work, for running across machines: data
+    /// items, models and test items are dealt round-robin. Needs --stage.
+    #[arg(long)]
+    pub shard: Option<String>,
+    /// Backend: flex (CPU, default), ndarray, cuda, wgpu (as compiled in).
+    #[arg(long)]
+    pub backend: Option<String>,
+}
+
+/// Sizes of a study.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Scale {
+    pub name: String,
+    /// CT grid (size³) and detector (size²).
+    pub size: usize,
+    /// Projections per rotation in the data sets (a multiple of 10 for the 5- and 10-view
+    /// sets), besides AP and lateral.
+    pub views: usize,
+    pub train_phantoms: usize,
+    pub test_phantoms: usize,
+    /// Model configuration preset (`tomograf train --config`).
+    pub config: String,
+    /// Photon histories per view of the scatter estimate.
+    pub scatter_photons: u64,
+}
+
+impl Scale {
+    pub fn parse(name: &str) -> Result<Self> {
+        let (size, views, train, test, config, photons) = match name {
+            "tiny" => (16, 10, 4, 2, "tiny", 100),
+            "small" => (64, 36, 32, 8, "small", 5_000),
+            other => bail!("unknown --scale '{other}': use tiny or small"),
+        };
+        Ok(Self {
+            name: name.into(),
+            size,
+            views,
+            train_phantoms: train,
+            test_phantoms: test,
+            config: config.into(),
+            scatter_photons: photons,
+        })
+    }
+}
+
+/// Which study.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Kind {
+    RealismGap,
+    DomainShift,
+}
+
+/// What a study folder holds (`study.json`): a re-run must ask for the same.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Settings {
+    pub kind: Kind,
+    pub scale: Scale,
+    pub seed: u64,
+    pub train_sets: Vec<String>,
+    pub test_sets: Vec<String>,
+}
+
+/// A study: its folder, settings and data sets.
+pub struct Study {
+    pub dir: PathBuf,
+    pub settings: Settings,
+    pub train: Vec<DataSpec>,
+    pub test: Vec<DataSpec>,
+    pub backend: Option<String>,
+}
+
+/// View counts every study evaluates (the paper's).
+pub const VIEWS: [usize; 4] = [1, 2, 5, 10];
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Stage {
+    All,
+    Data,
+    Train,
+    Evaluate,
+    Report,
+}
+
+pub fn run(command: StudyCommand) -> Result<()> {
+    let (kind, common, train, test) = match command {
+        StudyCommand::RealismGap(a) => {
+            let scale = Scale::parse(&a.common.scale)?;
+            let levels = levels::select(
+                levels::realism_levels(scale.scatter_photons),
+                &a.levels,
+                "realism level",
+            )?;
+            (Kind::RealismGap, a.common, levels.clone(), levels)
+        }
+        StudyCommand::DomainShift(a) => {
+            let shifts = levels::select(levels::shifts(), &a.shifts, "shift")?;
+            (
+                Kind::DomainShift,
+                a.common,
+                vec![levels::shift_training()],
+                shifts,
+            )
+        }
+    };
+    let scale = Scale::parse(&common.scale)?;
+    let stage = match common.stage.as_str() {
+        "all" => Stage::All,
+        "data" => Stage::Data,
+        "train" => Stage::Train,
+        "evaluate" => Stage::Evaluate,
+        "report" => Stage::Report,
+        other => bail!("unknown --stage '{other}': use all, data, train, evaluate or report"),
+    };
+    let shard = common
+        .shard
+        .as_deref()
+        .map(parse_shard)
+        .transpose()?
+        .unwrap_or((0, 1));
+    if shard.1 > 1 && matches!(stage, Stage::All | Stage::Report) {
+        bail!(
+            "--shard splits one stage: give --stage data, train or evaluate (each after the \
+             previous one has finished on every shard), then --stage report once"
+        );
+    }
+    let settings = Settings {
+        kind,
+        scale,
+        seed: common.seed,
+        train_sets: train.iter().map(|s| s.name.to_string()).collect(),
+        test_sets: test.iter().map(|s| s.name.to_string()).collect(),
+    };
+    let study = Study {
+        dir: common.output.clone(),
+        settings,
+        train,
+        test,
+        backend: common.backend.clone(),
+    };
+    study.check_settings()?;
+    let all = stage == Stage::All;
+    if all || stage == Stage::Data {
+        study.data(shard)?;
+    }
+    if all || stage == Stage::Train {
+        study.train(shard)?;
+    }
+    if all || stage == Stage::Evaluate {
+        study.evaluate(shard)?;
+    }
+    if all || stage == Stage::Report {
+        report::write(&study)?;
+        eprintln!(
+            "report: {0}/report.md, {0}/report.html, {0}/results.csv, figures in {0}/figures",
+            study.dir.display()
+        );
+    }
+    Ok(())
+}
+
+impl Study {
+    /// Writes `study.json`, or checks that the folder's is the same study.
+    fn check_settings(&self) -> Result<()> {
+        std::fs::create_dir_all(&self.dir)
+            .with_context(|| format!("cannot create {}", self.dir.display()))?;
+        let path = self.dir.join("study.json");
+        if let Ok(bytes) = std::fs::read(&path) {
+            let old: Settings = serde_json::from_slice(&bytes)
+                .with_context(|| format!("{} is not a study's settings", path.display()))?;
+            if old != self.settings {
+                bail!(
+                    "{} holds another study ({:?}, scale {}, seed {}, sets {:?} → {:?}); choose \
+                     another --output or the same settings",
+                    self.dir.display(),
+                    old.kind,
+                    old.scale.name,
+                    old.seed,
+                    old.train_sets,
+                    old.test_sets
+                );
+            }
+            return Ok(());
+        }
+        crate::output::write_json(&path, &serde_json::to_value(&self.settings)?)
+    }
+
+    fn data_dir(&self, split: &str, spec: &DataSpec) -> PathBuf {
+        self.dir.join("data").join(split).join(spec.name)
+    }
+
+    fn model_dir(&self, spec: &DataSpec) -> PathBuf {
+        self.dir.join("models").join(spec.name)
+    }
+
+    /// The evaluation folder of a model (`Some(train set)`) or of the classical baselines
+    /// on a test set.
+    pub fn eval_dir(&self, test: &str, train: Option<&str>) -> PathBuf {
+        let cell = train.map_or("classical".to_string(), |t| format!("model-{t}"));
+        self.dir.join("eval").join(test).join(cell)
+    }
+
+    fn dataset_args(&self, split: &str, spec: &DataSpec, shard: Option<String>) -> DatasetArgs {
+        let s = &self.settings;
+        let test = split == "test";
+        // Train and test phantoms are disjoint; the same phantoms at every realism level.
+        let first = s
+            .seed
+            .wrapping_mul(100_000)
+            .wrapping_add(if test { 50_000 } else { 0 });
+        let mut physics = spec.physics.clone();
+        if spec.real_physics() {
+            physics.noise_seed = Some(s.seed.wrapping_mul(2).wrapping_add(u64::from(test)));
+        }
+        DatasetArgs {
+            inputs: Vec::new(),
+            output: self.data_dir(split, spec),
+            phantoms: if test {
+                s.scale.test_phantoms
+            } else {
+                s.scale.train_phantoms
+            },
+            seed: first,
+            profile: spec.profile.into(),
+            table: spec.table,
+            pacemaker: spec.pacemaker,
+            views: s.scale.views,
+            size: s.scale.size,
+            hu_window: Vec::new(),
+            crop_hu: -900.0,
+            energy_kev: 60.0,
+            sad: 1000.0,
+            sid: 1500.0,
+            split: split.into(),
+            shard,
+            physics,
+        }
+    }
+
+    /// Every data set, or this shard's items of each.
+    fn data(&self, (i, n): (usize, usize)) -> Result<()> {
+        let shard = (n > 1).then(|| format!("{i}/{n}"));
+        for (split, specs) in [("train", &self.train), ("test", &self.test)] {
+            for spec in specs {
+                eprintln!("data: {split} set '{}'", spec.name);
+                crate::dataset::run(self.dataset_args(split, spec, shard.clone()))
+                    .with_context(|| format!("{split} set '{}'", spec.name))?;
+            }
+        }
+        Ok(())
+    }
+
+    /// Makes sure a data set is complete (generating what a shard left out) and its
+    /// manifest lists every item.
+    fn finish_data(&self, split: &str, spec: &DataSpec) -> Result<PathBuf> {
+        let args = self.dataset_args(split, spec, None);
+        let dir = args.output.clone();
+        crate::dataset::run(args).with_context(|| format!("{split} set '{}'", spec.name))?;
+        Ok(dir)
+    }
+
+    /// Trains every model not yet trained (this shard's: model k goes to shard k mod N).
+    fn train(&self, (i, n): (usize, usize)) -> Result<()> {
+        for (k, spec) in self.train.iter().enumerate() {
+            if k % n != i {
+                continue;
+            }
+            let dir = self.model_dir(spec);
+            if dir.join("done.json").exists() {
+                eprintln!("train: model '{}' already trained", spec.name);
+                continue;
+            }
+            let data = self.finish_data("train", spec)?;
+            let resume = dir.join("checkpoint").exists();
+            eprintln!(
+                "train: model '{}' ({})",
+                spec.name,
+                if resume { "resuming" } else { "new" }
+            );
+            crate::train::run(TrainArgs {
+                data,
+                output: dir.clone(),
+                config: self.settings.scale.config.clone(),
+                iterations: None,
+                seed: Some(self.settings.seed),
+                split: None,
+                resume,
+                backend: self.backend.clone(),
+            })
+            .with_context(|| format!("training model '{}'", spec.name))?;
+            crate::output::write_json(
+                &dir.join("done.json"),
+                &serde_json::json!({"train_set": spec.name}),
+            )?;
+        }
+        Ok(())
+    }
+
+    /// Scores every model and the classical baselines on every test set (this shard's
+    /// items of each).
+    fn evaluate(&self, shard: (usize, usize)) -> Result<()> {
+        for spec in &self.train {
+            if !self.model_dir(spec).join("done.json").exists() {
+                bail!(
+                    "model '{}' is not trained yet: run --stage train (on every shard) first",
+                    spec.name
+                );
+            }
+        }
+        let mut scored = 0;
+        for test in &self.test {
+            let data = self.finish_data("test", test)?;
+            let mut cells: Vec<(Option<PathBuf>, PathBuf)> =
+                vec![(None, self.eval_dir(test.name, None))];
+            for m in &self.train {
+                cells.push((
+                    Some(self.model_dir(m).join("checkpoint")),
+                    self.eval_dir(test.name, Some(m.name)),
+                ));
+            }
+            for (checkpoint, output) in &cells {
+                eprintln!("evaluate: {}", output.display());
+                scored += evaluate(&Evaluation {
+                    data: &data,
+                    checkpoint: checkpoint.as_deref(),
+                    output,
+                    views: &VIEWS,
+                    split: None,
+                    items: None,
+                    iterations: None,
+                    tune: None,
+                    seed: self.settings.seed,
+                    backend: self.backend.as_deref(),
+                    shard,
+                    classical: checkpoint.is_none(),
+                    show: false,
+                })?;
+            }
+        }
+        eprintln!("evaluate: {scored} item evaluation(s) run, the rest were already scored");
+        Ok(())
+    }
+}
+
+/// Whether `path` is inside the study folder `dir` (for relative links in the report).
+pub fn relative(dir: &Path, path: &Path) -> String {
+    path.strip_prefix(dir)
+        .unwrap_or(path)
+        .to_string_lossy()
+        .into_owned()
+}

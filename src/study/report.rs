@@ -1,0 +1,550 @@
+//! The study report: `results.csv` (mean ± std per train set × test set × views × method),
+//! `report.md` and `report.html` (the same content) with metric tables, plots (metric vs
+//! views, metric vs realism level or shift, SSIM histograms as the paper's Fig. 4) and the
+//! evaluations' example slices, residual maps and line profiles.
+
+use super::render::{Block, render};
+use super::{Kind, Study, VIEWS, relative};
+use crate::evaluate::{Row, Scores, load_rows, merge};
+use crate::figures::{COLOUR_NAMES, plot_histograms, plot_points};
+use anyhow::{Context, Result};
+use std::fmt::Write as _;
+use std::path::Path;
+use tomograf_datasets::atomic::write_atomic;
+use tomograf_model::metrics::mean_std;
+
+/// Scores of one method on one test set from one view count, over the test items.
+struct Stat {
+    /// Training set of the model (`None` for the classical baselines).
+    train: Option<String>,
+    test: String,
+    views: usize,
+    method: String,
+    scores: Vec<Scores>,
+}
+
+#[derive(Clone, Copy)]
+enum Metric {
+    Ssim,
+    Psnr,
+    Rmse,
+}
+
+impl Metric {
+    const ALL: [Metric; 3] = [Metric::Ssim, Metric::Psnr, Metric::Rmse];
+    fn of(self, s: &Scores) -> f64 {
+        match self {
+            Metric::Ssim => s.ssim,
+            Metric::Psnr => s.psnr,
+            Metric::Rmse => s.rmse_hu,
+        }
+    }
+    fn name(self) -> &'static str {
+        match self {
+            Metric::Ssim => "SSIM",
+            Metric::Psnr => "PSNR (dB)",
+            Metric::Rmse => "RMSE (HU)",
+        }
+    }
+    fn file(self) -> &'static str {
+        match self {
+            Metric::Ssim => "ssim",
+            Metric::Psnr => "psnr",
+            Metric::Rmse => "rmse",
+        }
+    }
+    fn format(self, (m, s): (f64, f64)) -> String {
+        match self {
+            Metric::Ssim => format!("{m:.3} ± {s:.3}"),
+            Metric::Psnr => format!("{m:.2} ± {s:.2}"),
+            Metric::Rmse => format!("{m:.1} ± {s:.1}"),
+        }
+    }
+}
+
+impl Stat {
+    fn mean_std(&self, m: Metric) -> (f64, f64) {
+        mean_std(&self.scores.iter().map(|s| m.of(s)).collect::<Vec<_>>())
+    }
+}
+
+fn stats_of(rows: &[Row], train: Option<&str>, test: &str, out: &mut Vec<Stat>) {
+    for r in rows {
+        match out.iter_mut().find(|s| {
+            s.train.as_deref() == train
+                && s.test == test
+                && s.views == r.views
+                && s.method == r.method
+        }) {
+            Some(s) => s.scores.push(r.scores),
+            None => out.push(Stat {
+                train: train.map(str::to_string),
+                test: test.into(),
+                views: r.views,
+                method: r.method.clone(),
+                scores: vec![r.scores],
+            }),
+        }
+    }
+}
+
+/// Writes the study's results, figures and report from its evaluation folders.
+pub fn write(study: &Study) -> Result<()> {
+    let s = &study.settings;
+    let mut stats = Vec::new();
+    let mut first_item = None;
+    for test in &s.test_sets {
+        let cells = std::iter::once(None).chain(s.train_sets.iter().map(|t| Some(t.as_str())));
+        for train in cells {
+            let dir = study.eval_dir(test, train);
+            merge(&dir).with_context(|| {
+                format!(
+                    "{}: run the evaluate stage (on every shard) first",
+                    dir.display()
+                )
+            })?;
+            let rows = load_rows(&dir)?;
+            first_item = first_item.or_else(|| rows.first().map(|r| r.item.clone()));
+            stats_of(&rows, train, test, &mut stats);
+        }
+    }
+    write_csv(&study.dir, &stats)?;
+    let figures = study.dir.join("figures");
+    std::fs::create_dir_all(&figures)?;
+    let mut blocks = intro(study);
+    blocks.extend(tables(study, &stats));
+    blocks.extend(plots(study, &stats)?);
+    if let Some(id) = first_item {
+        blocks.extend(examples(study, &id));
+    }
+    let (md, html) = render(&blocks, title(s.kind));
+    write_atomic(&study.dir.join("report.md"), |w| {
+        std::io::Write::write_all(w, md.as_bytes())
+    })?;
+    write_atomic(&study.dir.join("report.html"), |w| {
+        std::io::Write::write_all(w, html.as_bytes())
+    })?;
+    Ok(())
+}
+
+fn title(kind: Kind) -> &'static str {
+    match kind {
+        Kind::RealismGap => "Realism gap: TomoGRAF trained on ideal DRRs vs realistic projections",
+        Kind::DomainShift => {
+            "Domain shift: TomoGRAF trained on lidc phantoms, tested on shifted sets"
+        }
+    }
+}
+
+fn write_csv(dir: &Path, stats: &[Stat]) -> Result<()> {
+    let mut csv = String::from(
+        "train_set,test_set,views,method,items,psnr_db_mean,psnr_db_std,ssim_mean,ssim_std,rmse_hu_mean,rmse_hu_std\n",
+    );
+    for st in stats {
+        let (p, ps) = st.mean_std(Metric::Psnr);
+        let (q, qs) = st.mean_std(Metric::Ssim);
+        let (r, rs) = st.mean_std(Metric::Rmse);
+        let _ = writeln!(
+            csv,
+            "{},{},{},{},{},{p:.4},{ps:.4},{q:.5},{qs:.5},{r:.2},{rs:.2}",
+            st.train.as_deref().unwrap_or(""),
+            st.test,
+            st.views,
+            st.method,
+            st.scores.len()
+        );
+    }
+    write_atomic(&dir.join("results.csv"), |w| {
+        std::io::Write::write_all(w, csv.as_bytes())
+    })?;
+    Ok(())
+}
+
+fn intro(study: &Study) -> Vec<Block> {
+    let s = &study.settings;
+    let sc = &s.scale;
+    let mut b = vec![Block::Para(format!(
+        "Scale `{}` (CT {n}³, detector {n}², {} training and {} test phantoms per set, {} \
+         views per rotation + AP + lateral, model configuration `{}`), seed {}. Views as in \
+         the paper: 1 = AP, 2 = AP + lateral, 5 = every 72°, 10 = every 36°. Metrics on the \
+         [0, 1]-normalised CT (HU window −1024..2048): PSNR, 3D SSIM (7³ windows), RMSE in \
+         HU; mean ± std over the test phantoms. FDK and SART-TV use the same views and do \
+         not depend on the training set. Regenerate with `tomograf study {} -o DIR --scale \
+         {} --seed {}`.",
+        sc.name,
+        sc.train_phantoms,
+        sc.test_phantoms,
+        sc.views,
+        sc.config,
+        s.seed,
+        match s.kind {
+            Kind::RealismGap => "realism-gap",
+            Kind::DomainShift => "domain-shift",
+        },
+        sc.name,
+        s.seed,
+        n = sc.size,
+    ))];
+    if sc.name == "tiny" {
+        b.push(Block::Para(
+            "**Tiny scale**: a smoke test of the pipeline (16³ volumes, a model trained for \
+             20 iterations); its numbers say nothing about the methods."
+                .into(),
+        ));
+    }
+    b.push(Block::Heading("Data sets".into()));
+    let mut rows = Vec::new();
+    for (role, specs) in [("train", &study.train), ("test", &study.test)] {
+        for d in specs {
+            rows.push(vec![
+                role.to_string(),
+                format!("`{}`", d.name),
+                d.profile.to_string(),
+                if d.table { "yes" } else { "no" }.into(),
+                if d.pacemaker { "yes" } else { "no" }.into(),
+                d.about.to_string(),
+            ]);
+        }
+    }
+    b.push(Block::Table(
+        [
+            "role",
+            "set",
+            "profile",
+            "table",
+            "pacemaker",
+            "physics / content",
+        ]
+        .map(String::from)
+        .to_vec(),
+        rows,
+    ));
+    b
+}
+
+/// Row labels of the metric tables: the models (and, with one training set, its mean
+/// volume), then the classical baselines.
+fn row_keys(study: &Study) -> Vec<(Option<String>, String, String)> {
+    let s = &study.settings;
+    let mut keys: Vec<(Option<String>, String, String)> = s
+        .train_sets
+        .iter()
+        .map(|t| {
+            (
+                Some(t.clone()),
+                "TomoGRAF".to_string(),
+                format!("TomoGRAF ← {t}"),
+            )
+        })
+        .collect();
+    if s.train_sets.len() == 1 {
+        let t = &s.train_sets[0];
+        keys.push((
+            Some(t.clone()),
+            "mean training volume".into(),
+            format!("mean volume ← {t}"),
+        ));
+    }
+    keys.push((None, "FDK".into(), "FDK".into()));
+    keys.push((None, "SART-TV".into(), "SART-TV".into()));
+    keys
+}
+
+fn find<'a>(
+    stats: &'a [Stat],
+    train: Option<&str>,
+    test: &str,
+    views: usize,
+    method: &str,
+) -> Option<&'a Stat> {
+    stats.iter().find(|s| {
+        s.train.as_deref() == train && s.test == test && s.views == views && s.method == method
+    })
+}
+
+fn tables(study: &Study, stats: &[Stat]) -> Vec<Block> {
+    let s = &study.settings;
+    let mut b = Vec::new();
+    let what = match s.kind {
+        Kind::RealismGap => {
+            "rows: method (← the level its model was trained on); columns: the level tested on"
+        }
+        Kind::DomainShift => "rows: method; columns: test set",
+    };
+    for m in Metric::ALL {
+        b.push(Block::Heading(format!("{} ({what})", m.name())));
+        let mut header = vec!["views".to_string(), "method".to_string()];
+        header.extend(s.test_sets.iter().map(|t| format!("`{t}`")));
+        let mut rows = Vec::new();
+        for v in VIEWS {
+            for (train, method, label) in row_keys(study) {
+                let mut row = vec![v.to_string(), label];
+                for t in &s.test_sets {
+                    row.push(
+                        find(stats, train.as_deref(), t, v, &method)
+                            .map_or("—".into(), |st| m.format(st.mean_std(m))),
+                    );
+                }
+                rows.push(row);
+            }
+        }
+        b.push(Block::Table(header, rows));
+    }
+    b
+}
+
+type Series = Vec<(String, Vec<(f64, f64)>)>;
+
+fn colours(series: &Series) -> String {
+    series
+        .iter()
+        .enumerate()
+        .map(|(i, (n, _))| format!("{} = {n}", COLOUR_NAMES[i % COLOUR_NAMES.len()]))
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
+fn draw(study: &Study, file: &str, caption: String, series: Series) -> Result<Block> {
+    let path = study.dir.join("figures").join(file);
+    let named: Vec<(&str, Vec<(f64, f64)>)> = series
+        .iter()
+        .map(|(n, p)| (n.as_str(), p.clone()))
+        .collect();
+    plot_points(&path, &named)?;
+    let (lo, hi) = series
+        .iter()
+        .flat_map(|(_, p)| p.iter().map(|q| q.1))
+        .filter(|y| y.is_finite())
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), y| {
+            (a.min(y), b.max(y))
+        });
+    Ok(Block::Image(
+        relative(&study.dir, &path),
+        format!(
+            "{caption} Colours: {}. The y axis spans {lo:.3} to {hi:.3} (plus 5 % margins).",
+            colours(&series)
+        ),
+    ))
+}
+
+fn plots(study: &Study, stats: &[Stat]) -> Result<Vec<Block>> {
+    let s = &study.settings;
+    let mut b = vec![Block::Heading("Plots".into())];
+    let point = |train: Option<&str>, test: &str, v: usize, method: &str, m: Metric| {
+        find(stats, train, test, v, method).map(|st| st.mean_std(m).0)
+    };
+    let vs_views = |train: Option<&str>, test: &str, method: &str, m: Metric| {
+        VIEWS
+            .iter()
+            .filter_map(|&v| point(train, test, v, method, m).map(|y| (v as f64, y)))
+            .collect::<Vec<_>>()
+    };
+    let across = |f: &dyn Fn(&str) -> Option<f64>| {
+        s.test_sets
+            .iter()
+            .enumerate()
+            .filter_map(|(i, t)| f(t).map(|y| (i as f64, y)))
+            .collect::<Vec<_>>()
+    };
+    let index = s
+        .test_sets
+        .iter()
+        .enumerate()
+        .map(|(i, t)| format!("{i} = {t}"))
+        .collect::<Vec<_>>()
+        .join(", ");
+    let last = s.test_sets.last().context("no test sets")?;
+    for m in Metric::ALL {
+        let mut series: Series = Vec::new();
+        let caption = match s.kind {
+            Kind::RealismGap => {
+                for t in &s.train_sets {
+                    series.push((
+                        format!("TomoGRAF ← {t}"),
+                        vs_views(Some(t), last, "TomoGRAF", m),
+                    ));
+                }
+                for c in ["FDK", "SART-TV"] {
+                    series.push((c.into(), vs_views(None, last, c, m)));
+                }
+                format!(
+                    "{} vs views (x axis: 1 to 10 views), tested on `{last}`.",
+                    m.name()
+                )
+            }
+            Kind::DomainShift => {
+                let t = &s.train_sets[0];
+                for test in &s.test_sets {
+                    series.push((
+                        format!("TomoGRAF on {test}"),
+                        vs_views(Some(t), test, "TomoGRAF", m),
+                    ));
+                }
+                format!(
+                    "{} of TomoGRAF vs views (x axis: 1 to 10 views), per test set.",
+                    m.name()
+                )
+            }
+        };
+        b.push(draw(
+            study,
+            &format!("{}_vs_views.png", m.file()),
+            caption,
+            series,
+        )?);
+
+        // The metric across the test sets.
+        let mut series: Series = Vec::new();
+        let (file, caption) = match s.kind {
+            Kind::RealismGap => {
+                let first = &s.train_sets[0];
+                series.push((
+                    format!("TomoGRAF ← {first}"),
+                    across(&|t| point(Some(first), t, 1, "TomoGRAF", m)),
+                ));
+                series.push((
+                    "TomoGRAF ← the level tested".into(),
+                    across(&|t| {
+                        s.train_sets
+                            .iter()
+                            .any(|x| x == t)
+                            .then(|| point(Some(t), t, 1, "TomoGRAF", m))
+                            .flatten()
+                    }),
+                ));
+                for c in ["FDK", "SART-TV"] {
+                    series.push((c.into(), across(&|t| point(None, t, 1, c, m))));
+                }
+                (
+                    format!("{}_vs_level.png", m.file()),
+                    format!(
+                        "{} from 1 view vs the realism level tested on (x axis: {index}).",
+                        m.name()
+                    ),
+                )
+            }
+            Kind::DomainShift => {
+                let t = s.train_sets[0].as_str();
+                for v in VIEWS {
+                    series.push((
+                        format!("TomoGRAF, {v} view(s)"),
+                        across(&|x| point(Some(t), x, v, "TomoGRAF", m)),
+                    ));
+                }
+                for c in ["FDK", "SART-TV"] {
+                    series.push((
+                        format!("{c}, 10 views"),
+                        across(&|x| point(None, x, 10, c, m)),
+                    ));
+                }
+                (
+                    format!("{}_vs_shift.png", m.file()),
+                    format!("{} vs test set (x axis: {index}).", m.name()),
+                )
+            }
+        };
+        b.push(draw(study, &file, caption, series)?);
+    }
+
+    // SSIM histograms over the test items, 1 view (the paper's Fig. 4).
+    let values = |train: Option<&str>, test: &str, method: &str| {
+        find(stats, train, test, 1, method)
+            .map(|st| st.scores.iter().map(|x| x.ssim).collect::<Vec<_>>())
+            .unwrap_or_default()
+    };
+    let mut series: Vec<(String, Vec<f64>)> = Vec::new();
+    let caption = match s.kind {
+        Kind::RealismGap => {
+            for t in &s.train_sets {
+                series.push((format!("TomoGRAF ← {t}"), values(Some(t), last, "TomoGRAF")));
+            }
+            for c in ["FDK", "SART-TV"] {
+                series.push((c.into(), values(None, last, c)));
+            }
+            format!(
+                "Histogram of the per-phantom SSIM from 1 view, tested on `{last}` (20 bins on [0, 1]; fraction of phantoms)."
+            )
+        }
+        Kind::DomainShift => {
+            for test in &s.test_sets {
+                series.push((
+                    format!("TomoGRAF on {test}"),
+                    values(Some(&s.train_sets[0]), test, "TomoGRAF"),
+                ));
+            }
+            "Histogram of TomoGRAF's per-phantom SSIM from 1 view per test set (20 bins on [0, 1]; fraction of phantoms).".into()
+        }
+    };
+    let path = study.dir.join("figures").join("ssim_histogram.png");
+    let named: Vec<(&str, Vec<f64>)> = series
+        .iter()
+        .map(|(n, v)| (n.as_str(), v.clone()))
+        .collect();
+    plot_histograms(&path, &named, 0.0, 1.0, 20)?;
+    let names: Series = series
+        .iter()
+        .map(|(n, _)| (n.clone(), Vec::new()))
+        .collect();
+    b.push(Block::Image(
+        relative(&study.dir, &path),
+        format!("{caption} Colours: {}.", colours(&names)),
+    ));
+    Ok(b)
+}
+
+/// The evaluations' example figures of the first test item.
+fn examples(study: &Study, id: &str) -> Vec<Block> {
+    let s = &study.settings;
+    let mut b = vec![Block::Heading(format!("Example: test phantom {id}"))];
+    let last = s.test_sets.last().map(String::as_str).unwrap_or_default();
+    let mut cells: Vec<(String, Option<&str>, usize)> = Vec::new();
+    match s.kind {
+        Kind::RealismGap => {
+            for t in s
+                .train_sets
+                .iter()
+                .filter(|t| *t == &s.train_sets[0] || *t == last)
+            {
+                cells.push((last.into(), Some(t), 1));
+            }
+            cells.push((last.into(), None, 1));
+            cells.push((last.into(), None, 10));
+        }
+        Kind::DomainShift => {
+            for t in &s.test_sets {
+                cells.push((t.clone(), Some(s.train_sets[0].as_str()), 1));
+            }
+        }
+    }
+    for (test, train, v) in cells {
+        let dir = study.eval_dir(&test, train);
+        let slices = dir.join(format!("{id}_{v}view_slices.png"));
+        if !slices.exists() {
+            continue;
+        }
+        let (what, cols, lines) = match train {
+            Some(t) => (
+                format!("TomoGRAF trained on `{t}`"),
+                "truth, TomoGRAF, mean training volume, |TomoGRAF − truth| × 4",
+                "blue = truth, red = TomoGRAF, green = mean volume",
+            ),
+            None => (
+                "FDK and SART-TV".to_string(),
+                "truth, FDK, SART-TV, |FDK − truth| × 4",
+                "blue = truth, red = FDK, green = SART-TV",
+            ),
+        };
+        b.push(Block::Image(
+            relative(&study.dir, &slices),
+            format!(
+                "{what}, tested on `{test}`, {v} view(s). Rows: axial, coronal, sagittal \
+                 mid-slices; columns: {cols}; window [0, 1] of the normalised CT."
+            ),
+        ));
+        b.push(Block::Image(
+            relative(&study.dir, &dir.join(format!("{id}_{v}view_profile.png"))),
+            format!("Line profile through the centre of the axial slice: {lines}."),
+        ));
+    }
+    b
+}

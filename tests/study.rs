@@ -1,0 +1,351 @@
+//! End-to-end tests of `tomograf study` and of `tomograf evaluate --shard/--merge`, at the
+//! tiny scale (16³ phantoms, the tiny model): every table and plot is written, the same
+//! seed gives the same numbers, a re-run resumes without redoing work, shards combine to
+//! what one run gives, bad arguments are named.
+
+mod common;
+
+use common::{ok, tomograf};
+use std::path::Path;
+
+fn stderr(out: &std::process::Output) -> String {
+    String::from_utf8_lossy(&out.stderr).into_owned()
+}
+
+fn fails_with(args: &[&str], needle: &str) {
+    let out = tomograf(args);
+    assert!(!out.status.success(), "{args:?} should fail");
+    let e = stderr(&out);
+    assert!(e.contains(needle), "{args:?}: expected '{needle}' in: {e}");
+}
+
+/// `results.csv` rows (after the header) whose test set is one of `tests`.
+fn rows_for(path: &Path, tests: &[&str]) -> Vec<String> {
+    std::fs::read_to_string(path)
+        .unwrap()
+        .lines()
+        .skip(1)
+        .filter(|l| tests.contains(&l.split(',').nth(1).unwrap()))
+        .map(str::to_string)
+        .collect()
+}
+
+/// Every table and plot of a report.
+fn check_report(dir: &Path, plots: &[&str], columns: &[&str]) {
+    for f in ["report.md", "report.html", "results.csv", "study.json"] {
+        assert!(dir.join(f).is_file(), "{f} missing");
+    }
+    for p in plots {
+        let bytes = std::fs::read(dir.join("figures").join(p)).unwrap();
+        assert_eq!(&bytes[1..4], b"PNG", "{p} is not a PNG");
+    }
+    let md = std::fs::read_to_string(dir.join("report.md")).unwrap();
+    let html = std::fs::read_to_string(dir.join("report.html")).unwrap();
+    for table in ["## SSIM", "## PSNR (dB)", "## RMSE (HU)"] {
+        assert!(md.contains(table), "no {table} table");
+    }
+    for c in columns {
+        assert!(md.contains(&format!("`{c}`")), "no column {c}");
+    }
+    for method in ["| FDK |", "| SART-TV |"] {
+        assert_eq!(md.matches(method).count(), 3 * 4, "{method} rows");
+    }
+    assert_eq!(
+        html.matches("<table>").count(),
+        md.matches("\n| views |").count() + 1
+    );
+    // Every image the report shows exists.
+    for link in md.split("](").skip(1) {
+        let path = &link[..link.find(')').unwrap()];
+        assert!(dir.join(path).is_file(), "{path} missing");
+    }
+    assert!(md.contains("_1view_slices.png") && md.contains("_1view_profile.png"));
+    // Every metric is a number: 16 rows per test set and method set, none NaN.
+    let csv = std::fs::read_to_string(dir.join("results.csv")).unwrap();
+    assert!(!csv.contains("NaN") && !csv.contains("inf"), "{csv}");
+}
+
+#[test]
+fn realism_gap_end_to_end_resume_and_same_seed() {
+    let tmp = tempfile::tempdir().unwrap();
+    let a = tmp.path().join("a");
+    let a_s = a.to_str().unwrap();
+    ok(&tomograf(&[
+        "study",
+        "realism-gap",
+        "-o",
+        a_s,
+        "--seed",
+        "3",
+    ]));
+    let levels = ["ideal-drr", "polychromatic", "noise-blur", "scatter"];
+    check_report(
+        &a,
+        &[
+            "ssim_vs_views.png",
+            "psnr_vs_views.png",
+            "rmse_vs_views.png",
+            "ssim_vs_level.png",
+            "psnr_vs_level.png",
+            "rmse_vs_level.png",
+            "ssim_histogram.png",
+        ],
+        &levels,
+    );
+    // 4 models × 4 test sets × 4 view counts × (TomoGRAF, mean) + 4 × 4 × (FDK, SART-TV).
+    let all = rows_for(&a.join("results.csv"), &levels);
+    assert_eq!(all.len(), 4 * 4 * 4 * 2 + 4 * 4 * 2);
+    // Each level changes the projections of the same phantoms (the physics flags act).
+    let p = |l: &str| std::fs::read(a.join(format!("data/test/{l}/00000/projections.npy")));
+    for pair in levels.windows(2) {
+        assert_ne!(p(pair[0]).unwrap(), p(pair[1]).unwrap(), "{pair:?}");
+    }
+
+    // A re-run resumes: nothing is generated, trained or scored again.
+    let item = a.join("eval/scatter/model-ideal-drr/items/00001.csv");
+    let before = std::fs::metadata(&item).unwrap().modified().unwrap();
+    let results = std::fs::read(a.join("results.csv")).unwrap();
+    let out = tomograf(&["study", "realism-gap", "-o", a_s, "--seed", "3"]);
+    ok(&out);
+    let e = stderr(&out);
+    assert!(e.contains("0 item evaluation(s) run"), "{e}");
+    assert_eq!(e.matches("already trained").count(), 4, "{e}");
+    assert!(
+        !e.contains(" 1 item(s) made") && !e.contains(" 2 item(s) made"),
+        "{e}"
+    );
+    assert_eq!(
+        std::fs::metadata(&item).unwrap().modified().unwrap(),
+        before
+    );
+    assert_eq!(std::fs::read(a.join("results.csv")).unwrap(), results);
+    // Another seed in the same folder is refused.
+    fails_with(
+        &["study", "realism-gap", "-o", a_s, "--seed", "4"],
+        "holds another study",
+    );
+
+    // Same seed, fresh folder, one of the levels: the same numbers for its cells.
+    let b = tmp.path().join("b");
+    ok(&tomograf(&[
+        "study",
+        "realism-gap",
+        "-o",
+        b.to_str().unwrap(),
+        "--seed",
+        "3",
+        "--levels",
+        "scatter",
+    ]));
+    let pairs = |rows: Vec<String>| -> Vec<String> {
+        rows.into_iter()
+            .filter(|l| {
+                let train = l.split(',').next().unwrap();
+                ["", "scatter"].contains(&train)
+            })
+            .collect()
+    };
+    let from_b = pairs(rows_for(&b.join("results.csv"), &["scatter"]));
+    assert_eq!(from_b.len(), 4 * 2 + 4 * 2);
+    assert_eq!(
+        from_b,
+        pairs(rows_for(&a.join("results.csv"), &["scatter"]))
+    );
+
+    // `evaluate --shard` in two parts, merged, scores as the study did (same seed).
+    let e = tmp.path().join("e");
+    let e_s = e.to_str().unwrap();
+    let data = a.join("data/test/noise-blur");
+    let ck = a.join("models/noise-blur/checkpoint");
+    let eval = |extra: &[&str]| {
+        let mut args = vec![
+            "evaluate",
+            data.to_str().unwrap(),
+            "--checkpoint",
+            ck.to_str().unwrap(),
+            "-o",
+            e_s,
+            "--seed",
+            "3",
+        ];
+        args.extend(extra);
+        tomograf(&args)
+    };
+    ok(&eval(&["--shard", "1/2"]));
+    let out = eval(&["--merge"]);
+    assert!(!out.status.success());
+    assert!(stderr(&out).contains("00000"), "{}", stderr(&out));
+    ok(&eval(&["--shard", "0/2"]));
+    ok(&eval(&["--merge"]));
+    let model_rows = |p: &Path| -> Vec<String> {
+        std::fs::read_to_string(p)
+            .unwrap()
+            .lines()
+            .filter(|l| l.contains(",TomoGRAF,"))
+            .map(|l| l.rsplitn(3, ',').nth(2).unwrap().to_string()) // drop timing
+            .collect()
+    };
+    let merged = model_rows(&e.join("results.csv"));
+    assert_eq!(merged.len(), 2 * 4);
+    assert_eq!(
+        merged,
+        model_rows(&a.join("eval/noise-blur/model-noise-blur/results.csv"))
+    );
+}
+
+#[test]
+fn domain_shift_end_to_end_and_in_shards() {
+    let tmp = tempfile::tempdir().unwrap();
+    let c = tmp.path().join("c");
+    ok(&tomograf(&[
+        "study",
+        "domain-shift",
+        "-o",
+        c.to_str().unwrap(),
+    ]));
+    let shifts = [
+        "lidc",
+        "full-chest",
+        "table",
+        "pacemaker",
+        "paper-in-house",
+        "kvp-80",
+        "low-mas",
+    ];
+    check_report(
+        &c,
+        &[
+            "ssim_vs_views.png",
+            "psnr_vs_views.png",
+            "rmse_vs_views.png",
+            "ssim_vs_shift.png",
+            "psnr_vs_shift.png",
+            "rmse_vs_shift.png",
+            "ssim_histogram.png",
+        ],
+        &shifts,
+    );
+    assert_eq!(
+        rows_for(&c.join("results.csv"), &shifts).len(),
+        7 * 4 * 2 + 7 * 4 * 2
+    );
+
+    // --kvp on a preset keeps its filtration and exposure.
+    let item = std::fs::read_to_string(c.join("data/test/kvp-80/00000/item.json")).unwrap();
+    let v: serde_json::Value = serde_json::from_str(&item).unwrap();
+    let spectrum = &v["acquisition"]["settings"]["spectrum"];
+    assert_eq!(spectrum["kvp"], 80.0, "{spectrum}");
+    assert!(
+        spectrum["filtration"].to_string().contains("cu"),
+        "{spectrum}"
+    );
+    assert_eq!(spectrum["mas"], 1.0, "{spectrum}");
+
+    // The same study in stages and two shards per stage gives the same numbers.
+    let d = tmp.path().join("d");
+    let d_s = d.to_str().unwrap();
+    let base = [
+        "study",
+        "domain-shift",
+        "-o",
+        d_s,
+        "--shifts",
+        "lidc,paper-in-house",
+    ];
+    for stage in ["data", "train", "evaluate"] {
+        for shard in ["1/2", "0/2"] {
+            let mut args = base.to_vec();
+            args.extend(["--stage", stage, "--shard", shard]);
+            ok(&tomograf(&args));
+        }
+    }
+    let mut args = base.to_vec();
+    args.extend(["--stage", "report"]);
+    ok(&tomograf(&args));
+    let subset = ["lidc", "paper-in-house"];
+    assert_eq!(
+        rows_for(&d.join("results.csv"), &subset),
+        rows_for(&c.join("results.csv"), &subset)
+    );
+}
+
+#[test]
+fn bad_arguments_are_named() {
+    let tmp = tempfile::tempdir().unwrap();
+    let o = tmp.path().join("x");
+    let o = o.to_str().unwrap();
+    fails_with(
+        &[
+            "study",
+            "realism-gap",
+            "-o",
+            o,
+            "--levels",
+            "ideal-drr,xray",
+        ],
+        "unknown realism level 'xray'",
+    );
+    fails_with(
+        &["study", "domain-shift", "-o", o, "--shifts", "mars"],
+        "unknown shift 'mars'",
+    );
+    fails_with(
+        &[
+            "study",
+            "realism-gap",
+            "-o",
+            o,
+            "--stage",
+            "evaluate",
+            "--shard",
+            "3/2",
+        ],
+        "--shard '3/2' must be I/N",
+    );
+    fails_with(
+        &["study", "realism-gap", "-o", o, "--shard", "0/2"],
+        "give --stage data, train or evaluate",
+    );
+    fails_with(
+        &["study", "realism-gap", "-o", o, "--scale", "huge"],
+        "unknown --scale 'huge'",
+    );
+    fails_with(
+        &["study", "realism-gap", "-o", o, "--stage", "fit"],
+        "unknown --stage 'fit'",
+    );
+    fails_with(
+        &["study", "realism-gap", "-o", o, "--stage", "evaluate"],
+        "not trained yet",
+    );
+    fails_with(
+        &["evaluate", o, "-o", o, "--shard", "2/2"],
+        "--shard '2/2' must be I/N",
+    );
+    fails_with(
+        &[
+            "dataset",
+            "-o",
+            o,
+            "--phantoms",
+            "1",
+            "--preset",
+            "kv-flat-panel-120kvp",
+            "--scatter",
+            "fog",
+        ],
+        "unknown --scatter 'fog'",
+    );
+    fails_with(
+        &[
+            "dataset",
+            "-o",
+            o,
+            "--phantoms",
+            "1",
+            "--scatter-photons",
+            "10",
+        ],
+        "--scatter-photons needs --scatter",
+    );
+}
