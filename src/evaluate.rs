@@ -309,7 +309,11 @@ pub fn evaluate(e: &Evaluation) -> Result<usize> {
                 let stem = e.output.join(format!("{}_{count}view", item.id));
                 write_hu(item, &volumes[0], &stem.with_extension("nii.gz"))?;
                 let refs: Vec<&Volume> = volumes.iter().collect();
-                slices_and_profile(item, &refs, &stem)?;
+                let names: Vec<&str> = rows[rows.len() - volumes.len()..]
+                    .iter()
+                    .map(|r| r.method.as_str())
+                    .collect();
+                slices_and_profile(item, &refs, &names, &stem)?;
             }
         }
         write_rows(&path, &rows)?;

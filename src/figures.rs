@@ -1,8 +1,9 @@
 //! PNG figures of `tomograf evaluate`, `tomograf train` and `tomograf study`: orthogonal
 //! slices with a residual map, line plots and histograms (plotters, bitmap backend).
 //!
-//! The build has no font backend, so plots carry no text: series colours are fixed, in
-//! order, by [`COLOUR_NAMES`], and every caller states them in its report.
+//! Text is drawn with DejaVu Sans, shipped in `assets/fonts/` (its licence beside it) and
+//! compiled in, so figures look the same on every machine. Series colours are fixed, in
+//! order, by [`COLOUR_NAMES`]; plots carry a title, axis labels and a legend.
 
 use anyhow::{Context, Result};
 use plotters::prelude::*;
@@ -54,8 +55,14 @@ fn slices(v: &Volume) -> [Vec<f32>; 3] {
 /// `<stem>_slices.png` (rows: axial, coronal, sagittal; columns: ground truth, each of
 /// `recons` in order, |first − truth| × 4; normalised units, window [0, 1]) and
 /// `<stem>_profile.png` (the row through the centre of the axial slice: truth, then
-/// `recons`, coloured as [`COLOUR_NAMES`]). Volumes that are not cubes are skipped.
-pub fn slices_and_profile(item: &Item, recons: &[&Volume], stem: &Path) -> Result<()> {
+/// `recons` named by `names`, coloured as [`COLOUR_NAMES`]). Volumes that are not cubes
+/// are skipped.
+pub fn slices_and_profile(
+    item: &Item,
+    recons: &[&Volume],
+    names: &[&str],
+    stem: &Path,
+) -> Result<()> {
     let gt = item.ct.as_ref().context("no ground truth")?;
     let [nx, ny, nz] = gt.dims();
     if nx != ny || ny != nz || recons.is_empty() {
@@ -109,25 +116,59 @@ pub fn slices_and_profile(item: &Item, recons: &[&Volume], stem: &Path) -> Resul
             .collect()
     };
     let mut series = vec![("truth", line(gt))];
-    series.extend(recons.iter().map(|v| ("", line(v))));
+    series.extend(recons.iter().zip(names).map(|(v, name)| (*name, line(v))));
     plot_lines(
         &PathBuf::from(format!("{}_profile.png", stem.display())),
+        &Axes {
+            title: "Line profile: middle row of the axial mid-slice",
+            x: "voxel i",
+            y: PROFILE_UNIT,
+        },
         &series,
     )
 }
 
-/// A line plot of named series (no text: the colours are, in order, [`COLOUR_NAMES`]);
-/// writes a 640×400 PNG. Non-finite points are left out.
-pub fn plot_lines(path: &Path, series: &[(&str, Vec<(f64, f64)>)]) -> Result<()> {
-    draw(path, series, false)
+/// The unit of the volumes' values in the figures (data sets store CTs normalised).
+const PROFILE_UNIT: &str = "normalised value (HU window → 0…1)";
+
+/// Title and axis labels of a plot.
+pub struct Axes<'a> {
+    pub title: &'a str,
+    pub x: &'a str,
+    pub y: &'a str,
+}
+
+/// Registers the shipped font once (plotters looks fonts up by family name).
+fn font() -> Result<()> {
+    static REGISTERED: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
+    let ok = *REGISTERED.get_or_init(|| {
+        plotters::style::register_font(
+            "sans-serif",
+            FontStyle::Normal,
+            include_bytes!("../assets/fonts/DejaVuSans.ttf"),
+        )
+        .is_ok()
+    });
+    anyhow::ensure!(
+        ok,
+        "the shipped font assets/fonts/DejaVuSans.ttf could not be read"
+    );
+    Ok(())
+}
+
+/// A line plot of named series (colours, in order, [`COLOUR_NAMES`]; a legend names the
+/// series with non-empty names); writes a 640×400 PNG. Non-finite points are left out.
+pub fn plot_lines(path: &Path, axes: &Axes, series: &[(&str, Vec<(f64, f64)>)]) -> Result<()> {
+    draw(path, axes, series, false)
 }
 
 /// As [`plot_lines`], with a dot at every point (for series of a few measured values).
-pub fn plot_points(path: &Path, series: &[(&str, Vec<(f64, f64)>)]) -> Result<()> {
-    draw(path, series, true)
+pub fn plot_points(path: &Path, axes: &Axes, series: &[(&str, Vec<(f64, f64)>)]) -> Result<()> {
+    draw(path, axes, series, true)
 }
 
-fn draw(path: &Path, series: &[(&str, Vec<(f64, f64)>)], markers: bool) -> Result<()> {
+fn draw(path: &Path, axes: &Axes, series: &[(&str, Vec<(f64, f64)>)], markers: bool) -> Result<()> {
+    font()?;
     let pts = series.iter().flat_map(|(_, s)| s.iter());
     let (mut x0, mut x1, mut y0, mut y1) = (f64::MAX, f64::MIN, f64::MAX, f64::MIN);
     for &(x, y) in pts {
@@ -147,34 +188,62 @@ fn draw(path: &Path, series: &[(&str, Vec<(f64, f64)>)], markers: bool) -> Resul
     // A margin of 5 % so lines on the range's edges stay visible.
     let pad = 0.05 * (y1 - y0);
     let (y0, y1) = (y0 - pad, y1 + pad);
+    let plot_err = |e: &dyn std::fmt::Display| anyhow::anyhow!("plot {}: {e}", path.display());
     let root = BitMapBackend::new(path, (640, 400)).into_drawing_area();
-    root.fill(&WHITE)
-        .map_err(|e| anyhow::anyhow!("plot: {e}"))?;
+    root.fill(&WHITE).map_err(|e| plot_err(&e))?;
     let mut chart = ChartBuilder::on(&root)
         .margin(10)
+        .caption(axes.title, ("sans-serif", 18))
+        .x_label_area_size(36)
+        .y_label_area_size(56)
         .build_cartesian_2d(x0..x1, y0..y1)
-        .map_err(|e| anyhow::anyhow!("plot: {e}"))?;
-    for (n, (_, s)) in series.iter().enumerate() {
+        .map_err(|e| plot_err(&e))?;
+    chart
+        .configure_mesh()
+        .x_desc(axes.x)
+        .y_desc(axes.y)
+        .label_style(("sans-serif", 12))
+        .axis_desc_style(("sans-serif", 14))
+        .light_line_style(WHITE.mix(0.0))
+        .draw()
+        .map_err(|e| plot_err(&e))?;
+    let mut legend = false;
+    for (n, (name, s)) in series.iter().enumerate() {
         let colour = COLOURS[n % COLOURS.len()];
         let finite: Vec<(f64, f64)> = s
             .iter()
             .copied()
             .filter(|(x, y)| x.is_finite() && y.is_finite())
             .collect();
-        chart
+        let drawn = chart
             .draw_series(LineSeries::new(
                 finite.iter().copied(),
                 colour.stroke_width(2),
             ))
-            .map_err(|e| anyhow::anyhow!("plot: {e}"))?;
+            .map_err(|e| plot_err(&e))?;
+        if !name.is_empty() {
+            legend = true;
+            drawn.label(*name).legend(move |(x, y)| {
+                PathElement::new(vec![(x, y), (x + 16, y)], colour.stroke_width(2))
+            });
+        }
         if markers {
             chart
                 .draw_series(finite.iter().map(|&p| Circle::new(p, 4, colour.filled())))
-                .map_err(|e| anyhow::anyhow!("plot: {e}"))?;
+                .map_err(|e| plot_err(&e))?;
         }
     }
-    root.present()
-        .map_err(|e| anyhow::anyhow!("plot {}: {e}", path.display()))?;
+    if legend {
+        chart
+            .configure_series_labels()
+            .background_style(WHITE.mix(0.8))
+            .border_style(BLACK)
+            .label_font(("sans-serif", 12))
+            .position(SeriesLabelPosition::UpperRight)
+            .draw()
+            .map_err(|e| plot_err(&e))?;
+    }
+    root.present().map_err(|e| plot_err(&e))?;
     Ok(())
 }
 
@@ -182,6 +251,7 @@ fn draw(path: &Path, series: &[(&str, Vec<(f64, f64)>)], markers: bool) -> Resul
 /// in one plot, coloured as [`plot_lines`]; y is the fraction of each series per bin.
 pub fn plot_histograms(
     path: &Path,
+    axes: &Axes,
     series: &[(&str, Vec<f64>)],
     lo: f64,
     hi: f64,
@@ -207,5 +277,5 @@ pub fn plot_histograms(
             (*name, pts)
         })
         .collect();
-    plot_lines(path, &steps)
+    plot_lines(path, axes, &steps)
 }

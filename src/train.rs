@@ -176,6 +176,11 @@ fn save(
     };
     crate::figures::plot_lines(
         &out.join("loss.png"),
+        &crate::figures::Axes {
+            title: "Training losses",
+            x: "iteration",
+            y: "loss",
+        },
         &[
             ("loss_d", series(2)),
             ("loss_g", series(3)),

@@ -6,7 +6,7 @@
 use super::render::{Block, render};
 use super::{Kind, Study, VIEWS, relative};
 use crate::evaluate::{Row, Scores, load_rows, merge};
-use crate::figures::{COLOUR_NAMES, plot_histograms, plot_points};
+use crate::figures::{Axes, COLOUR_NAMES, plot_histograms, plot_points};
 use anyhow::{Context, Result};
 use std::fmt::Write as _;
 use std::path::Path;
@@ -304,13 +304,13 @@ fn colours(series: &Series) -> String {
         .join(", ")
 }
 
-fn draw(study: &Study, file: &str, caption: String, series: Series) -> Result<Block> {
+fn draw(study: &Study, file: &str, axes: &Axes, caption: String, series: Series) -> Result<Block> {
     let path = study.dir.join("figures").join(file);
     let named: Vec<(&str, Vec<(f64, f64)>)> = series
         .iter()
         .map(|(n, p)| (n.as_str(), p.clone()))
         .collect();
-    plot_points(&path, &named)?;
+    plot_points(&path, axes, &named)?;
     let (lo, hi) = series
         .iter()
         .flat_map(|(_, p)| p.iter().map(|q| q.1))
@@ -386,9 +386,16 @@ fn plots(study: &Study, stats: &[Stat]) -> Result<Vec<Block>> {
                 )
             }
         };
+        let title = format!("{} vs views", m.name());
+        let axes = Axes {
+            title: &title,
+            x: "views",
+            y: m.name(),
+        };
         b.push(draw(
             study,
             &format!("{}_vs_views.png", m.file()),
+            &axes,
             caption,
             series,
         )?);
@@ -443,7 +450,22 @@ fn plots(study: &Study, stats: &[Stat]) -> Result<Vec<Block>> {
                 )
             }
         };
-        b.push(draw(study, &file, caption, series)?);
+        let (title, x) = match s.kind {
+            Kind::RealismGap => (
+                format!("{}, 1 view, vs realism level", m.name()),
+                "level tested on (see caption)",
+            ),
+            Kind::DomainShift => (
+                format!("{} vs test set", m.name()),
+                "test set (see caption)",
+            ),
+        };
+        let axes = Axes {
+            title: &title,
+            x,
+            y: m.name(),
+        };
+        b.push(draw(study, &file, &axes, caption, series)?);
     }
 
     // SSIM histograms over the test items, 1 view (the paper's Fig. 4).
@@ -480,7 +502,12 @@ fn plots(study: &Study, stats: &[Stat]) -> Result<Vec<Block>> {
         .iter()
         .map(|(n, v)| (n.as_str(), v.clone()))
         .collect();
-    plot_histograms(&path, &named, 0.0, 1.0, 20)?;
+    let axes = Axes {
+        title: "SSIM of TomoGRAF from 1 view",
+        x: "SSIM",
+        y: "fraction of phantoms",
+    };
+    plot_histograms(&path, &axes, &named, 0.0, 1.0, 20)?;
     let names: Series = series
         .iter()
         .map(|(n, _)| (n.clone(), Vec::new()))
