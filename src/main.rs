@@ -11,6 +11,7 @@ mod physics;
 mod project;
 mod recon_cmd;
 mod reconstruct;
+mod scatter_images;
 mod scene;
 mod train;
 
