@@ -6,7 +6,9 @@
 //! * [`transport`] — Woodcock tracking and interaction sampling in the voxel composition;
 //! * [`estimator`] — the point-detector (forced detection) estimator on a coarse grid;
 //! * [`engine`] — photons from the source, batches, seeds, the separate images;
-//! * [`estimate`] — the fast estimate (coarse, few photons, smoothed).
+//! * [`estimate`] — the fast estimate (coarse, few photons, smoothed);
+//! * [`matched`] — matched-physics mode (monoenergetic, constant albedo, isotropic or
+//!   Henyey–Greenstein phase, homogeneous box) for the cross-check with Mitsuba 3.
 //!
 //! The scatter images are expected detector signal (mean and second moment per channel),
 //! in the same units as the primary's [`crate::detector::ExpectedImage`], so the
@@ -17,6 +19,7 @@ pub mod cross_sections;
 pub mod engine;
 pub mod estimate;
 pub mod estimator;
+pub mod matched;
 pub mod transport;
 
 pub use anti_scatter_grid::AntiScatterGrid;
