@@ -18,9 +18,10 @@ source of intensity 1 and a flat detector — with different algorithms:
   ``max_depth = -1`` all orders (the convention measured in ../shared/notes/mitsuba.md).
 
 Statistic: per pixel z = (tomograf − Mitsuba) / √(se_t² + se_m²) for the single-scatter
-and the total-scatter images; they agree when rms z ∈ [0.9, 1.1] (2 × 400 pixels: the
-sampling sd of rms z is ≈ 0.025). A deliberately wrong model — tomograf run with the
-albedo 10 % low — must fail the same statistic.
+and the total-scatter images, for an isotropic and a Henyey–Greenstein (g = 0.5) phase;
+they agree when rms z ∈ [0.9, 1.1] (400 pixels per image: the sampling sd of rms z is
+≈ 0.035). Deliberately wrong models — tomograf with the albedo 10 % low, and tomograf
+with an isotropic phase against Mitsuba's g = 0.5 — must fail the same statistic.
 
     python bridge/tests/scatter_mitsuba.py --json out.json
     python bridge/tests/scatter_mitsuba.py --spp 16384 --photons 2000000 --out docs/scatter.md
@@ -54,19 +55,19 @@ def detector():
     return origin, np.array([PITCH, 0.0, 0.0]), np.array([0.0, PITCH, 0.0])
 
 
-def tomograf_side(photons: int, albedo: float, seed: int):
+def tomograf_side(photons: int, albedo: float, seed: int, g: float = 0.0):
     import tomograf
 
     o, u, v = detector()
     t = time.time()
     single, multiple, se_s, se_t = tomograf.scatter_matched(
         SOURCE.tolist(), o.tolist(), u.tolist(), v.tolist(), ROWS, COLS,
-        BOX_MIN.tolist(), BOX_MAX.tolist(), MU_T, albedo, photons=photons, seed=seed)
+        BOX_MIN.tolist(), BOX_MAX.tolist(), MU_T, albedo, g=g, photons=photons, seed=seed)
     return dict(single=single, total=single + multiple, single_se=se_s, total_se=se_t,
                 seconds=time.time() - t)
 
 
-def mitsuba_side(spp: int, seed: int):
+def mitsuba_side(spp: int, seed: int, g: float = 0.0):
     os.environ.setdefault("DRJIT_LIBLLVM_PATH",
                           next(iter(sorted(glob.glob("/usr/lib/*/libLLVM.so.19*"))), ""))
     import drjit as dr
@@ -86,7 +87,7 @@ def mitsuba_side(spp: int, seed: int):
                 "type": "homogeneous",
                 "sigma_t": MU_T,
                 "albedo": ALBEDO,
-                "phase": {"type": "isotropic"},
+                "phase": {"type": "isotropic"} if g == 0.0 else {"type": "hg", "g": g},
             },
         },
         "light": {"type": "point", "position": SOURCE.tolist(), "intensity": 1.0},
@@ -147,25 +148,31 @@ def compare(t, m, key):
 
 
 def run(spp: int, photons: int, seed: int = 1):
-    m = mitsuba_side(spp, seed)
     rows = []
-    for model, albedo, expect in (("matched", ALBEDO, "agree"),
-                                  ("wrong: albedo 10 % low", 0.9 * ALBEDO, "reject")):
-        t = tomograf_side(photons, albedo, seed)
-        for key in ("single", "total"):
-            row = compare(t, m, key)
-            row.update(case=key, model=model, expect=expect, spp=spp, photons=photons,
-                       seconds_tomograf=t["seconds"], seconds_mitsuba=m["seconds"])
-            rows.append(row)
+    for phase, g in (("isotropic", 0.0), ("Henyey–Greenstein g = 0.5", 0.5)):
+        m = mitsuba_side(spp, seed, g)
+        cases = [("matched", ALBEDO, "agree")]
+        if g == 0.0:
+            cases.append(("wrong: albedo 10 % low", 0.9 * ALBEDO, "reject"))
+        else:
+            cases.append(("wrong: isotropic phase", ALBEDO, "reject"))
+        for model, albedo, expect in cases:
+            t = tomograf_side(photons, albedo, seed, g if expect == "agree" else 0.0)
+            for key in ("single", "total"):
+                row = compare(t, m, key)
+                row.update(case=key, phase=phase, model=model, expect=expect, spp=spp,
+                           photons=photons, seconds_tomograf=t["seconds"],
+                           seconds_mitsuba=m["seconds"])
+                rows.append(row)
     return rows
 
 
 def table(rows):
-    head = ("| image | tomograf model | expected | rms z | mean z | max abs z | pixels | "
+    head = ("| phase | image | tomograf model | expected | rms z | mean z | max abs z | pixels | "
             "centre: tomograf | centre: Mitsuba | median rel. se (t / M) |\n"
-            "|---|---|---|---|---|---|---|---|---|---|\n")
+            "|---|---|---|---|---|---|---|---|---|---|---|\n")
     body = "".join(
-        f"| {r['case']} scatter | {r['model']} | {r['expect']} | {r['rms_z']:.3f} | "
+        f"| {r['phase']} | {r['case']} scatter | {r['model']} | {r['expect']} | {r['rms_z']:.3f} | "
         f"{r['mean_z']:+.3f} | {r['max_abs_z']:.2f} | {r['pixels']} | {r['centre_tomograf']:.4e} | "
         f"{r['centre_mitsuba']:.4e} | {100 * r['median_rel_se_tomograf']:.2f} % / "
         f"{100 * r['median_rel_se_mitsuba']:.2f} % |\n" for r in rows)

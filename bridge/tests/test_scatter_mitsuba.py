@@ -29,14 +29,15 @@ def rows(tmp_path_factory):
 
 
 def describe(r):
-    return (f"{r['case']} / {r['model']}: rms z {r['rms_z']:.3f}, mean z {r['mean_z']:+.3f}, "
+    return (f"{r['phase']} {r['case']} / {r['model']}: rms z {r['rms_z']:.3f}, mean z {r['mean_z']:+.3f}, "
             f"max |z| {r['max_abs_z']:.2f}, {r['pixels']} px, centre {r['centre_tomograf']:.4e} "
             f"vs {r['centre_mitsuba']:.4e}")
 
 
 def test_single_and_total_scatter_agree_pixel_by_pixel(rows):
     agree = [r for r in rows if r["expect"] == "agree"]
-    assert {r["case"] for r in agree} == {"single", "total"}
+    assert {(r["phase"], r["case"]) for r in agree} == {
+        (p, c) for p in ("isotropic", "Henyey–Greenstein g = 0.5") for c in ("single", "total")}
     for r in agree:
         # 400 pixels: the sampling sd of rms z is ≈ 0.035, so [0.9, 1.1] is ≈ 3 sd wide.
         assert 0.9 <= r["rms_z"] <= 1.1, describe(r)
@@ -44,8 +45,9 @@ def test_single_and_total_scatter_agree_pixel_by_pixel(rows):
         assert r["median_rel_se_mitsuba"] < 0.03, describe(r)
 
 
-def test_a_wrong_albedo_is_rejected_by_the_same_statistic(rows):
+def test_a_wrong_albedo_or_phase_is_rejected_by_the_same_statistic(rows):
     wrong = [r for r in rows if r["expect"] == "reject"]
-    assert len(wrong) == 2
+    assert {r["model"] for r in wrong} == {"wrong: albedo 10 % low", "wrong: isotropic phase"}
+    assert len(wrong) == 4
     for r in wrong:
         assert r["rms_z"] > 3.0, describe(r)
