@@ -232,3 +232,25 @@ def acquire(
     blur, flat-field, −log): (rows, cols) for one view, (n, rows, cols) for a list; a
     photon-counting detector adds a channel axis. GIL released; seeded, thread-count
     independent."""
+
+def scatter_matched(
+    source: Sequence[float],
+    detector_origin: Sequence[float],
+    u: Sequence[float],
+    v: Sequence[float],
+    rows: int,
+    cols: int,
+    box_min: Sequence[float],
+    box_max: Sequence[float],
+    mu_t: float,
+    albedo: float,
+    g: float = 0.0,
+    photons: int = 100000,
+    max_order: int = 1000,
+    seed: int = 0,
+) -> Tuple[npt.NDArray[np.float64], npt.NDArray[np.float64], npt.NDArray[np.float64], npt.NDArray[np.float64]]:
+    """Matched-physics scatter (monoenergetic, homogeneous box of extinction mu_t mm⁻¹,
+    constant albedo, Henyey–Greenstein phase g; 0 = isotropic) from a point source, scored
+    by forced detection at every pixel centre detector_origin + c·u + r·v (mm): (single,
+    multiple, single_se, total_se), each (rows, cols), photons per pixel per unit source
+    intensity (photons/sr). GIL released; seeded, thread-count independent."""

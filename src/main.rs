@@ -12,6 +12,7 @@ mod physics;
 mod project;
 mod recon_cmd;
 mod reconstruct;
+mod scatter_images;
 mod scene;
 mod study;
 mod train;

@@ -170,6 +170,7 @@ pub fn acquisition(scene: &Scene) -> Result<Option<(Acquisition, u64)>> {
                 detector: DetectorModel::ideal(),
                 output: Output::LogLineIntegral,
                 scatter: Default::default(),
+                anti_scatter_grid: None,
             }
         }
     };
@@ -226,7 +227,8 @@ pub fn acquisition(scene: &Scene) -> Result<Option<(Acquisition, u64)>> {
     }
     if let Some(s) = &scene.scatter {
         s.validate()?;
-        acq.scatter = s.clone();
+        acq.scatter = s.model.clone();
+        acq.anti_scatter_grid = s.anti_scatter_grid.clone();
     }
     acq.detector.validate()?;
     Ok(Some((acq, a.seed.unwrap_or(0))))

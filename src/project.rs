@@ -2,6 +2,7 @@
 
 use crate::output::{self, Format, Outputs};
 use crate::physics::{self, PhysicsArgs};
+use crate::scatter_images::ScatterWriters;
 use crate::scene::{ExplicitView, Scene};
 use anyhow::{Context, Result, bail};
 use clap::Args;
@@ -10,6 +11,7 @@ use indicatif::{ProgressBar, ProgressStyle};
 use std::path::PathBuf;
 use std::time::Instant;
 use tomograf_datasets::anatomy::{self, AnatomySpec, Profile};
+use tomograf_sim::acquisition::Acquired;
 use tomograf_sim::attenuation::Attenuation;
 use tomograf_sim::geometry::angles;
 use tomograf_sim::phantom::Phantom;
@@ -540,8 +542,9 @@ fn explicit_view(e: &ExplicitView) -> Result<View> {
     Ok(v)
 }
 
-/// Renders view number `i`: one image per detector channel.
-type RenderView<'a> = dyn Fn(usize, &View) -> Result<Vec<Projection>> + 'a;
+/// Renders view number `i`: one image per detector channel, and with real detector physics
+/// the parts (primary, scatter) it was made of.
+type RenderView<'a> = dyn Fn(usize, &View) -> Result<(Vec<Projection>, Option<Acquired>)> + 'a;
 
 pub fn run(args: ProjectArgs) -> Result<()> {
     let t0 = Instant::now();
@@ -570,7 +573,7 @@ pub fn run(args: ProjectArgs) -> Result<()> {
                 )))?;
             }
             renderer = r;
-            Box::new(|_, view| Ok(vec![renderer.render(view)?.to_quantity(job.quantity)]))
+            Box::new(|_, view| Ok((vec![renderer.render(view)?.to_quantity(job.quantity)], None)))
         }
         Some((acq, seed)) => {
             if !scene.mesh.is_empty() {
@@ -586,10 +589,17 @@ pub fn run(args: ProjectArgs) -> Result<()> {
                 );
             }
             prepared = acq.prepare(&vol, *seed)?;
-            Box::new(|i, view| Ok(prepared.acquire(job.projector, view, i)?))
+            Box::new(|i, view| {
+                let mut parts = prepared.acquire_with_parts(job.projector, view, i)?;
+                Ok((std::mem::take(&mut parts.images), Some(parts)))
+            })
         }
     };
     outputs.prepare()?;
+    let mut separate = ScatterWriters::new(
+        &outputs,
+        scene.scatter.as_ref().map_or(&[][..], |s| &s.images[..]),
+    );
 
     let bar = ProgressBar::new(job.views.len() as u64).with_style(
         ProgressStyle::with_template(
@@ -606,8 +616,11 @@ pub fn run(args: ProjectArgs) -> Result<()> {
     let mut channel_outputs: Vec<Outputs> = Vec::new();
     for (i, view) in job.views.iter().enumerate() {
         let t = Instant::now();
-        let images = render(i, view)?;
+        let (images, parts) = render(i, view)?;
         render_time += t.elapsed();
+        if let Some(parts) = &parts {
+            separate.write_view(i, parts)?;
+        }
         if channel_outputs.is_empty() {
             channel_outputs = (0..images.len())
                 .map(|c| outputs.for_channel(c, images.len()))
@@ -637,6 +650,9 @@ pub fn run(args: ProjectArgs) -> Result<()> {
             sc["channel"] = serde_json::json!(c);
         }
         files += out.finish(images, sc)?;
+    }
+    if !separate.is_empty() {
+        files += separate.finish(&sidecar)?;
     }
     eprintln!(
         "rendered {} view(s) of {}×{} in {:.1} ms ({:.1} ms per view; loading {:.0} ms); wrote {} file(s) to {}",

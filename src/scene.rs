@@ -55,7 +55,15 @@
 //! [scatter]                         # docs/scatter.md; default model = "none"
 //! model = "monte-carlo"             # or "estimate" (photons, grid, smoothing)
 //! photons = 100000
-//! grid = 16
+//! grid = 16                         # scoring points per side (not the anti-scatter grid)
+//! images = ["primary", "compton", "rayleigh", "multiple", "scatter", "total"]
+//!                                   # expected-signal images written beside the output
+//!
+//! [scatter.anti_scatter_grid]       # a focused linear grid in front of the detector
+//! ratio = 10.0
+//! lines_per_cm = 40.0
+//! strip_um = 36.0                   # lead strip thickness (default 36)
+//! interspace = "aluminium"          # or "air" (default aluminium)
 //!
 //! [materials]
 //! model = "schneider"               # or "five-tissue", "water"
@@ -127,7 +135,7 @@ pub struct Scene {
     #[serde(default)]
     pub mesh: Vec<MeshEntry>,
     /// Scattered radiation (docs/scatter.md); absent = none.
-    pub scatter: Option<tomograf_sim::scatter::ScatterModel>,
+    pub scatter: Option<crate::scatter_images::ScatterSection>,
 }
 
 /// Which physics between the traced paths and the image (see `crate::physics`).

@@ -25,6 +25,7 @@ pub mod geometry;
 pub mod phantom;
 mod physics;
 pub mod render;
+pub mod scatter;
 pub mod volume;
 
 use pyo3::prelude::*;
@@ -57,6 +58,8 @@ fn tomograf_py(m: &Bound<'_, PyModule>) -> PyResult<()> {
     // Real detector physics (spectrum, tissues, detector).
     m.add_function(wrap_pyfunction!(physics::acquire, m)?)?;
     m.add_function(wrap_pyfunction!(physics::presets, m)?)?;
-    // Scatter, meshes, reconstruction: register here.
+    // Scatter.
+    m.add_function(wrap_pyfunction!(scatter::scatter_matched, m)?)?;
+    // Meshes, reconstruction: register here.
     Ok(())
 }

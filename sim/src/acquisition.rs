@@ -17,7 +17,9 @@ use crate::geometry::View;
 use crate::material::{self, Material};
 use crate::polychromatic::SpectralIntegrator;
 use crate::render::{MassThickness, Projection, Projector, Renderer};
-use crate::scatter::{ScatterEngine, ScatterImages, ScatterModel, estimator, transport};
+use crate::scatter::{
+    AntiScatterGrid, ScatterEngine, ScatterImages, ScatterModel, estimator, transport,
+};
 use crate::spectrum::{Filter, Spectrum};
 use crate::tissue::TissueModel;
 use crate::volume::Volume;
@@ -132,6 +134,11 @@ pub struct Acquisition {
     /// Scattered radiation (default none: primary only, at no cost).
     #[serde(default)]
     pub scatter: ScatterModel,
+    /// An anti-scatter grid in front of the detector (default none): it attenuates the
+    /// primary by Tp(E) and each scattered photon by its direction ([`crate::scatter::
+    /// anti_scatter_grid`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub anti_scatter_grid: Option<AntiScatterGrid>,
 }
 
 /// Names of the acquisition presets ([`Acquisition::preset`]); `ideal-drr` is the
@@ -152,6 +159,7 @@ impl Acquisition {
                 detector: DetectorModel::kv_flat_panel(),
                 output: Output::LogLineIntegral,
                 scatter: ScatterModel::None,
+                anti_scatter_grid: None,
             }),
             "cbct-100kvp" => Ok(Self {
                 spectrum: SpectrumSpec::tungsten(100.0, &[("al", 2.5), ("cu", 0.2)], 0.4),
@@ -159,6 +167,7 @@ impl Acquisition {
                 detector: DetectorModel::cbct(),
                 output: Output::LogLineIntegral,
                 scatter: ScatterModel::None,
+                anti_scatter_grid: None,
             }),
             "ideal-drr" => Err(SimError::OutOfRange(
                 "'ideal-drr' is the monochromatic projector itself, not an acquisition".into(),
@@ -189,7 +198,7 @@ impl Acquisition {
             .iter()
             .map(|m| Ok((m.name().to_string(), table(m)?)))
             .collect::<Result<Vec<_>>>()?;
-        let absorption = match &self.detector.scintillator {
+        let mut absorption = match &self.detector.scintillator {
             Some(s) => {
                 let m = material::by_name(&s.material)?;
                 let mu: Vec<f64> = table(&m)?.iter().map(|a| a * m.density() / 10.0).collect();
@@ -197,6 +206,14 @@ impl Acquisition {
             }
             None => vec![1.0; energies.len()],
         };
+        let e_top = energies.iter().copied().fold(1.0, f64::max);
+        if let Some(g) = &self.anti_scatter_grid {
+            // The primary crosses the grid along the focus: a binomial thinning by Tp(E).
+            let t = g.tabulate(e_top)?;
+            for (a, &e) in absorption.iter_mut().zip(&energies) {
+                *a *= t.primary(e);
+            }
+        }
         let weights = self.detector.channel_weights(&energies, &absorption)?;
         let scatter = if self.scatter.is_none() {
             None
@@ -236,6 +253,7 @@ impl Acquisition {
                 spectrum.fluence(),
                 self.spectrum.mas,
             )?;
+            let engine = engine.with_anti_scatter_grid(self.anti_scatter_grid.as_ref())?;
             Some((self.scatter.clone(), engine))
         };
         let integrator =
@@ -317,17 +335,7 @@ impl Prepared {
     /// Adds view `index`'s expected scatter signal (mean and second moment) to `object`.
     fn add_scatter(&self, object: &mut ExpectedImage, view: &View, index: usize) -> Result<()> {
         if let Some(s) = self.scatter(view, index)? {
-            let total = s.total();
-            object
-                .mean
-                .iter_mut()
-                .zip(&total.mean)
-                .for_each(|(a, b)| *a += b);
-            object
-                .second_moment
-                .iter_mut()
-                .zip(&total.second_moment)
-                .for_each(|(a, b)| *a += b);
+            add_into(object, &s.total());
         }
         Ok(())
     }
@@ -342,25 +350,66 @@ impl Prepared {
         view: &View,
         index: usize,
     ) -> Result<Vec<Projection>> {
+        Ok(self.acquire_with_parts(projector, view, index)?.images)
+    }
+
+    /// [`Prepared::acquire`], also returning the parts the image was made of: the expected
+    /// primary signal and the scatter images (one Monte Carlo run serves both).
+    pub fn acquire_with_parts(
+        &self,
+        projector: Projector,
+        view: &View,
+        index: usize,
+    ) -> Result<Acquired> {
         let t = self.mass_thickness(projector, view)?;
-        let mut object = self.integrator.expected(&t, view, self.mas)?;
-        self.add_scatter(&mut object, view, index)?;
+        let primary = self.integrator.expected(&t, view, self.mas)?;
+        let scatter = self.scatter(view, index)?;
+        let mut object = primary.clone();
+        if let Some(s) = &scatter {
+            add_into(&mut object, &s.total());
+        }
         let raw = self
             .detector
             .record(&object, frame_seed(self.seed, index as u64 + 1))?;
-        if self.output == Output::Raw {
-            return Ok(raw);
-        }
-        let open = self.integrator.open(view, self.mas)?;
-        let mut cache = self.flat.lock().unwrap_or_else(|e| e.into_inner());
-        let fresh = !matches!(&*cache, Some((mean, _)) if *mean == open.mean);
-        if fresh {
-            let flat = self.detector.calibrate(&open, frame_seed(self.seed, 0))?;
-            *cache = Some((open.mean, flat));
-        }
-        let (_, flat) = cache.as_ref().expect("calibrated above");
-        flat.apply(&raw, self.output)
+        let images = if self.output == Output::Raw {
+            raw
+        } else {
+            let open = self.integrator.open(view, self.mas)?;
+            let mut cache = self.flat.lock().unwrap_or_else(|e| e.into_inner());
+            let fresh = !matches!(&*cache, Some((mean, _)) if *mean == open.mean);
+            if fresh {
+                let flat = self.detector.calibrate(&open, frame_seed(self.seed, 0))?;
+                *cache = Some((open.mean, flat));
+            }
+            let (_, flat) = cache.as_ref().expect("calibrated above");
+            flat.apply(&raw, self.output)?
+        };
+        Ok(Acquired {
+            images,
+            primary,
+            scatter,
+        })
     }
+}
+
+/// One acquired view and the parts it was made of ([`Prepared::acquire_with_parts`]).
+#[derive(Debug, Clone)]
+pub struct Acquired {
+    /// The recorded images, one per detector channel (the acquisition's output).
+    pub images: Vec<Projection>,
+    /// The expected primary signal (through the anti-scatter grid, if any).
+    pub primary: ExpectedImage,
+    /// The scatter images (`None` when scatter is not modelled).
+    pub scatter: Option<ScatterImages>,
+}
+
+/// Adds `b`'s mean and second moment to `a`'s (same layout).
+pub fn add_into(a: &mut ExpectedImage, b: &ExpectedImage) {
+    a.mean.iter_mut().zip(&b.mean).for_each(|(x, y)| *x += y);
+    a.second_moment
+        .iter_mut()
+        .zip(&b.second_moment)
+        .for_each(|(x, y)| *x += y);
 }
 
 /// Mixed into the acquisition seed for the scatter's random streams (distinct from noise).

@@ -17,6 +17,7 @@
 //! ChaCha8 stream seeded by SplitMix64(seed, b), and batch tallies are summed in batch
 //! order, so the bytes do not depend on the thread count.
 
+use super::anti_scatter_grid::{AntiScatterGrid, GridTransmission};
 use super::estimate::smooth;
 use super::estimator::{Component, Response, ScoreGrid, Tally, score, to_image};
 use super::transport::{E_CUTOFF_KEV, Medium};
@@ -44,6 +45,8 @@ pub struct ScatterEngine {
     /// Cumulative photons per bin (photons per mAs per mm² at 1 m).
     cdf: Vec<f64>,
     mas: f64,
+    /// The anti-scatter grid every scored photon crosses, if any.
+    anti_scatter: Option<GridTransmission>,
 }
 
 /// Scatter images of one view: expected detector signal, same layout and units as the
@@ -128,7 +131,16 @@ impl ScatterEngine {
             energies_kev,
             cdf,
             mas,
+            anti_scatter: None,
         })
+    }
+
+    /// The same engine with an anti-scatter grid in front of the detector (`None`: none).
+    pub fn with_anti_scatter_grid(mut self, grid: Option<&AntiScatterGrid>) -> Result<Self> {
+        self.anti_scatter = grid
+            .map(|g| g.tabulate(self.medium.e_max_kev()))
+            .transpose()?;
+        Ok(self)
     }
 
     /// The medium.
@@ -305,7 +317,17 @@ impl ScatterEngine {
             let Some(c) = self.medium.fly(p, d, e, rng) else {
                 return;
             };
-            score(&self.medium, grid, &self.response, &c, d, w, order, tally);
+            score(
+                &self.medium,
+                grid,
+                &self.response,
+                self.anti_scatter.as_ref(),
+                &c,
+                d,
+                w,
+                order,
+                tally,
+            );
             w *= 1.0 - c.p_photo;
             let (nd, ne, _) = self.medium.scatter(&c, d, rng);
             order += 1;

@@ -11,9 +11,10 @@
 //! pixels; its variance grows as a site nears the detector (1/d²), which does not happen
 //! for a patient separated from the panel.
 
+use super::anti_scatter_grid::{GridTransmission, focus_slope};
 use super::transport::{Collision, Medium};
 use crate::detector::ExpectedImage;
-use crate::geometry::View;
+use crate::geometry::{View, ViewBeam};
 use glam::DVec3;
 
 /// The detector's mean and second moment of signal per incident photon, per channel, on a
@@ -65,6 +66,10 @@ pub struct ScoreGrid {
     points: Vec<DVec3>,
     normal: DVec3,
     area: f64,
+    /// Unit column axis û (across the anti-scatter grid's strips).
+    u_axis: DVec3,
+    /// Slope of the focused anti-scatter strip at each point (0 for a parallel beam).
+    focus: Vec<f64>,
 }
 
 impl ScoreGrid {
@@ -91,12 +96,22 @@ impl ScoreGrid {
             .map(|&(r, c)| view.pixel_centre(r, c))
             .collect();
         let n = view.u.cross(view.v);
+        let (normal, u_axis) = (n.normalize(), view.u.normalize());
+        let focus = points
+            .iter()
+            .map(|&q| match view.beam {
+                ViewBeam::Cone { source } => focus_slope(source, q, u_axis, normal),
+                ViewBeam::Parallel { .. } => 0.0,
+            })
+            .collect();
         Self {
             rows,
             cols,
             points,
-            normal: n.normalize(),
+            normal,
             area: n.length(),
+            u_axis,
+            focus,
         }
     }
 
@@ -183,12 +198,14 @@ impl Tally {
 }
 
 /// Scores the expected detector signal of the scatter at collision `c` (photon weight
-/// `weight`, `order` scatters so far, travelling along `dir`) into `tally`.
+/// `weight`, `order` scatters so far, travelling along `dir`) into `tally`, through the
+/// anti-scatter grid `anti` when there is one.
 #[allow(clippy::too_many_arguments)]
 pub fn score(
     medium: &Medium,
     grid: &ScoreGrid,
     response: &Response,
+    anti: Option<&GridTransmission>,
     c: &Collision,
     dir: DVec3,
     weight: f64,
@@ -214,7 +231,13 @@ pub fn score(
         let (pc, ec) = medium.compton_towards(c, mu);
         let vc = weight * c.p_compton * pc * solid * medium.transmission(&paths, ec);
         let pr = medium.rayleigh_towards(c, mu);
-        let vr = weight * c.p_rayleigh * pr * solid * medium.transmission(&paths, c.energy_kev);
+        let mut vr = weight * c.p_rayleigh * pr * solid * medium.transmission(&paths, c.energy_kev);
+        let mut vc = vc;
+        if let Some(a) = anti {
+            let (u, n, f) = (grid.u_axis, grid.normal, grid.focus[p]);
+            vc *= a.towards(w, u, n, f, ec);
+            vr *= a.towards(w, u, n, f, c.energy_kev);
+        }
         for ch in 0..response.channels() {
             let (m1, m2) = (&response.mean[ch], &response.second_moment[ch]);
             let ic = tally.index(comp_c, ch, p);

@@ -1,22 +1,28 @@
 //! Scattered radiation: Monte Carlo photon transport through the patient's composition with
 //! forced detection, and a fast estimate of it.
 //!
+//! * [`anti_scatter_grid`] — the focused linear grid's transmission for primary and scatter;
 //! * [`cross_sections`] — where a scattered photon goes (KN × S, Thomson × F²);
 //! * [`transport`] — Woodcock tracking and interaction sampling in the voxel composition;
 //! * [`estimator`] — the point-detector (forced detection) estimator on a coarse grid;
 //! * [`engine`] — photons from the source, batches, seeds, the separate images;
-//! * [`estimate`] — the fast estimate (coarse, few photons, smoothed).
+//! * [`estimate`] — the fast estimate (coarse, few photons, smoothed);
+//! * [`matched`] — matched-physics mode (monoenergetic, constant albedo, isotropic or
+//!   Henyey–Greenstein phase, homogeneous box) for the cross-check with Mitsuba 3.
 //!
 //! The scatter images are expected detector signal (mean and second moment per channel),
 //! in the same units as the primary's [`crate::detector::ExpectedImage`], so the
 //! acquisition adds them before the detector records (see docs/scatter.md).
 
+pub mod anti_scatter_grid;
 pub mod cross_sections;
 pub mod engine;
 pub mod estimate;
 pub mod estimator;
+pub mod matched;
 pub mod transport;
 
+pub use anti_scatter_grid::AntiScatterGrid;
 pub use engine::{ScatterEngine, ScatterImages};
 
 use crate::error::{Result, SimError};

@@ -1,0 +1,87 @@
+//! Where the Monte Carlo's time goes and the time to a 256² scatter image at ≤ 2 % noise
+//! per pixel (docs/scatter.md, "Speed"). Not a test; all in one process, CPU time from
+//! getrusage (user + system of the whole process, all threads).
+//!
+//! `cargo run --release -p tomograf-sim --example scatter_speed`
+use glam::DVec3;
+use tomograf_sim::acquisition::Acquisition;
+use tomograf_sim::phantom::Phantom;
+use tomograf_sim::scatter::ScatterModel;
+use tomograf_sim::*;
+
+fn cpu_seconds() -> f64 {
+    let mut u = std::mem::MaybeUninit::<libc::rusage>::uninit();
+    // SAFETY: getrusage fills the struct it is given.
+    let u = unsafe {
+        libc::getrusage(libc::RUSAGE_SELF, u.as_mut_ptr());
+        u.assume_init()
+    };
+    let t = |v: libc::timeval| v.tv_sec as f64 + v.tv_usec as f64 * 1e-6;
+    t(u.ru_utime) + t(u.ru_stime)
+}
+
+fn main() {
+    let hu = Phantom::thorax()
+        .voxelize([80, 56, 40], DVec3::new(4.5, 4.5, 8.3), DVec3::ZERO)
+        .unwrap();
+    // SAD 1000 / SID 1500 mm, a 430 mm panel read as 256 × 256 pixels of 1.68 mm.
+    let g = Geometry {
+        beam: Beam::Cone {
+            sad_mm: 1000.0,
+            sid_mm: 1500.0,
+        },
+        detector: Detector::new(256, 256, 1.68),
+        isocentre: DVec3::ZERO,
+    };
+    let view = g.view(Pose::new(0.0, 0.0)).unwrap();
+    // The variance of one scoring point's estimate does not depend on how many other points
+    // there are, so the photons needed for 2 % per point come from the run with the most
+    // batches (16 × 16, 20 000 photons = 79 batches); the cost per history from each run.
+    println!(
+        "| scoring grid | photons | CPU s | histories per CPU s | median rel. SE per point | CPU s for 2 % (photons from the 16×16 run) |"
+    );
+    println!("|---|---|---|---|---|---|");
+    let mut n2 = 0.0;
+    let mut rows = Vec::new();
+    for (grid, photons) in [
+        (16, 20_000),
+        (1, 20_000),
+        (4, 20_000),
+        (64, 2_048),
+        (256, 512),
+    ] {
+        let mut a = Acquisition::preset("kv-flat-panel-120kvp").unwrap();
+        a.scatter = ScatterModel::MonteCarlo {
+            photons,
+            grid,
+            max_order: 50,
+        };
+        let p = a.prepare(&hu, 7).unwrap();
+        let t0 = cpu_seconds();
+        let s = p.scatter(&view, 0).unwrap().unwrap();
+        let cpu = cpu_seconds() - t0;
+        let mut rel: Vec<f64> = s
+            .grid_mean
+            .iter()
+            .zip(&s.grid_standard_error)
+            .filter(|(m, _)| **m > 0.0)
+            .map(|(m, e)| e / m)
+            .collect();
+        rel.sort_by(f64::total_cmp);
+        let med = rel[rel.len() / 2];
+        if grid == 16 {
+            n2 = photons as f64 * (med / 0.02).powi(2);
+        }
+        rows.push((grid, photons, cpu, med));
+    }
+    rows.sort_by_key(|r| r.0);
+    for (grid, photons, cpu, med) in rows {
+        println!(
+            "| {grid}×{grid} | {photons} | {cpu:.1} | {:.0} | {:.1} % | {:.0} |",
+            photons as f64 / cpu,
+            100.0 * med,
+            cpu * n2 / photons as f64
+        );
+    }
+    println!("photons for a median 2 % per scoring point: {n2:.0}");
+}

@@ -1,0 +1,164 @@
+//! End-to-end tests of `[scatter]` on the command line: the separate images (primary,
+//! single Compton, single Rayleigh, multiple, scatter, total) and how they add up, their
+//! independence of the thread count, the anti-scatter grid lowering the scatter-to-primary
+//! ratio, and errors for bad sections.
+
+mod common;
+
+use common::*;
+use std::path::Path;
+
+const ALL: &str = r#"["primary", "compton", "rayleigh", "multiple", "scatter", "total"]"#;
+
+/// Writes a scene (small phantom, 16 × 16 panel, raw signal) with `scatter` as the body of
+/// its `[scatter]` table (plus `extra` tables after it), renders it into `dir/name` with
+/// `global` flags and returns the output folder.
+fn run(dir: &Path, name: &str, global: &[&str], scatter: &str, extra: &str) -> std::path::PathBuf {
+    let out = dir.join(name);
+    let scene = dir.join(format!("{name}.toml"));
+    std::fs::write(
+        &scene,
+        format!(
+            "[volume]\nphantom_dims = [48, 48, 30]\nphantom_spacing_mm = [7.5, 7.5, 11.0]\n\
+             [detector]\nrows = 16\ncols = 16\n\
+             [acquisition]\npreset = \"kv-flat-panel-120kvp\"\nsignal = \"raw\"\nseed = 5\n\
+             [output]\ndir = \"{}\"\nformats = [\"npy\", \"exr\"]\n\
+             [scatter]\n{scatter}\n{extra}",
+            out.display()
+        ),
+    )
+    .unwrap();
+    let mut args = global.to_vec();
+    args.extend(["project", "--scene", scene.to_str().unwrap()]);
+    ok(&tomograf(&args));
+    out
+}
+
+fn stack(out: &Path, image: &str) -> Vec<f64> {
+    let (shape, v) = read_npy(&out.join(format!("drr_{image}.npy")));
+    assert_eq!(shape, [1, 16, 16], "{image}");
+    v.iter().map(|x| f64::from(*x)).collect()
+}
+
+const MC: &str = "model = \"monte-carlo\"\nphotons = 3000\ngrid = 4\n";
+
+#[test]
+fn separate_images_are_written_and_add_up() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let out = run(
+        d,
+        "a",
+        &["--threads", "1"],
+        &format!("{MC}images = {ALL}"),
+        "",
+    );
+    let get = |i| stack(&out, i);
+    let (p, c, r, m, s, t) = (
+        get("primary"),
+        get("compton"),
+        get("rayleigh"),
+        get("multiple"),
+        get("scatter"),
+        get("total"),
+    );
+    for i in 0..p.len() {
+        assert!(
+            p[i] > 0.0 && c[i] > 0.0 && r[i] > 0.0 && m[i] > 0.0,
+            "pixel {i}"
+        );
+        // Written as f32: sums agree to f32 rounding.
+        assert!(
+            (c[i] + r[i] + m[i] - s[i]).abs() <= 1e-6 * s[i],
+            "pixel {i}"
+        );
+        assert!((p[i] + s[i] - t[i]).abs() <= 1e-6 * t[i], "pixel {i}");
+    }
+    // Compton dominates single scatter at 120 kVp in soft tissue.
+    assert!(c.iter().sum::<f64>() > r.iter().sum::<f64>());
+    for name in ["primary", "compton", "total"] {
+        assert!(out.join(format!("drr_{name}_000.exr")).is_file(), "{name}");
+        let sidecar: serde_json::Value =
+            serde_json::from_slice(&std::fs::read(out.join(format!("drr_{name}.json"))).unwrap())
+                .unwrap();
+        assert!(sidecar["quantity"].as_str().unwrap().contains(name));
+    }
+    // The main output is still written, and the scene's images round-trip in its sidecar.
+    assert!(out.join("drr.npy").is_file());
+    // Thread count does not change the bytes.
+    let two = run(
+        d,
+        "b",
+        &["--threads", "2"],
+        &format!("{MC}images = {ALL}"),
+        "",
+    );
+    for name in ["compton", "rayleigh", "multiple", "primary"] {
+        assert_eq!(
+            std::fs::read(out.join(format!("drr_{name}.npy"))).unwrap(),
+            std::fs::read(two.join(format!("drr_{name}.npy"))).unwrap(),
+            "{name}"
+        );
+    }
+}
+
+#[test]
+fn an_anti_scatter_grid_lowers_the_scatter_to_primary_ratio() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let images = "images = [\"primary\", \"scatter\"]";
+    let open = run(d, "open", &[], &format!("{MC}{images}"), "");
+    let grid = "[scatter.anti_scatter_grid]\nratio = 10\nlines_per_cm = 40\n";
+    let with = run(d, "grid", &[], &format!("{MC}{images}"), grid);
+    let sum = |out: &Path, i| stack(out, i).iter().sum::<f64>();
+    let tp = sum(&with, "primary") / sum(&open, "primary");
+    let ts = sum(&with, "scatter") / sum(&open, "scatter");
+    eprintln!("Tp {tp:.3}, Ts {ts:.3}");
+    // Open fraction 0.856 times ≈ 2 mm of aluminium at 120 kVp: Tp ≈ 0.6–0.85.
+    assert!((0.6..0.86).contains(&tp), "Tp {tp}");
+    assert!(ts < 0.6 * tp, "Ts {ts} vs Tp {tp}");
+    // The grid alone (no scatter model) still attenuates the primary.
+    let only = run(
+        d,
+        "only",
+        &[],
+        "model = \"none\"\nimages = [\"primary\"]",
+        grid,
+    );
+    assert_eq!(
+        std::fs::read(only.join("drr_primary.npy")).unwrap(),
+        std::fs::read(with.join("drr_primary.npy")).unwrap()
+    );
+}
+
+#[test]
+fn bad_scatter_sections_are_named() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let fails = |scatter: &str, extra: &str| {
+        let scene = d.join("bad.toml");
+        std::fs::write(
+            &scene,
+            format!(
+                "[acquisition]\npreset = \"kv-flat-panel-120kvp\"\n[output]\ndir = \"{}\"\n\
+                 [scatter]\n{scatter}\n{extra}",
+                d.join("o").display()
+            ),
+        )
+        .unwrap();
+        let out = tomograf(&["project", "--scene", scene.to_str().unwrap()]);
+        assert!(!out.status.success(), "should fail: {scatter} {extra}");
+        String::from_utf8_lossy(&out.stderr).into_owned()
+    };
+    let e = fails("model = \"none\"\nimages = [\"compton\"]", "");
+    assert!(e.contains("compton") && e.contains("model"), "{e}");
+    let e = fails(&format!("{MC}images = [\"compton\", \"speckle\"]"), "");
+    assert!(e.contains("speckle"), "{e}");
+    let e = fails(
+        MC,
+        "[scatter.anti_scatter_grid]\nratio = -3\nlines_per_cm = 40\n",
+    );
+    assert!(e.contains("ratio"), "{e}");
+    let e = fails(MC, "[scatter.anti_scatter_grid]\nratio = 8\n");
+    assert!(e.contains("lines_per_cm"), "{e}");
+}
