@@ -66,7 +66,8 @@ impl PhysicsArgs {
             s.detector.model = self.detector_model.clone();
         }
         if let Some(model) = scatter_model(self.scatter.as_deref(), self.scatter_photons)? {
-            s.scatter = Some(model);
+            // The scene's images and anti-scatter grid stay; the flags choose the model.
+            s.scatter.get_or_insert_with(Default::default).model = model;
         }
         if let Some(kvp) = self.kvp {
             // A preset's beam keeps its filtration and exposure at the new voltage.
