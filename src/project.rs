@@ -2,16 +2,18 @@
 
 use crate::output::{self, Format, Outputs};
 use crate::physics::{self, PhysicsArgs};
-use crate::scene::{ExplicitView, Scene};
+use crate::scene::{ExplicitView, MeshPhysics, Scene};
 use anyhow::{Context, Result, bail};
 use clap::Args;
 use glam::DVec3;
 use indicatif::{ProgressBar, ProgressStyle};
 use std::path::PathBuf;
+use std::sync::Arc;
 use std::time::Instant;
 use tomograf_datasets::anatomy::{self, AnatomySpec, Profile};
 use tomograf_sim::attenuation::Attenuation;
 use tomograf_sim::geometry::angles;
+use tomograf_sim::mesh::MeshScene;
 use tomograf_sim::phantom::Phantom;
 use tomograf_sim::{
     Beam, Detector, Geometry, Pose, Projection, Projector, Quantity, Renderer, View, ViewBeam,
@@ -235,6 +237,9 @@ pub struct VolumeSource {
     pub direction: [[f64; 3]; 3],
 }
 
+/// Effective energy (keV) of the HU → mu conversion of the ideal DRR when none is given.
+const DEFAULT_ENERGY_KEV: f64 = 60.0;
+
 /// Loads the input volume (or phantom) and converts it to mu (mm⁻¹).
 pub fn load_mu(scene: &Scene) -> Result<(Volume, VolumeSource)> {
     load(scene, None)
@@ -278,7 +283,7 @@ fn load(scene: &Scene, keep_hu: Option<f64>) -> Result<(Volume, VolumeSource)> {
             "real detector physics classifies tissues by CT number: the input must be in HU \
              (--units hu)"
         ),
-        ("hu", None) => Attenuation::hounsfield_at_kev(v.energy_kev.unwrap_or(60.0))?,
+        ("hu", None) => Attenuation::hounsfield_at_kev(v.energy_kev.unwrap_or(DEFAULT_ENERGY_KEV))?,
         ("mu", None) => {
             if v.energy_kev.is_some() {
                 bail!("--energy-kev only applies to HU input (--units hu)");
@@ -557,35 +562,33 @@ pub fn run(args: ProjectArgs) -> Result<()> {
     // One view → one image per detector channel.
     let prepared;
     let renderer;
+    let meshes = |physics| -> Result<Option<Arc<MeshScene>>> {
+        let mut objects = Vec::new();
+        for (i, m) in scene.mesh.iter().enumerate() {
+            objects.extend(m.build(i, physics)?);
+        }
+        Ok((!objects.is_empty()).then(|| Arc::new(MeshScene::new(objects))))
+    };
     let render: Box<RenderView> = match &acquisition {
         None => {
             let mut r = Renderer::new(&vol, job.projector)?;
-            if !scene.mesh.is_empty() {
-                let mut objects = Vec::new();
-                for (i, m) in scene.mesh.iter().enumerate() {
-                    objects.extend(m.build(i)?);
-                }
-                r = r.with_meshes(std::sync::Arc::new(tomograf_sim::mesh::MeshScene::new(
-                    objects,
-                )))?;
+            // The HU → mu energy, at which a mesh's material gives its mu.
+            let energy_kev = matches!(source.attenuation, Attenuation::Hounsfield { .. })
+                .then(|| scene.volume.energy_kev.unwrap_or(DEFAULT_ENERGY_KEV));
+            if let Some(m) = meshes(MeshPhysics::Monochromatic { energy_kev })? {
+                r = r.with_meshes(m)?;
             }
             renderer = r;
             Box::new(|_, view| Ok(vec![renderer.render(view)?.to_quantity(job.quantity)]))
         }
         Some((acq, seed)) => {
-            if !scene.mesh.is_empty() {
-                bail!(
-                    "[[mesh]] objects are not yet supported with real detector physics (a \
-                     spectrum, materials or a detector model); render them as an ideal DRR"
-                );
-            }
             if scene.output.quantity.is_some() || scene.output.i0.is_some() {
                 bail!(
                     "--quantity and --i0 are for the ideal DRR; with real detector physics the \
                      image is the detector's --signal (raw, flat-field or log-line-integral)"
                 );
             }
-            prepared = acq.prepare(&vol, *seed)?;
+            prepared = acq.prepare_with_meshes(&vol, *seed, meshes(MeshPhysics::Polychromatic)?)?;
             Box::new(|i, view| Ok(prepared.acquire(job.projector, view, i)?))
         }
     };
