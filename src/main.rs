@@ -7,6 +7,7 @@ mod dataset;
 mod demo;
 mod evaluate;
 mod output;
+mod phantom_devices;
 mod physics;
 mod project;
 mod recon_cmd;

@@ -128,6 +128,11 @@ pub struct PhantomArgs {
     /// Add a pacemaker with leads to the procedural patient.
     #[arg(long)]
     pub pacemaker: bool,
+    /// Write the pacemaker and table as mesh files (OBJ) in this folder, with a scene
+    /// (DIR/scene.toml) that places them over the phantom, instead of painting them into
+    /// the voxels.
+    #[arg(long, value_name = "DIR")]
+    pub mesh_devices: Option<PathBuf>,
     /// Grid NX,NY,NZ [default: 256,256,133].
     #[arg(long, value_parser = parse3)]
     pub dims: Option<[f64; 3]>,
@@ -187,17 +192,28 @@ pub fn write_phantom(args: PhantomArgs) -> Result<()> {
         .transpose()?
         .unwrap_or(PHANTOM_DIMS);
     let spacing = args.spacing.unwrap_or(PHANTOM_SPACING);
+    let mut devices = Vec::new();
     let vol = match &args.profile {
         Some(profile) => {
             let mut spec = AnatomySpec::new(args.seed, Profile::parse(profile)?, dims, spacing);
             spec.table = args.table;
             spec.pacemaker = args.pacemaker;
-            anatomy::generate(&spec)?
+            match &args.mesh_devices {
+                None => anatomy::generate(&spec)?,
+                Some(_) if !(args.table || args.pacemaker) => {
+                    bail!("--mesh-devices needs --pacemaker or --table (the devices it writes)")
+                }
+                Some(_) => {
+                    let (vol, meshes) = anatomy::generate_with_device_meshes(&spec)?;
+                    devices = meshes;
+                    vol
+                }
+            }
         }
         None => {
-            if args.table || args.pacemaker {
+            if args.table || args.pacemaker || args.mesh_devices.is_some() {
                 bail!(
-                    "--table and --pacemaker need a procedural patient: give --profile lidc or full-chest"
+                    "--table, --pacemaker and --mesh-devices need a procedural patient: give --profile lidc or full-chest"
                 );
             }
             phantom_volume(dims, spacing)?
@@ -221,6 +237,14 @@ pub fn write_phantom(args: PhantomArgs) -> Result<()> {
         dims[1],
         dims[2]
     );
+    if let Some(dir) = &args.mesh_devices {
+        let scene = crate::phantom_devices::write(dir, &args.output, &devices)?;
+        eprintln!(
+            "wrote {} device mesh(es) and {}",
+            devices.len(),
+            scene.display()
+        );
+    }
     Ok(())
 }
 
