@@ -8,6 +8,7 @@ mod demo;
 mod evaluate;
 mod figures;
 mod output;
+mod phantom_devices;
 mod physics;
 mod project;
 mod recon_cmd;

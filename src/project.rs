@@ -3,17 +3,19 @@
 use crate::output::{self, Format, Outputs};
 use crate::physics::{self, PhysicsArgs};
 use crate::scatter_images::ScatterWriters;
-use crate::scene::{ExplicitView, Scene};
+use crate::scene::{ExplicitView, MeshPhysics, Scene};
 use anyhow::{Context, Result, bail};
 use clap::Args;
 use glam::DVec3;
 use indicatif::{ProgressBar, ProgressStyle};
 use std::path::PathBuf;
+use std::sync::Arc;
 use std::time::Instant;
 use tomograf_datasets::anatomy::{self, AnatomySpec, Profile};
 use tomograf_sim::acquisition::Acquired;
 use tomograf_sim::attenuation::Attenuation;
 use tomograf_sim::geometry::angles;
+use tomograf_sim::mesh::MeshScene;
 use tomograf_sim::phantom::Phantom;
 use tomograf_sim::{
     Beam, Detector, Geometry, Pose, Projection, Projector, Quantity, Renderer, View, ViewBeam,
@@ -128,6 +130,11 @@ pub struct PhantomArgs {
     /// Add a pacemaker with leads to the procedural patient.
     #[arg(long)]
     pub pacemaker: bool,
+    /// Write the pacemaker and table as mesh files (OBJ) in this folder, with a scene
+    /// (DIR/scene.toml) that places them over the phantom, instead of painting them into
+    /// the voxels.
+    #[arg(long, value_name = "DIR")]
+    pub mesh_devices: Option<PathBuf>,
     /// Grid NX,NY,NZ [default: 256,256,133].
     #[arg(long, value_parser = parse3)]
     pub dims: Option<[f64; 3]>,
@@ -187,17 +194,28 @@ pub fn write_phantom(args: PhantomArgs) -> Result<()> {
         .transpose()?
         .unwrap_or(PHANTOM_DIMS);
     let spacing = args.spacing.unwrap_or(PHANTOM_SPACING);
+    let mut devices = Vec::new();
     let vol = match &args.profile {
         Some(profile) => {
             let mut spec = AnatomySpec::new(args.seed, Profile::parse(profile)?, dims, spacing);
             spec.table = args.table;
             spec.pacemaker = args.pacemaker;
-            anatomy::generate(&spec)?
+            match &args.mesh_devices {
+                None => anatomy::generate(&spec)?,
+                Some(_) if !(args.table || args.pacemaker) => {
+                    bail!("--mesh-devices needs --pacemaker or --table (the devices it writes)")
+                }
+                Some(_) => {
+                    let (vol, meshes) = anatomy::generate_with_device_meshes(&spec)?;
+                    devices = meshes;
+                    vol
+                }
+            }
         }
         None => {
-            if args.table || args.pacemaker {
+            if args.table || args.pacemaker || args.mesh_devices.is_some() {
                 bail!(
-                    "--table and --pacemaker need a procedural patient: give --profile lidc or full-chest"
+                    "--table, --pacemaker and --mesh-devices need a procedural patient: give --profile lidc or full-chest"
                 );
             }
             phantom_volume(dims, spacing)?
@@ -221,6 +239,14 @@ pub fn write_phantom(args: PhantomArgs) -> Result<()> {
         dims[1],
         dims[2]
     );
+    if let Some(dir) = &args.mesh_devices {
+        let scene = crate::phantom_devices::write(dir, &args.output, &devices)?;
+        eprintln!(
+            "wrote {} device mesh(es) and {}",
+            devices.len(),
+            scene.display()
+        );
+    }
     Ok(())
 }
 
@@ -236,6 +262,9 @@ pub struct VolumeSource {
     pub origin_mm: [f64; 3],
     pub direction: [[f64; 3]; 3],
 }
+
+/// Effective energy (keV) of the HU → mu conversion of the ideal DRR when none is given.
+const DEFAULT_ENERGY_KEV: f64 = 60.0;
 
 /// Loads the input volume (or phantom) and converts it to mu (mm⁻¹).
 pub fn load_mu(scene: &Scene) -> Result<(Volume, VolumeSource)> {
@@ -280,7 +309,7 @@ fn load(scene: &Scene, keep_hu: Option<f64>) -> Result<(Volume, VolumeSource)> {
             "real detector physics classifies tissues by CT number: the input must be in HU \
              (--units hu)"
         ),
-        ("hu", None) => Attenuation::hounsfield_at_kev(v.energy_kev.unwrap_or(60.0))?,
+        ("hu", None) => Attenuation::hounsfield_at_kev(v.energy_kev.unwrap_or(DEFAULT_ENERGY_KEV))?,
         ("mu", None) => {
             if v.energy_kev.is_some() {
                 bail!("--energy-kev only applies to HU input (--units hu)");
@@ -560,35 +589,33 @@ pub fn run(args: ProjectArgs) -> Result<()> {
     // One view → one image per detector channel.
     let prepared;
     let renderer;
+    let meshes = |physics| -> Result<Option<Arc<MeshScene>>> {
+        let mut objects = Vec::new();
+        for (i, m) in scene.mesh.iter().enumerate() {
+            objects.extend(m.build(i, physics)?);
+        }
+        Ok((!objects.is_empty()).then(|| Arc::new(MeshScene::new(objects))))
+    };
     let render: Box<RenderView> = match &acquisition {
         None => {
             let mut r = Renderer::new(&vol, job.projector)?;
-            if !scene.mesh.is_empty() {
-                let mut objects = Vec::new();
-                for (i, m) in scene.mesh.iter().enumerate() {
-                    objects.extend(m.build(i)?);
-                }
-                r = r.with_meshes(std::sync::Arc::new(tomograf_sim::mesh::MeshScene::new(
-                    objects,
-                )))?;
+            // The HU → mu energy, at which a mesh's material gives its mu.
+            let energy_kev = matches!(source.attenuation, Attenuation::Hounsfield { .. })
+                .then(|| scene.volume.energy_kev.unwrap_or(DEFAULT_ENERGY_KEV));
+            if let Some(m) = meshes(MeshPhysics::Monochromatic { energy_kev })? {
+                r = r.with_meshes(m)?;
             }
             renderer = r;
             Box::new(|_, view| Ok((vec![renderer.render(view)?.to_quantity(job.quantity)], None)))
         }
         Some((acq, seed)) => {
-            if !scene.mesh.is_empty() {
-                bail!(
-                    "[[mesh]] objects are not yet supported with real detector physics (a \
-                     spectrum, materials or a detector model); render them as an ideal DRR"
-                );
-            }
             if scene.output.quantity.is_some() || scene.output.i0.is_some() {
                 bail!(
                     "--quantity and --i0 are for the ideal DRR; with real detector physics the \
                      image is the detector's --signal (raw, flat-field or log-line-integral)"
                 );
             }
-            prepared = acq.prepare(&vol, *seed)?;
+            prepared = acq.prepare_with_meshes(&vol, *seed, meshes(MeshPhysics::Polychromatic)?)?;
             Box::new(|i, view| {
                 let mut parts = prepared.acquire_with_parts(job.projector, view, i)?;
                 Ok((std::mem::take(&mut parts.images), Some(parts)))

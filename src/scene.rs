@@ -74,16 +74,18 @@
 //! thresholds_kev = [20.0, 50.0]     # photon-counting only
 //! ```
 //!
-//! Mesh objects (closed triangle meshes; inside one its mu replaces the voxels'), one table
-//! each; later meshes win where meshes overlap:
+//! Mesh objects (closed triangle meshes; inside one its material replaces the voxels'), one
+//! table each; later meshes win where meshes overlap:
 //!
 //! ```toml
 //! [[mesh]]
 //! name = "screw"
 //! path = "screw.stl"          # .obj, .ply or .stl; or kind = "box" | "sphere" |
 //!                             # "cylinder" | "pacemaker" | "table" (generated in code)
-//! material = "titanium"
-//! mu_per_mm = 0.08            # linear attenuation inside, mm⁻¹ (required for now)
+//! material = "titanium"       # a material of the library (tomograf_sim::material::by_name)
+//! density_g_cm3 = 4.5         # optional; default: the material's nominal density
+//! mu_per_mm = 0.08            # ideal DRR only, optional: mu inside (mm⁻¹); default: the
+//!                             # material's mu at the HU → mu energy (energy_kev)
 //! translation_mm = [0.0, 0.0, 0.0]
 //! rotation_deg = [0.0, 0.0, 0.0]   # about x, then y, then z
 //! scale = [1.0, 1.0, 1.0]          # file units → mm
@@ -171,6 +173,7 @@ pub struct MeshEntry {
     pub path: Option<PathBuf>,
     pub kind: Option<String>,
     pub material: Option<String>,
+    pub density_g_cm3: Option<f64>,
     pub mu_per_mm: Option<f64>,
     pub translation_mm: Option<[f64; 3]>,
     pub rotation_deg: Option<[f64; 3]>,
@@ -183,9 +186,24 @@ pub struct MeshEntry {
     pub resolution: Option<u32>,
 }
 
+/// Which quantity a mesh must carry: a linear attenuation (the ideal DRR) or a material
+/// and density (real detector physics).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum MeshPhysics {
+    /// The monochromatic DRR; `energy_kev` is the HU → mu energy when the volume is in HU
+    /// (`None` for a volume in mu: then each mesh needs `mu_per_mm`).
+    Monochromatic { energy_kev: Option<f64> },
+    /// Real detector physics: the mesh's material and density enter the spectrum sums.
+    Polychromatic,
+}
+
 impl MeshEntry {
     /// The mesh(es) this entry describes, checked and placed (a pacemaker gives three).
-    pub fn build(&self, index: usize) -> Result<Vec<tomograf_sim::mesh::MeshObject>> {
+    pub fn build(
+        &self,
+        index: usize,
+        physics: MeshPhysics,
+    ) -> Result<Vec<tomograf_sim::mesh::MeshObject>> {
         use tomograf_sim::mesh::{MeshObject, Placement, TriMesh, io, shapes, topology};
         let name = self.name.clone().unwrap_or_else(|| format!("mesh{index}"));
         let what = || format!("[[mesh]] {name}");
@@ -239,13 +257,7 @@ impl MeshEntry {
                 translation_mm: self.translation_mm.unwrap_or([0.0; 3]),
             },
         };
-        let material = self.material.clone().unwrap_or_else(|| "unknown".into());
-        let Some(mu) = self.mu_per_mm else {
-            anyhow::bail!(
-                "{}: mu_per_mm is required (linear attenuation inside, mm⁻¹)",
-                what()
-            );
-        };
+        let (material, density, mu) = self.resolve(physics).with_context(what)?;
         parts
             .into_iter()
             .map(|(part, mesh)| {
@@ -253,10 +265,59 @@ impl MeshEntry {
                     Some(eps) => topology::repair(&mesh, eps).with_context(what)?.0,
                     None => mesh,
                 };
-                MeshObject::new(&part, &mesh, &placement, &material, Some(mu), true)
-                    .with_context(what)
+                let object = MeshObject::new(&part, &mesh, &placement, &material, mu, true)
+                    .with_context(what)?;
+                match density {
+                    Some(d) => object.with_density(d).with_context(what),
+                    None => Ok(object),
+                }
             })
             .collect()
+    }
+
+    /// The material name, density (g/cm³, when known) and mu (mm⁻¹, monochromatic only).
+    fn resolve(&self, physics: MeshPhysics) -> Result<(String, Option<f64>, Option<f64>)> {
+        use tomograf_sim::material::by_name;
+        if let Some(d) = self.density_g_cm3
+            && !(d.is_finite() && d > 0.0)
+        {
+            anyhow::bail!("density_g_cm3 = {d}; it must be finite and > 0");
+        }
+        match physics {
+            MeshPhysics::Polychromatic => {
+                if self.mu_per_mm.is_some() {
+                    anyhow::bail!(
+                        "mu_per_mm is for the ideal DRR; with real detector physics a mesh is \
+                         its material and density (give material, and density_g_cm3 if not \
+                         the nominal one)"
+                    );
+                }
+                let Some(name) = &self.material else {
+                    anyhow::bail!(
+                        "real detector physics needs the mesh's material (e.g. material = \
+                         \"titanium\")"
+                    );
+                };
+                let m = by_name(name)?;
+                let rho = self.density_g_cm3.unwrap_or(m.density());
+                Ok((name.clone(), Some(rho), None))
+            }
+            MeshPhysics::Monochromatic { energy_kev } => {
+                let name = self.material.clone().unwrap_or_else(|| "unknown".into());
+                if let Some(mu) = self.mu_per_mm {
+                    return Ok((name, self.density_g_cm3, Some(mu)));
+                }
+                let (Some(material), Some(e)) = (&self.material, energy_kev) else {
+                    anyhow::bail!(
+                        "give mu_per_mm (linear attenuation inside, mm⁻¹), or a material with \
+                         an HU volume (its mu is then taken at the volume's energy_kev)"
+                    );
+                };
+                let m = by_name(material)?;
+                let rho = self.density_g_cm3.unwrap_or(m.density());
+                Ok((name, Some(rho), Some(m.mu_per_mm(e, rho)?)))
+            }
+        }
     }
 }
 

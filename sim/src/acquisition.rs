@@ -15,6 +15,7 @@ use crate::detector::{DetectorModel, ExpectedImage, FlatField, Output};
 use crate::error::{Result, SimError};
 use crate::geometry::View;
 use crate::material::{self, Material};
+use crate::mesh::MeshScene;
 use crate::polychromatic::SpectralIntegrator;
 use crate::render::{MassThickness, Projection, Projector, Renderer};
 use crate::scatter::{
@@ -24,7 +25,7 @@ use crate::spectrum::{Filter, Spectrum};
 use crate::tissue::TissueModel;
 use crate::volume::Volume;
 use serde::{Deserialize, Serialize};
-use std::sync::Mutex;
+use std::sync::{Arc, Mutex};
 
 /// Where the beam's spectrum comes from (a scene's `[spectrum]` table).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -184,7 +185,31 @@ impl Acquisition {
     /// detector's response at the spectrum's energies. `seed` seeds the detector noise:
     /// view `i`'s frame and the calibration frames each get a stream derived from it.
     pub fn prepare(&self, hu: &Volume, seed: u64) -> Result<Prepared> {
+        self.prepare_with_meshes(hu, seed, None)
+    }
+
+    /// [`Acquisition::prepare`] with mesh objects in the same rays: each mesh names a
+    /// material of the library ([`material::by_name`]) and has a density
+    /// ([`crate::mesh::MeshObject::density_g_cm3`]); inside a mesh its material replaces
+    /// the voxels', and its mass thickness enters the polychromatic integration as one
+    /// more material (one per distinct mesh material name). Scatter is not modelled with
+    /// meshes (the Monte Carlo medium is the voxel composition): asking for both is an
+    /// error.
+    pub fn prepare_with_meshes(
+        &self,
+        hu: &Volume,
+        seed: u64,
+        meshes: Option<Arc<MeshScene>>,
+    ) -> Result<Prepared> {
         self.detector.validate()?;
+        let meshes = meshes.filter(|m| !m.is_empty());
+        if meshes.is_some() && !self.scatter.is_none() {
+            return Err(SimError::OutOfRange(
+                "scatter with mesh objects is not modelled (the Monte Carlo medium is the voxel \
+                 composition): drop [scatter] or the meshes"
+                    .into(),
+            ));
+        }
         let spectrum = self.spectrum.spectrum()?;
         let (composition, materials) = self.materials.composition(hu)?;
         let energies = spectrum.energies_kev().to_vec();
@@ -194,10 +219,23 @@ impl Acquisition {
                 .map(|&e| m.mass_attenuation(e))
                 .collect::<Result<Vec<f64>>>()
         };
-        let attenuation = materials
+        let mut attenuation = materials
             .iter()
             .map(|m| Ok((m.name().to_string(), table(m)?)))
             .collect::<Result<Vec<_>>>()?;
+        let mut columns = composition.materials().to_vec();
+        if let Some(m) = &meshes {
+            for name in m.materials().0 {
+                let material = material::by_name(&name).map_err(|e| match e {
+                    SimError::UnknownMaterial(msg) => {
+                        SimError::UnknownMaterial(format!("{msg} (named by a mesh)"))
+                    }
+                    other => other,
+                })?;
+                attenuation.push((name.clone(), table(&material)?));
+                columns.push(name);
+            }
+        }
         let mut absorption = match &self.detector.scintillator {
             Some(s) => {
                 let m = material::by_name(&s.material)?;
@@ -260,6 +298,8 @@ impl Acquisition {
             SpectralIntegrator::new(energies, spectrum.fluence(), attenuation, &weights)?;
         Ok(Prepared {
             composition,
+            meshes,
+            columns,
             integrator,
             detector: self.detector.clone(),
             output: self.output,
@@ -275,6 +315,10 @@ impl Acquisition {
 #[derive(Debug)]
 pub struct Prepared {
     composition: Composition,
+    /// Mesh objects in the same rays (`None`: voxels only).
+    meshes: Option<Arc<MeshScene>>,
+    /// Mass-thickness columns: the composition's materials, then the mesh materials.
+    columns: Vec<String>,
     integrator: SpectralIntegrator,
     detector: DetectorModel,
     output: Output,
@@ -301,8 +345,11 @@ impl Prepared {
 
     /// Per-material mass thickness of one view.
     pub fn mass_thickness(&self, projector: Projector, view: &View) -> Result<MassThickness> {
-        Renderer::for_composition(&self.composition, projector)?
-            .mass_thickness(view, self.composition.materials())
+        let mut r = Renderer::for_composition(&self.composition, projector)?;
+        if let Some(m) = &self.meshes {
+            r = r.with_meshes(m.clone())?;
+        }
+        r.mass_thickness(view, &self.columns)
     }
 
     /// The expected (noiseless) signal of a view, and of the same view without the object

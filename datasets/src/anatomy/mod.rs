@@ -101,6 +101,7 @@ mod spec;
 mod tissue;
 mod trees;
 
+pub use devices::DeviceMesh;
 pub use spec::{AnatomySpec, ArmPose, FieldOfView, Labeled, NoduleInfo, Patient, Profile};
 pub use tissue::{Structure, Tissue, hu_range};
 
@@ -129,7 +130,12 @@ fn check(spec: &AnatomySpec) -> Result<()> {
 }
 
 /// Builds the primitive list in painting order, and the patient summary.
-fn build(spec: &AnatomySpec) -> (Scene, Params, Patient) {
+/// With `device_meshes`, the pacemaker and table go there as meshes instead of into the
+/// scene.
+fn build(
+    spec: &AnatomySpec,
+    mut device_meshes: Option<&mut Vec<DeviceMesh>>,
+) -> (Scene, Params, Patient) {
     let p = Params::sample(spec.seed);
     let full = spec.profile == Profile::FullChest;
     let min_spacing = spec
@@ -160,10 +166,16 @@ fn build(spec: &AnatomySpec) -> (Scene, Params, Patient) {
     skeleton::paint(&mut sc, &p, arms.as_ref());
     airways.paint_lumens(&mut sc);
     lungs::stomach_gas(&mut sc, &p);
-    let pacemaker = spec
-        .pacemaker
-        .then(|| devices::pacemaker(&mut sc, &p, &heart, min_spacing));
-    let table_top = spec.table.then(|| devices::table(&mut sc));
+    let pacemaker = spec.pacemaker.then(|| {
+        devices::pacemaker(
+            &mut sc,
+            &p,
+            &heart,
+            min_spacing,
+            device_meshes.as_deref_mut(),
+        )
+    });
+    let table_top = spec.table.then(|| devices::table(&mut sc, device_meshes));
 
     let patient = Patient {
         seed: spec.seed,
@@ -194,19 +206,29 @@ fn build(spec: &AnatomySpec) -> (Scene, Params, Patient) {
 /// The patient a spec describes (sizes, landmarks, nodules) without generating voxels.
 pub fn describe(spec: &AnatomySpec) -> Result<Patient> {
     check(spec)?;
-    Ok(build(spec).2)
+    Ok(build(spec, None).2)
 }
 
 /// Generates the phantom (HU), grid centred on the world origin with identity direction.
 /// Same spec, same bytes, whatever the thread count.
 pub fn generate(spec: &AnatomySpec) -> Result<Volume> {
-    Ok(render(spec)?.volume)
+    Ok(render(spec, None)?.volume)
+}
+
+/// Generates the phantom with its pacemaker and table (as the spec asks) as closed meshes
+/// instead of voxels: the volume holds no device, and the meshes (world mm, same frame as
+/// the volume) carry their materials and densities. Everything else is the same as
+/// [`generate`], voxel for voxel.
+pub fn generate_with_device_meshes(spec: &AnatomySpec) -> Result<(Volume, Vec<DeviceMesh>)> {
+    let mut meshes = Vec::new();
+    let volume = render(spec, Some(&mut meshes))?.volume;
+    Ok((volume, meshes))
 }
 
 /// Generates the phantom together with its tissue and structure labels and the patient
 /// summary (same volume as [`generate`]).
 pub fn generate_labeled(spec: &AnatomySpec) -> Result<Labeled> {
-    let r = render(spec)?;
+    let r = render(spec, None)?;
     let tissue = r
         .mats
         .par_iter()
@@ -234,9 +256,9 @@ struct Rendered {
 }
 
 /// Rasterises the scene into labels, then labels into HU with a counter-based texture.
-fn render(spec: &AnatomySpec) -> Result<Rendered> {
+fn render(spec: &AnatomySpec, device_meshes: Option<&mut Vec<DeviceMesh>>) -> Result<Rendered> {
     check(spec)?;
-    let (sc, p, patient) = build(spec);
+    let (sc, p, patient) = build(spec, device_meshes);
     let spacing = DVec3::from(spec.spacing_mm);
     let grid = Grid::centred(spec.dims, spacing);
     let crop = (spec.profile == Profile::LidcCropped)

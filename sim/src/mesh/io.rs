@@ -36,6 +36,27 @@ pub fn load(path: &Path) -> Result<TriMesh> {
     Ok(mesh)
 }
 
+/// Writes `mesh` as a Wavefront OBJ file (positions with every digit, triangles; 1-based
+/// indices), atomically: to a temporary file in the same folder, then renamed.
+pub fn write_obj(path: &Path, mesh: &TriMesh) -> Result<()> {
+    use std::fmt::Write as _;
+    mesh.validate().map_err(|e| read_err(path, e.to_string()))?;
+    let mut text = String::with_capacity(48 * (mesh.vertices.len() + mesh.triangles.len()));
+    for v in &mesh.vertices {
+        let _ = writeln!(text, "v {} {} {}", v.x, v.y, v.z);
+    }
+    for t in &mesh.triangles {
+        let _ = writeln!(text, "f {} {} {}", t[0] + 1, t[1] + 1, t[2] + 1);
+    }
+    let tmp = path.with_extension("obj.partial");
+    std::fs::write(&tmp, text)
+        .and_then(|_| std::fs::rename(&tmp, path))
+        .map_err(|e| MeshError::Read {
+            path: path.display().to_string(),
+            reason: format!("cannot write: {e}"),
+        })
+}
+
 fn load_obj(path: &Path) -> Result<TriMesh> {
     let opts = tobj::LoadOptions {
         triangulate: true,

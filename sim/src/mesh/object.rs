@@ -25,8 +25,14 @@ pub struct MeshObject {
     pub name: String,
     /// Material name (resolved to attenuation by the materials module).
     pub material: String,
-    /// Linear attenuation inside the mesh, mm⁻¹, when given explicitly.
+    /// Linear attenuation inside the mesh, mm⁻¹, when given explicitly (monochromatic
+    /// scenes).
     pub mu_per_mm: Option<f64>,
+    /// Density inside the mesh, g/cm³ (polychromatic scenes: the mass thickness of
+    /// `material` is density × path length). Set from the material library's nominal
+    /// density when `material` is a known name ([`crate::material::by_name`]); override
+    /// with [`MeshObject::with_density`].
+    pub density_g_cm3: Option<f64>,
     /// Triangles (world mm), in BVH primitive order.
     tris: Vec<[DVec3; 3]>,
     bvh: Bvh2,
@@ -41,6 +47,7 @@ impl std::fmt::Debug for MeshObject {
             .field("name", &self.name)
             .field("material", &self.material)
             .field("mu_per_mm", &self.mu_per_mm)
+            .field("density_g_cm3", &self.density_g_cm3)
             .field("triangles", &self.tris.len())
             .finish()
     }
@@ -99,6 +106,7 @@ impl MeshObject {
             name: name.to_string(),
             material: material.to_string(),
             mu_per_mm,
+            density_g_cm3: crate::material::by_name(material).ok().map(|m| m.density()),
             tris,
             bvh,
             lo,
@@ -112,6 +120,18 @@ impl MeshObject {
             }
         }
         Ok(object)
+    }
+
+    /// The same mesh at density `density_g_cm3` (g/cm³, finite and > 0).
+    pub fn with_density(mut self, density_g_cm3: f64) -> Result<Self> {
+        if !(density_g_cm3.is_finite() && density_g_cm3 > 0.0) {
+            return Err(MeshError::OutOfRange(format!(
+                "mesh {}: density {density_g_cm3} g/cm³; it must be finite and > 0",
+                self.name
+            )));
+        }
+        self.density_g_cm3 = Some(density_g_cm3);
+        Ok(self)
     }
 
     /// Number of triangles.
@@ -309,6 +329,26 @@ impl MeshScene {
         }
     }
 
+    /// The distinct material names of the meshes, in order of first appearance, and for
+    /// each mesh the index of its material in that list. Per-material tracing gives each
+    /// of these names its own mass-thickness column (after the voxel materials), even when
+    /// a voxel material has the same name.
+    pub fn materials(&self) -> (Vec<String>, Vec<usize>) {
+        let mut names: Vec<String> = Vec::new();
+        let index = self
+            .objects
+            .iter()
+            .map(|o| match names.iter().position(|n| *n == o.material) {
+                Some(i) => i,
+                None => {
+                    names.push(o.material.clone());
+                    names.len() - 1
+                }
+            })
+            .collect();
+        (names, index)
+    }
+
     /// The disjoint, sorted intervals of `ray` inside meshes, each with the mesh that
     /// holds it (overlaps resolved: later mesh wins).
     pub fn intervals(&self, ray: &Ray, out: &mut Vec<MeshInterval>) {
@@ -363,6 +403,11 @@ impl MeshScene {
     /// see [`MeshScene::require_mu`]), and the intervals they hold.
     pub fn line_integral(&self, ray: &Ray, intervals: &mut Vec<MeshInterval>) -> f64 {
         self.intervals(ray, intervals);
+        self.mu_integral(intervals)
+    }
+
+    /// Σ mu × length over given intervals (from [`MeshScene::intervals`]).
+    pub fn mu_integral(&self, intervals: &[MeshInterval]) -> f64 {
         intervals
             .iter()
             .map(|i| self.objects[i.mesh].mu_per_mm.unwrap_or(0.0) * (i.t1 - i.t0))

@@ -173,6 +173,70 @@ pub fn uv_sphere(radius: f64, segments: u32, rings: u32) -> Result<TriMesh> {
     }))
 }
 
+/// A rounded box: the box of half-edges `half` (mm) with every edge and corner rounded to
+/// `radius` (the Minkowski sum of a box of half-edges `half − radius` and a ball). Made
+/// from a UV sphere of `radius` (`segments` around z, offset half a step, an odd number of
+/// `rings`, so no vertex but the poles lies on a coordinate plane) whose vertices move by
+/// ±(half − radius) along each axis on their side: the flat faces are spanned by the
+/// stretched triangles, vertices lie on the rounded surface.
+pub fn rounded_box(half: DVec3, radius: f64, segments: u32, rings: u32) -> Result<TriMesh> {
+    positive("rounded box radius", radius)?;
+    if !(half.is_finite() && half.min_element() >= radius) {
+        return Err(MeshError::OutOfRange(format!(
+            "rounded box half-edges {half} must be finite and ≥ the radius {radius}"
+        )));
+    }
+    if segments < 4 || rings < 3 {
+        return Err(MeshError::OutOfRange(format!(
+            "rounded box needs ≥ 4 segments and ≥ 3 rings, got {segments} and {rings}"
+        )));
+    }
+    let rings = rings | 1; // odd: no ring on z = 0
+    let inner = half - DVec3::splat(radius);
+    let side = |x: f64| {
+        if x > 0.0 {
+            1.0
+        } else if x < 0.0 {
+            -1.0
+        } else {
+            0.0
+        }
+    };
+    let mut vertices = vec![DVec3::new(0.0, 0.0, -radius)];
+    for r in 1..rings {
+        let th = std::f64::consts::PI * r as f64 / rings as f64;
+        for s in 0..segments {
+            let ph = std::f64::consts::TAU * (s as f64 + 0.5) / segments as f64;
+            vertices.push(radius * DVec3::new(th.sin() * ph.cos(), th.sin() * ph.sin(), -th.cos()));
+        }
+    }
+    vertices.push(DVec3::new(0.0, 0.0, radius));
+    for v in &mut vertices {
+        *v += DVec3::new(side(v.x), side(v.y), side(v.z)) * inner;
+    }
+    let top = (vertices.len() - 1) as u32;
+    let ring = |r: u32, s: u32| 1 + (r - 1) * segments + s % segments;
+    let mut triangles = Vec::new();
+    for s in 0..segments {
+        triangles.push([0, ring(1, s + 1), ring(1, s)]);
+        triangles.push([top, ring(rings - 1, s), ring(rings - 1, s + 1)]);
+        for r in 1..rings - 1 {
+            let (a, b, c, d) = (
+                ring(r, s),
+                ring(r, s + 1),
+                ring(r + 1, s + 1),
+                ring(r + 1, s),
+            );
+            triangles.push([a, b, c]);
+            triangles.push([a, c, d]);
+        }
+    }
+    Ok(outward(TriMesh {
+        vertices,
+        triangles,
+    }))
+}
+
 /// A closed prism: the convex or star-shaped polygon `outline` (x, y; counter-clockwise,
 /// mm) swept from z = −height/2 to +height/2, caps fanned from the centroid.
 pub fn prism(outline: &[[f64; 2]], height: f64) -> Result<TriMesh> {

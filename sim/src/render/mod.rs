@@ -4,12 +4,12 @@
 //! Each pixel is computed independently from the same inputs, so images are bit-identical
 //! whatever the number of threads.
 
-use crate::accel::intervals::Interval;
-use crate::accel::{EmptySpace, SkipOptions, siddon_over, trilinear_in};
+mod meshes;
+
+use crate::accel::{EmptySpace, SkipOptions};
 use crate::composition::Composition;
 use crate::error::{Result, SimError};
 use crate::geometry::View;
-use crate::mesh::object::subtract;
 use crate::mesh::{MeshInterval, MeshScene};
 use crate::ray::{GridBox, GridRay, Ray};
 use crate::trace::{LineIntegral, MaterialPaths, packet, siddon, trilinear};
@@ -144,6 +144,11 @@ pub struct Renderer<'a> {
     skip: Option<Arc<EmptySpace>>,
     /// Mesh objects in the same rays (see [`crate::mesh`]); `None`: voxels only.
     meshes: Option<Arc<MeshScene>>,
+    /// Over a composition: per mesh, its mass-thickness column (after the voxel
+    /// materials) and its density (g/cm³).
+    mesh_columns: Vec<(usize, f64)>,
+    /// Over a composition: number of mesh material columns.
+    mesh_materials: usize,
 }
 
 impl<'a> Renderer<'a> {
@@ -180,22 +185,47 @@ impl<'a> Renderer<'a> {
             bounds,
             skip: None,
             meshes: None,
+            mesh_columns: Vec::new(),
+            mesh_materials: 0,
         })
     }
 
-    /// Adds mesh objects: inside a mesh its `mu_per_mm` replaces the voxels' values (an
-    /// implant displaces tissue); every mesh needs an explicit `mu_per_mm`.
+    /// Adds mesh objects; inside a mesh the mesh replaces the voxels (an implant displaces
+    /// tissue).
+    ///
+    /// * Over an attenuation volume every mesh needs `mu_per_mm`, added as `mu × length`.
+    /// * Over a composition ([`Renderer::for_composition`]) every mesh needs a density:
+    ///   each distinct mesh material ([`MeshScene::materials`]) gets its own mass-thickness
+    ///   column after the voxel materials, and a mesh adds `density × length` to it;
+    ///   [`Renderer::mass_thickness`] then takes the voxel material names followed by the
+    ///   mesh material names.
     pub fn with_meshes(mut self, meshes: Arc<MeshScene>) -> Result<Self> {
         if self.materials > 0 {
-            return Err(SimError::OutOfRange(
-                "meshes in a material composition (polychromatic scenes) are not supported yet"
-                    .into(),
-            ));
+            let (names, index) = meshes.materials();
+            self.mesh_columns = meshes
+                .objects
+                .iter()
+                .zip(index)
+                .map(|(o, i)| match o.density_g_cm3 {
+                    Some(d) => Ok((self.materials + i, d)),
+                    None => Err(SimError::OutOfRange(format!(
+                        "mesh {} (material '{}') has no density: name a material of the \
+                         library or give density_g_cm3",
+                        o.name, o.material
+                    ))),
+                })
+                .collect::<Result<_>>()?;
+            self.mesh_materials = names.len();
+        } else {
+            meshes
+                .require_mu()
+                .map_err(|e| SimError::OutOfRange(e.to_string()))?;
         }
-        meshes
-            .require_mu()
-            .map_err(|e| SimError::OutOfRange(e.to_string()))?;
         self.meshes = (!meshes.is_empty()).then_some(meshes);
+        if self.meshes.is_none() {
+            self.mesh_columns.clear();
+            self.mesh_materials = 0;
+        }
         Ok(self)
     }
 
@@ -243,61 +273,11 @@ impl<'a> Renderer<'a> {
     /// ∫mu ds along one ray (f64; 0 when the ray misses the volume).
     pub fn line_integral(&self, ray: &Ray) -> f64 {
         let g = self.clip(ray);
-        match self.meshes.as_deref() {
-            Some(m) => {
-                let mut iv = Vec::new();
-                m.line_integral(ray, &mut iv) + self.voxels_outside(g.as_ref(), &iv)
-            }
-            None => self.clipped_integral(g.as_ref()),
+        let mut iv = Vec::new();
+        if let Some(m) = self.meshes.as_deref() {
+            m.intervals(ray, &mut iv);
         }
-    }
-
-    /// Exact-Siddon ∫mu ds of the voxels along `g` inside the mesh intervals `iv`.
-    fn voxels_inside(&self, g: Option<&GridRay>, iv: &[MeshInterval]) -> f64 {
-        let Some(g) = g else {
-            return 0.0;
-        };
-        let inside: Vec<Interval> = iv
-            .iter()
-            .map(|i| Interval {
-                t0: i.t0.max(g.t_enter),
-                t1: i.t1.min(g.t_exit),
-            })
-            .filter(|i| i.t1 > i.t0)
-            .collect();
-        let mut acc = LineIntegral::new(self.mu.data());
-        siddon_over(self.mu.dims(), g, &inside, &mut acc);
-        acc.value()
-    }
-
-    /// ∫mu ds of the voxels along `g` outside the mesh intervals `iv`.
-    fn voxels_outside(&self, g: Option<&GridRay>, iv: &[MeshInterval]) -> f64 {
-        let Some(g) = g else {
-            return 0.0;
-        };
-        if iv.is_empty() {
-            return self.clipped_integral(Some(g));
-        }
-        let mut base = vec![Interval {
-            t0: g.t_enter,
-            t1: g.t_exit,
-        }];
-        let mut keep = Vec::new();
-        match self.projector {
-            Projector::Siddon => {
-                if let Some(s) = self.skip.as_deref() {
-                    s.intervals(g, &mut base);
-                }
-                subtract(&base, iv, &mut keep);
-                let mut acc = LineIntegral::new(self.mu.data());
-                siddon_over(self.mu.dims(), g, &keep, &mut acc);
-                acc.value()
-            }
-            Projector::Trilinear { step_voxels } => {
-                subtract(&base, iv, &mut keep);
-                trilinear_in(self.mu.data(), self.mu.dims(), g, step_voxels, &keep)
-            }
-        }
+        self.pixel(None, g.as_ref(), &iv)
     }
 
     /// `ray` clipped to the part of the grid this projector integrates.
@@ -337,7 +317,7 @@ impl<'a> Renderer<'a> {
                     .into(),
             ));
         }
-        let sums = self.trace(view, 1)?;
+        let sums = self.trace(view)?;
         Ok(Projection {
             rows: view.rows,
             cols: view.cols,
@@ -348,15 +328,17 @@ impl<'a> Renderer<'a> {
     /// Per-material mass thickness image of one view (a renderer made with
     /// [`Renderer::for_composition`]).
     pub fn mass_thickness(&self, view: &View, materials: &[String]) -> Result<MassThickness> {
-        if self.materials == 0 || materials.len() != self.materials {
+        let k = self.materials + self.mesh_materials;
+        if self.materials == 0 || materials.len() != k {
             return Err(SimError::OutOfRange(format!(
-                "mass thickness needs a renderer over a composition of {} materials; this one \
-                 has {}",
+                "mass thickness needs a renderer over a composition of {} materials (voxel \
+                 materials, then mesh materials); this one has {} + {}",
                 materials.len(),
-                self.materials
+                self.materials,
+                self.mesh_materials
             )));
         }
-        let mut data = self.trace(view, self.materials)?;
+        let mut data = self.trace(view)?;
         // g/cm³ · mm → g/cm².
         data.iter_mut().for_each(|v| *v *= 0.1);
         Ok(MassThickness {
@@ -367,42 +349,38 @@ impl<'a> Renderer<'a> {
         })
     }
 
-    /// `k` sums per pixel (pixel-major): the line integral (`k` = 1, attenuation) or Σρ·ℓ
-    /// per material (g/cm³ · mm, composition).
-    fn trace(&self, view: &View, k: usize) -> Result<Vec<f64>> {
+    /// The sums of every pixel (pixel-major): the line integral (one per pixel, over an
+    /// attenuation volume) or Σρ·ℓ per material, voxel materials then mesh materials
+    /// (g/cm³ · mm, over a composition).
+    fn trace(&self, view: &View) -> Result<Vec<f64>> {
         view.validate()?;
-        let mut data = vec![0.0f64; view.rows * view.cols * k];
-        let packets = self.projector == Projector::Siddon && packet::available();
         let packed = self.materials > 0;
-        // The packet tracer takes rows in pairs (see `packet::trace_rows_with`).
+        let k = self.materials.max(1);
+        let stride = k + self.mesh_materials;
+        let mut data = vec![0.0f64; view.rows * view.cols * stride];
+        let packets = self.projector == Projector::Siddon && packet::available();
+        // The packet tracer takes tiles of rows (see `packet::trace_rows_with`).
         let rows_per_task = if packets { packet::TILE_ROWS } else { 1 };
-        data.par_chunks_mut(view.cols * k * rows_per_task)
+        data.par_chunks_mut(view.cols * stride * rows_per_task)
             .enumerate()
             .for_each(|(task, row)| {
                 let first = task * rows_per_task;
-                let rows = row.len() / (view.cols * k);
+                let rows = row.len() / (view.cols * stride);
                 let world: Vec<Ray> = (first..first + rows)
                     .flat_map(|r| (0..view.cols).map(move |c| view.ray(r as f64, c as f64)))
                     .collect();
                 let rays: Vec<Option<GridRay>> = world.iter().map(|w| self.clip(w)).collect();
-                // Rays through meshes: the mesh part and its intervals (attenuation only).
-                let meshed: Vec<Option<(f64, Vec<MeshInterval>)>> = match self.meshes.as_deref() {
-                    Some(m) if !packed => world
-                        .iter()
-                        .map(|w| {
-                            let mut iv = Vec::new();
-                            let l = m.line_integral(w, &mut iv);
-                            (!iv.is_empty()).then_some((l, iv))
-                        })
-                        .collect(),
-                    _ => vec![None; world.len()],
+                // Each ray's intervals inside meshes (empty without meshes).
+                let meshed: Vec<Vec<MeshInterval>> = match self.meshes.as_deref() {
+                    Some(m) => m.row_intervals(&world),
+                    None => vec![Vec::new(); world.len()],
                 };
+                // Voxel sums of the rays the SIMD tracer takes whole (it walks whole
+                // layers: empty-space skipping applies to the scalar rays only).
+                let mut voxels = vec![0.0f64; world.len() * k];
                 let mut handled = vec![false; world.len()];
                 if let (true, Some(kernel)) = (packets, packet::kernel()) {
-                    // The whole row through the SIMD tracer where its rays allow (it walks
-                    // whole layers: empty-space skipping applies to the scalar rays only).
                     let (field, dims, t) = (self.mu.data(), self.mu.dims(), self.packet_threshold);
-                    let k = if packed { k } else { 0 };
                     packet::trace_rows_with(
                         kernel,
                         field,
@@ -410,48 +388,22 @@ impl<'a> Renderer<'a> {
                         &rays,
                         view.cols,
                         t,
-                        k,
-                        row,
+                        if packed { k } else { 0 },
+                        &mut voxels,
                         &mut handled,
                     );
                 }
-                for (c, px) in row.chunks_mut(k).enumerate() {
+                for (c, px) in row.chunks_mut(stride).enumerate() {
+                    let packet = handled[c].then_some(&voxels[c * k..(c + 1) * k]);
+                    let (g, iv) = (rays[c].as_ref(), meshed[c].as_slice());
                     if packed {
-                        if !handled[c] {
-                            self.clipped_materials(rays[c].as_ref(), px);
-                        }
+                        self.pixel_materials(packet, g, iv, px);
                     } else {
-                        let packet = handled[c].then_some(px[0]);
-                        px[0] = self.pixel(packet, rays[c].as_ref(), meshed[c].as_ref());
+                        px[0] = self.pixel(packet.map(|v| v[0]), g, iv);
                     }
                 }
             });
         Ok(data)
-    }
-
-    /// ∫mu ds of one pixel: its clipped ray `g` (already traced whole by the packets when
-    /// `packet` holds the value) plus the mesh part `mesh` (line integral and intervals).
-    /// Inside a mesh the mesh replaces the voxels: the packet value loses the voxels inside
-    /// the intervals, or the scalar walk traces only the voxels outside them.
-    fn pixel(
-        &self,
-        packet: Option<f64>,
-        g: Option<&GridRay>,
-        mesh: Option<&(f64, Vec<MeshInterval>)>,
-    ) -> f64 {
-        let voxels = || packet.unwrap_or_else(|| self.clipped_integral(g));
-        match (mesh, g) {
-            (Some((l, iv)), Some(gr))
-                if iv.iter().any(|i| i.t1 > gr.t_enter && i.t0 < gr.t_exit) =>
-            {
-                match packet {
-                    Some(v) => l + v - self.voxels_inside(g, iv),
-                    None => l + self.voxels_outside(g, iv),
-                }
-            }
-            (Some((l, _)), _) => l + voxels(),
-            (None, _) => voxels(),
-        }
     }
 
     /// Σρ·ℓ per material (g/cm³ · mm) along a clipped ray into `out` (zeros when it misses).
