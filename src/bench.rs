@@ -35,6 +35,9 @@ pub struct BenchArgs {
     /// Only the empty-space skipping and mesh sections (docs/benchmarks.md, docs/meshes.md).
     #[arg(long)]
     pub accel_only: bool,
+    /// With --accel-only: only this section (skipping or meshes).
+    #[arg(long, requires = "accel_only")]
+    pub section: Option<String>,
 }
 
 /// Counts voxels with positive path length.
@@ -126,7 +129,7 @@ pub fn run(args: BenchArgs) -> Result<()> {
         md,
         "Measured by `tomograf bench{}` on {cpu}, {threads} threads, SIMD kernel {}; median of {} renders.\n\n\
          Exact Siddon clips each ray to the box of non-zero attenuation (air adds exactly nothing) and \
-         traces rows in packets of rays (`sim/src/trace/packet.rs`). The phantom's air is exactly 0; a real \
+         traces rows in packets of rays (`sim/src/trace/packet/`). The phantom's air is exactly 0; a real \
          CT's air is noise around −1000 HU, so nothing can be skipped there — the column \"air at 1e-6 mm⁻¹\" \
          measures that case. \"Voxel steps\" count every voxel of the whole grid a ray crosses (as a full \
          traversal would, and as plastimatch does); the rate divides them by the render time.\n",

@@ -292,8 +292,16 @@ pub fn meshes(args: &BenchArgs, md: &mut String) -> Result<()> {
 
 /// `tomograf bench --accel-only`: these sections alone.
 pub fn run(args: &BenchArgs, mut md: String) -> Result<()> {
-    skipping(args, &mut md)?;
-    meshes(args, &mut md)?;
+    let section = args.section.as_deref();
+    if !matches!(section, None | Some("skipping") | Some("meshes")) {
+        anyhow::bail!("unknown --section: use skipping or meshes");
+    }
+    if section != Some("meshes") {
+        skipping(args, &mut md)?;
+    }
+    if section != Some("skipping") {
+        meshes(args, &mut md)?;
+    }
     println!("{md}");
     if let Some(path) = &args.out {
         tomograf_datasets::atomic::write_atomic(path, |w| {

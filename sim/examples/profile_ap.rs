@@ -42,7 +42,9 @@ fn main() {
     {
         r = r.with_packet_threshold(t);
     }
+    let t = Instant::now();
     let _ = r.render(&v).unwrap();
+    println!("first render: {:.2} ms", t.elapsed().as_secs_f64() * 1e3);
     let t = Instant::now();
     let n = 20;
     for _ in 0..n {

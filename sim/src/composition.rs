@@ -5,7 +5,7 @@
 //! of its material (into a list of at most [`MAX_MATERIALS`]) and its density (g/cm³),
 //! *packed into one f32*: the density with the low [`LABEL_BITS`] bits of its mantissa
 //! replaced by the material index. One load then gives both, so the exact tracer visits
-//! the grid once whatever the number of materials (`sim/src/trace/packet.rs` gathers one
+//! the grid once whatever the number of materials (`sim/src/trace/packet/` gathers one
 //! value per segment exactly as for a line integral).
 //!
 //! The price is precision: the stored density is the given one truncated to 19 mantissa

@@ -510,3 +510,38 @@ fn rounded_box_is_closed_and_converges_to_its_volume() {
     assert!(((v1 - v0) / v0).abs() < 1e-5, "{v1} vs {v0}");
     assert!(shapes::rounded_box(DVec3::splat(2.0), 3.0, 8, 5).is_err());
 }
+
+/// Axis-parallel rays whose zero direction components are −0 or +0 (a parallel beam's
+/// rays can carry either): each must find the box, 1e-9 mm. Regression: the 8-wide BVH
+/// culled every box for a −0 component.
+#[test]
+fn axis_parallel_rays_with_signed_zero_directions_hit() {
+    let cube = shapes::cuboid(DVec3::new(10.0, 20.0, 30.0)).unwrap();
+    let at = DVec3::new(1.0, -2.0, 3.0);
+    let m = object(&cube, at);
+    let (lo, hi) = m.bounds();
+    let sides = hi - lo;
+    for axis in 0..3 {
+        for sign in [1.0, -1.0] {
+            for zero in [0.0, -0.0] {
+                let mut d = DVec3::splat(zero);
+                d[axis] = sign;
+                // Off-centre points inside the box's cross-section.
+                for p in [at + DVec3::splat(1.3), at - DVec3::splat(2.1)] {
+                    let ray = Ray {
+                        origin: p - 500.0 * d,
+                        direction: d,
+                        t_min: 0.0,
+                        t_max: 1000.0,
+                    };
+                    let got = m.path_length(&ray);
+                    assert!(
+                        (got - sides[axis]).abs() < 1e-9,
+                        "axis {axis}, sign {sign}, zero {zero:?}: {got} vs {}",
+                        sides[axis]
+                    );
+                }
+            }
+        }
+    }
+}

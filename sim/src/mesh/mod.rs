@@ -20,7 +20,7 @@ pub mod object;
 pub mod shapes;
 pub mod topology;
 
-pub use object::{MeshInterval, MeshObject, MeshScene};
+pub use object::{MeshInterval, MeshObject, MeshScene, Scratch};
 
 use glam::{DMat3, DMat4, DVec3};
 use serde::{Deserialize, Serialize};

@@ -17,17 +17,19 @@
 use super::{Projector, Renderer};
 use crate::accel::intervals::Interval;
 use crate::accel::{siddon_over, trilinear_in, trilinear_materials_in};
-use crate::mesh::object::subtract;
+use crate::mesh::object::{Scratch, subtract};
 use crate::mesh::{MeshInterval, MeshScene};
 use crate::ray::GridRay;
 use crate::trace::{LineIntegral, MaterialPaths};
 
 impl Renderer<'_> {
     /// ∫mu ds of one pixel: its clipped ray `g` (already traced whole by the packets when
-    /// `packet` holds the value) and its mesh intervals `iv`.
+    /// `packet` holds the value; `inside`: the voxels inside the mesh intervals, when also
+    /// traced by the packets) and its mesh intervals `iv`.
     pub(super) fn pixel(
         &self,
         packet: Option<f64>,
+        inside: Option<f64>,
         g: Option<&GridRay>,
         iv: &[MeshInterval],
     ) -> f64 {
@@ -39,9 +41,12 @@ impl Renderer<'_> {
             (None, Some(v)) => mesh + v,
             (None, None) => mesh + self.clipped_integral(g),
             (Some(g), Some(v)) => {
-                let mut acc = LineIntegral::new(self.mu.data());
-                siddon_over(self.mu.dims(), g, &inside(g, iv), &mut acc);
-                mesh + v - acc.value()
+                let within = inside.unwrap_or_else(|| {
+                    let mut acc = LineIntegral::new(self.mu.data());
+                    siddon_over(self.mu.dims(), g, &clipped(g, iv), &mut acc);
+                    acc.value()
+                });
+                mesh + v - within
             }
             (Some(g), None) => mesh + self.voxels_outside(g, iv),
         }
@@ -77,6 +82,7 @@ impl Renderer<'_> {
     pub(super) fn pixel_materials(
         &self,
         packet: Option<&[f64]>,
+        inside: Option<&[f64]>,
         g: Option<&GridRay>,
         iv: &[MeshInterval],
         out: &mut [f64],
@@ -88,8 +94,14 @@ impl Renderer<'_> {
             (None, None) => self.clipped_materials(g, voxels),
             (Some(g), Some(v)) => {
                 let mut acc = MaterialPaths::new(field);
-                siddon_over(dims, g, &inside(g, iv), &mut acc);
-                for ((o, &whole), &ins) in voxels.iter_mut().zip(v).zip(acc.sums()) {
+                let within = match inside {
+                    Some(w) => w,
+                    None => {
+                        siddon_over(dims, g, &clipped(g, iv), &mut acc);
+                        &acc.sums()[..v.len()]
+                    }
+                };
+                for ((o, &whole), &ins) in voxels.iter_mut().zip(v).zip(within) {
                     *o = (whole - ins).max(0.0);
                 }
             }
@@ -126,8 +138,21 @@ fn overlap<'g>(g: Option<&'g GridRay>, iv: &[MeshInterval]) -> Option<&'g GridRa
     g.filter(|g| iv.iter().any(|i| i.t1 > g.t_enter && i.t0 < g.t_exit))
 }
 
+/// `g` narrowed to its one mesh interval inside the grid (`None`: no or several), for
+/// the packet tracer.
+pub(super) fn single_inside(g: &GridRay, iv: &[MeshInterval]) -> Option<GridRay> {
+    match clipped(g, iv).as_slice() {
+        [one] => Some(GridRay {
+            t_enter: one.t0,
+            t_exit: one.t1,
+            ..*g
+        }),
+        _ => None,
+    }
+}
+
 /// The mesh intervals clipped to the grid part of `g`.
-fn inside(g: &GridRay, iv: &[MeshInterval]) -> Vec<Interval> {
+fn clipped(g: &GridRay, iv: &[MeshInterval]) -> Vec<Interval> {
     iv.iter()
         .map(|i| Interval {
             t0: i.t0.max(g.t_enter),
@@ -138,14 +163,37 @@ fn inside(g: &GridRay, iv: &[MeshInterval]) -> Vec<Interval> {
 }
 
 impl MeshScene {
-    /// Each ray's intervals inside meshes ([`MeshScene::intervals`]), for a row of rays.
-    pub fn row_intervals(&self, rays: &[crate::ray::Ray]) -> Vec<Vec<MeshInterval>> {
-        rays.iter()
-            .map(|w| {
-                let mut iv = Vec::new();
-                self.intervals(w, &mut iv);
-                iv
-            })
-            .collect()
+    /// Each ray's intervals inside meshes ([`MeshScene::intervals`]), for a tile of rays.
+    pub fn row_intervals(&self, rays: &[crate::ray::Ray]) -> RowIntervals {
+        let mut scratch = Scratch::default();
+        let mut all = Vec::new();
+        let mut ends = Vec::with_capacity(rays.len() + 1);
+        ends.push(0);
+        for w in rays {
+            self.append_intervals(w, &mut scratch, &mut all);
+            ends.push(all.len());
+        }
+        RowIntervals { all, ends }
+    }
+}
+
+/// The mesh intervals of a tile of rays, flat: ray `i` has `all[ends[i]..ends[i + 1]]`.
+pub struct RowIntervals {
+    all: Vec<MeshInterval>,
+    ends: Vec<usize>,
+}
+
+impl RowIntervals {
+    /// No intervals for `rays` rays.
+    pub fn empty(rays: usize) -> Self {
+        Self {
+            all: Vec::new(),
+            ends: vec![0; rays + 1],
+        }
+    }
+
+    /// Ray `i`'s intervals.
+    pub fn ray(&self, i: usize) -> &[MeshInterval] {
+        &self.all[self.ends[i]..self.ends[i + 1]]
     }
 }

@@ -10,7 +10,7 @@ use crate::accel::{EmptySpace, SkipOptions};
 use crate::composition::Composition;
 use crate::error::{Result, SimError};
 use crate::geometry::View;
-use crate::mesh::{MeshInterval, MeshScene};
+use crate::mesh::MeshScene;
 use crate::ray::{GridBox, GridRay, Ray};
 use crate::trace::{LineIntegral, MaterialPaths, packet, siddon, trilinear};
 use crate::volume::Volume;
@@ -277,7 +277,7 @@ impl<'a> Renderer<'a> {
         if let Some(m) = self.meshes.as_deref() {
             m.intervals(ray, &mut iv);
         }
-        self.pixel(None, g.as_ref(), &iv)
+        self.pixel(None, None, g.as_ref(), &iv)
     }
 
     /// `ray` clipped to the part of the grid this projector integrates.
@@ -371,9 +371,9 @@ impl<'a> Renderer<'a> {
                     .collect();
                 let rays: Vec<Option<GridRay>> = world.iter().map(|w| self.clip(w)).collect();
                 // Each ray's intervals inside meshes (empty without meshes).
-                let meshed: Vec<Vec<MeshInterval>> = match self.meshes.as_deref() {
+                let meshed = match self.meshes.as_deref() {
                     Some(m) => m.row_intervals(&world),
-                    None => vec![Vec::new(); world.len()],
+                    None => meshes::RowIntervals::empty(world.len()),
                 };
                 // Voxel sums of the rays the SIMD tracer takes whole (it walks whole
                 // layers: empty-space skipping applies to the scalar rays only).
@@ -393,13 +393,42 @@ impl<'a> Renderer<'a> {
                         &mut handled,
                     );
                 }
+                // Rays the packets took whole that run through one mesh inside the grid:
+                // the voxels inside that mesh, also by packets (to be subtracted).
+                let mut inner_sums = Vec::new();
+                let mut inner_handled = vec![false; world.len()];
+                if let (true, Some(kernel)) = (packets, packet::kernel()) {
+                    let inner: Vec<Option<GridRay>> = (0..world.len())
+                        .map(|c| {
+                            let g = rays[c].as_ref().filter(|_| handled[c])?;
+                            meshes::single_inside(g, meshed.ray(c))
+                        })
+                        .collect();
+                    if inner.iter().any(Option::is_some) {
+                        inner_sums = vec![0.0f64; world.len() * k];
+                        let (field, dims, t) =
+                            (self.mu.data(), self.mu.dims(), self.packet_threshold);
+                        packet::trace_rows_with(
+                            kernel,
+                            field,
+                            dims,
+                            &inner,
+                            view.cols,
+                            t,
+                            if packed { k } else { 0 },
+                            &mut inner_sums,
+                            &mut inner_handled,
+                        );
+                    }
+                }
                 for (c, px) in row.chunks_mut(stride).enumerate() {
                     let packet = handled[c].then_some(&voxels[c * k..(c + 1) * k]);
-                    let (g, iv) = (rays[c].as_ref(), meshed[c].as_slice());
+                    let inside = inner_handled[c].then(|| &inner_sums[c * k..(c + 1) * k]);
+                    let (g, iv) = (rays[c].as_ref(), meshed.ray(c));
                     if packed {
-                        self.pixel_materials(packet, g, iv, px);
+                        self.pixel_materials(packet, inside, g, iv, px);
                     } else {
-                        px[0] = self.pixel(packet.map(|v| v[0]), g, iv);
+                        px[0] = self.pixel(packet.map(|v| v[0]), inside.map(|v| v[0]), g, iv);
                     }
                 }
             });
