@@ -51,6 +51,13 @@ impl GridBox {
             hi: dims,
         }
     }
+
+    /// The voxels in both boxes (`None`: none).
+    pub fn intersect(&self, other: &GridBox) -> Option<GridBox> {
+        let lo = std::array::from_fn(|a| self.lo[a].max(other.lo[a]));
+        let hi = std::array::from_fn(|a| self.hi[a].min(other.hi[a]));
+        (0..3).all(|a| lo[a] < hi[a]).then_some(GridBox { lo, hi })
+    }
 }
 
 /// A ray expressed in a volume's grid coordinates (voxel `(i,j,k)` = `[i,i+1)×…`) and

@@ -270,3 +270,59 @@ fn trilinear_needs_the_dilated_map() {
     assert!(undilated.trilinear(vol.data(), dims, &ray, step) < full);
     assert!(full > 0.9, "{full}");
 }
+
+/// A CT whose air is not exactly zero (1e-6 mm⁻¹ everywhere, like noise around −1000 HU):
+/// with a skipping threshold of 1e-5 mm⁻¹ rays are clipped to the box of occupied bricks
+/// (the SIMD packets see only that) and the scalar tracer also skips the empty bricks
+/// inside it. Both errors are bounded by threshold × the ray's length in the grid.
+#[test]
+fn noisy_air_with_a_threshold_errs_by_at_most_threshold_times_length() {
+    let exact = chest();
+    let noisy = exact.map(|v| v + 1e-6).unwrap();
+    let threshold = 1e-5f32;
+    let view = Geometry {
+        beam: Beam::Cone {
+            sad_mm: 1000.0,
+            sid_mm: 1500.0,
+        },
+        detector: Detector::new(48, 40, 12.0),
+        isocentre: DVec3::ZERO,
+    }
+    .view(Pose::new(20.0, 10.0))
+    .unwrap();
+    let o = SkipOptions {
+        threshold,
+        ..SkipOptions::default()
+    };
+    let plain = Renderer::new(&noisy, Projector::Siddon).unwrap();
+    let fast = plain.clone().with_skipping(Some(o)).unwrap();
+    let scalar = fast.clone().with_packet_threshold(f64::INFINITY);
+    let (a, b, c) = (
+        plain.render(&view).unwrap(),
+        fast.render(&view).unwrap(),
+        scalar.render(&view).unwrap(),
+    );
+    let mut skipped_some = false;
+    for r in 0..view.rows {
+        for col in 0..view.cols {
+            let i = r * view.cols + col;
+            let ray = view.ray(r as f64, col as f64);
+            let length = GridRay::clip(&noisy, &ray).map_or(0.0, |g| g.t_exit - g.t_enter);
+            let (x, y, z) = (
+                f64::from(a.data[i]),
+                f64::from(b.data[i]),
+                f64::from(c.data[i]),
+            );
+            // f32 pixels: one ulp of slack on top of the bound.
+            let bound = f64::from(threshold) * length + f64::from(f32::EPSILON) * x.abs();
+            for (what, v) in [("packets", y), ("scalar", z)] {
+                assert!(
+                    (x - v).abs() <= bound && v <= x + f64::from(f32::EPSILON) * x.abs(),
+                    "pixel ({r}, {col}): {x} without, {v} with skipping ({what}, bound {bound})"
+                );
+            }
+            skipped_some |= x - y > 1e-6 * length * 0.5;
+        }
+    }
+    assert!(skipped_some, "the threshold skipped some noisy air");
+}

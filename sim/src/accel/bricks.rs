@@ -130,6 +130,19 @@ impl BrickMap {
             .collect()
     }
 
+    /// The smallest voxel box holding every occupied brick (`None`: none is occupied).
+    pub fn occupied_box(&self) -> Option<GridBox> {
+        let mut lo = [usize::MAX; 3];
+        let mut hi = [0; 3];
+        for b in self.occupied_boxes() {
+            for a in 0..3 {
+                lo[a] = lo[a].min(b.lo[a]);
+                hi[a] = hi[a].max(b.hi[a]);
+            }
+        }
+        (lo[0] < hi[0]).then_some(GridBox { lo, hi })
+    }
+
     /// Heap bytes held by the map.
     pub fn memory_bytes(&self) -> usize {
         self.occupied.capacity() * std::mem::size_of::<bool>()
