@@ -177,6 +177,8 @@ pub struct Sidecar<'a> {
     pub conventions: &'static str,
     pub volume: &'a VolumeSource,
     pub projector: Projector,
+    /// Empty-space skipping (`null`: off).
+    pub skipping: Option<tomograf_sim::accel::SkipOptions>,
     pub quantity: Quantity,
     pub geometry: Option<Geometry>,
     pub views: Vec<SidecarView>,
@@ -199,6 +201,7 @@ impl<'a> Sidecar<'a> {
                           source to pixel centre; parallel rays are whole lines along direction.",
             volume,
             projector: job.projector,
+            skipping: job.skipping,
             quantity: job.quantity,
             geometry: job.geometry,
             views: job

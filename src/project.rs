@@ -12,6 +12,7 @@ use std::path::PathBuf;
 use std::sync::Arc;
 use std::time::Instant;
 use tomograf_datasets::anatomy::{self, AnatomySpec, Profile};
+use tomograf_sim::accel::SkipOptions;
 use tomograf_sim::acquisition::Acquired;
 use tomograf_sim::attenuation::Attenuation;
 use tomograf_sim::geometry::angles;
@@ -81,6 +82,11 @@ pub struct ProjectArgs {
     /// Trilinear sample spacing in voxels [default: 0.5].
     #[arg(long)]
     pub step: Option<f64>,
+    /// Skip empty space: voxels with |mu| at or below this (mm⁻¹) count as empty, e.g.
+    /// 1e-4 for a CT whose air is noise rather than exact zeros. Each line integral then
+    /// loses at most this × its length in skipped space. Ideal DRR only.
+    #[arg(long)]
+    pub empty_below: Option<f32>,
     /// What pixels hold: line-integral, transmission or intensity [default: line-integral].
     #[arg(long)]
     pub quantity: Option<String>,
@@ -422,6 +428,7 @@ fn merge(args: &ProjectArgs) -> Result<Scene> {
     }
     set!(s.projector.kind, args.projector);
     set!(s.projector.step_voxels, args.step);
+    set!(s.projector.empty_below_per_mm, args.empty_below);
     set!(s.output.dir, args.output);
     set!(s.output.prefix, args.prefix);
     if !args.format.is_empty() {
@@ -442,6 +449,8 @@ pub struct Job {
     pub poses: Vec<Pose>,
     pub views: Vec<View>,
     pub projector: Projector,
+    /// Empty-space skipping (`--empty-below`).
+    pub skipping: Option<SkipOptions>,
     pub quantity: Quantity,
 }
 
@@ -519,6 +528,10 @@ pub fn resolve(scene: &Scene, mu: &Volume) -> Result<Job> {
         },
         other => bail!("unknown projector '{other}': use siddon or trilinear"),
     };
+    let skipping = p.empty_below_per_mm.map(|threshold| SkipOptions {
+        threshold,
+        ..SkipOptions::default()
+    });
     let o = &scene.output;
     let quantity = match o.quantity.as_deref().unwrap_or("line-integral") {
         "line-integral" => Quantity::LineIntegral,
@@ -537,6 +550,7 @@ pub fn resolve(scene: &Scene, mu: &Volume) -> Result<Job> {
         poses,
         views,
         projector,
+        skipping,
         quantity,
     })
 }
@@ -599,6 +613,9 @@ pub fn run(args: ProjectArgs) -> Result<()> {
     let render: Box<RenderView> = match &acquisition {
         None => {
             let mut r = Renderer::new(&vol, job.projector)?;
+            if job.skipping.is_some() {
+                r = r.with_skipping(job.skipping)?;
+            }
             // The HU → mu energy, at which a mesh's material gives its mu.
             let energy_kev = matches!(source.attenuation, Attenuation::Hounsfield { .. })
                 .then(|| scene.volume.energy_kev.unwrap_or(DEFAULT_ENERGY_KEV));
@@ -609,6 +626,12 @@ pub fn run(args: ProjectArgs) -> Result<()> {
             Box::new(|_, view| Ok((vec![renderer.render(view)?.to_quantity(job.quantity)], None)))
         }
         Some((acq, seed)) => {
+            if job.skipping.is_some() {
+                bail!(
+                    "--empty-below is for the ideal DRR; empty-space skipping of a material \
+                     composition (real detector physics) is not supported yet"
+                );
+            }
             if scene.output.quantity.is_some() || scene.output.i0.is_some() {
                 bail!(
                     "--quantity and --i0 are for the ideal DRR; with real detector physics the \

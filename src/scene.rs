@@ -28,6 +28,7 @@
 //! [projector]
 //! kind = "siddon"             # or "trilinear"
 //! step_voxels = 0.5           # trilinear only
+//! empty_below_per_mm = 1e-4   # skip |mu| ≤ this (noisy air); default: no skipping
 //!
 //! [output]
 //! dir = "out"
@@ -383,6 +384,8 @@ pub struct ExplicitView {
 pub struct ProjectorSection {
     pub kind: Option<String>,
     pub step_voxels: Option<f64>,
+    /// Empty-space skipping threshold, mm⁻¹ (`--empty-below`).
+    pub empty_below_per_mm: Option<f32>,
 }
 
 #[derive(Debug, Clone, Default, Serialize, Deserialize)]

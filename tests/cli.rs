@@ -240,3 +240,56 @@ fn bench_quick_runs() {
     let text = std::fs::read_to_string(md).unwrap();
     assert!(text.contains("G voxel steps/s") && text.contains("Observed order"));
 }
+
+/// `--empty-below`: on the phantom (air exactly 0) skipping at threshold 0 changes no
+/// pixel beyond one f32 ulp; the sidecar records it; a negative threshold and its use with
+/// detector physics are clear errors.
+#[test]
+fn empty_space_skipping_from_the_command_line() {
+    let dir = tempfile::tempdir().unwrap();
+    let run = |name: &str, extra: &[&str]| {
+        let out = dir.path().join(name);
+        let mut args = vec![
+            "project",
+            "-o",
+            out.to_str().unwrap(),
+            "--format",
+            "npy",
+            "--view",
+            "30,10",
+        ];
+        args.extend(SMALL);
+        args.extend(extra);
+        ok(&tomograf(&args));
+        out
+    };
+    let plain = run("plain", &[]);
+    let skipped = run("skip", &["--empty-below", "0"]);
+    let (a, b) = (
+        read_npy(&plain.join("drr.npy")).1,
+        read_npy(&skipped.join("drr.npy")).1,
+    );
+    assert!(a.iter().any(|&v| v > 1.0), "the view sees the phantom");
+    for (x, y) in a.iter().zip(&b) {
+        assert!((x - y).abs() <= f32::EPSILON * x.abs(), "{x} vs {y}");
+    }
+    let sidecar = std::fs::read_to_string(skipped.join("drr.json")).unwrap();
+    assert!(sidecar.contains("\"threshold\""), "{sidecar}");
+    for (extra, expected) in [
+        (&["--empty-below=-1"][..], "threshold"),
+        (
+            &["--empty-below", "1e-4", "--preset", "kv-flat-panel-120kvp"][..],
+            "--empty-below is for the ideal DRR",
+        ),
+    ] {
+        let mut args = vec!["project", "-o", dir.path().to_str().unwrap()];
+        args.extend(SMALL);
+        args.extend(extra);
+        let out = tomograf(&args);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(
+            !out.status.success() && err.contains(expected),
+            "{extra:?}: {err}"
+        );
+    }
+}
