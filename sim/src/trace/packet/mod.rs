@@ -100,7 +100,7 @@ pub fn trace_row_materials_with(
 /// `LANES / TILE_ROWS` columns: the rays of one column cross the planes of one axis
 /// together and those of one row the planes of the other, so a square-ish tile meets
 /// fewer layers with a crossing in some lane — the layers that need three segments —
-/// than a packet of one row's lanes (docs/benchmarks.md, "Packet tiles").
+/// than a packet of one row's lanes (docs/projector.md, "Packet tiles").
 /// Detector rows traced together by [`trace_rows_with`].
 pub const TILE_ROWS: usize = 4;
 /// Most rays [`trace_rows_with`] walks through the layers together (a multiple of every
