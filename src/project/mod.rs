@@ -1,0 +1,346 @@
+//! `tomograf project` (render views of a volume), with the commands that share its
+//! volume handling: `tomograf phantom` and `tomograf scan`.
+//!
+//! * [`volume`] — reading the input (NIfTI, DICOM, built-in phantom) as mu or HU.
+//! * [`job`] — the scene resolved against the volume: geometry, views, projector, output.
+//! * [`phantom`] — the `phantom` and `scan` commands.
+
+mod job;
+mod phantom;
+mod volume;
+
+pub use job::{Job, resolve};
+pub use phantom::{PhantomArgs, ScanArgs, scan, write_phantom};
+use volume::DEFAULT_ENERGY_KEV;
+pub use volume::{VolumeSource, load_hu, load_mu, load_volume_file};
+
+use crate::output::{self, Format, Outputs};
+use crate::physics::{self, PhysicsArgs};
+use crate::scatter_images::ScatterWriters;
+use crate::scene::{MeshPhysics, Scene};
+use anyhow::{Result, bail};
+use clap::Args;
+use indicatif::{ProgressBar, ProgressStyle};
+use std::path::PathBuf;
+use std::sync::Arc;
+use std::time::Instant;
+use tomograf_sim::acquisition::Acquired;
+use tomograf_sim::attenuation::Attenuation;
+use tomograf_sim::mesh::MeshScene;
+use tomograf_sim::{Projection, Renderer, View};
+
+#[derive(Debug, Args)]
+pub struct ProjectArgs {
+    /// CT volume: a NIfTI file (.nii, .nii.gz) or a folder holding one DICOM series.
+    /// Omit to render the built-in thorax phantom.
+    pub input: Option<PathBuf>,
+    /// Accept DICOM series whose modality is not CT.
+    #[arg(long)]
+    pub allow_non_ct: bool,
+    /// TOML scene file; flags given here override its fields.
+    #[arg(long)]
+    pub scene: Option<PathBuf>,
+    /// Voxel units of the input: hu (Hounsfield) or mu (linear attenuation, mm⁻¹).
+    #[arg(long)]
+    pub units: Option<String>,
+    /// Effective photon energy for HU → mu, keV [default: 60].
+    #[arg(long)]
+    pub energy_kev: Option<f64>,
+    /// Beam: cone or parallel [default: cone].
+    #[arg(long)]
+    pub beam: Option<String>,
+    /// Source-to-isocentre distance, mm [default: 1000].
+    #[arg(long)]
+    pub sad: Option<f64>,
+    /// Source-to-detector distance, mm [default: 1500].
+    #[arg(long)]
+    pub sid: Option<f64>,
+    /// Isocentre X,Y,Z in world LPS mm [default: the volume's centre].
+    #[arg(long, value_parser = parse3, allow_hyphen_values = true)]
+    pub isocentre: Option<[f64; 3]>,
+    /// Detector rows [default: 256].
+    #[arg(long)]
+    pub rows: Option<usize>,
+    /// Detector columns [default: 256].
+    #[arg(long)]
+    pub cols: Option<usize>,
+    /// Pixel pitch in mm: one value, or COLUMN,ROW [default: fit the volume on the panel].
+    #[arg(long, value_parser = parse2)]
+    pub pitch: Option<[f64; 2]>,
+    /// Detector offset in mm along columns,rows [default: 0,0].
+    #[arg(long, value_parser = parse2, allow_hyphen_values = true)]
+    pub offset: Option<[f64; 2]>,
+    /// A view: ap, pa, lateral, right-lateral, or θ[,φ] in degrees; repeatable [default: ap].
+    #[arg(long = "view", allow_hyphen_values = true)]
+    pub views: Vec<String>,
+    /// An arc of views START:STEP:COUNT in degrees, e.g. 0:5:72.
+    #[arg(long, allow_hyphen_values = true)]
+    pub arc: Option<String>,
+    /// Projector: siddon (exact) or trilinear [default: siddon].
+    #[arg(long)]
+    pub projector: Option<String>,
+    /// Trilinear sample spacing in voxels [default: 0.5].
+    #[arg(long)]
+    pub step: Option<f64>,
+    /// Skip empty space: voxels with |mu| at or below this (mm⁻¹) count as empty, e.g.
+    /// 1e-4 for a CT whose air is noise rather than exact zeros. Each line integral then
+    /// loses at most this × its length in skipped space. Ideal DRR only.
+    #[arg(long)]
+    pub empty_below: Option<f32>,
+    /// What pixels hold: line-integral, transmission or intensity [default: line-integral].
+    #[arg(long)]
+    pub quantity: Option<String>,
+    /// Unattenuated intensity for --quantity intensity [default: 1].
+    #[arg(long)]
+    pub i0: Option<f64>,
+    /// Output folder [default: out].
+    #[arg(short, long)]
+    pub output: Option<PathBuf>,
+    /// File name prefix [default: drr].
+    #[arg(long)]
+    pub prefix: Option<String>,
+    /// Output formats, comma-separated: exr, tiff, npy, png [default: exr,npy,png].
+    #[arg(long, value_delimiter = ',')]
+    pub format: Vec<String>,
+    /// PNG preview window LOW,HIGH in the output quantity [default: each image's range].
+    #[arg(long, value_parser = parse2, allow_hyphen_values = true)]
+    pub window: Option<[f64; 2]>,
+    /// Grid of the built-in phantom, NX,NY,NZ [default: 256,256,133].
+    #[arg(long, value_parser = parse3)]
+    pub phantom_dims: Option<[f64; 3]>,
+    /// Voxel size of the built-in phantom, mm [default: 1.4,1.4,2.5].
+    #[arg(long, value_parser = parse3)]
+    pub phantom_spacing: Option<[f64; 3]>,
+    #[command(flatten)]
+    pub physics: PhysicsArgs,
+}
+
+pub(super) fn parse_list<const N: usize>(s: &str) -> Result<[f64; N], String> {
+    let v: Vec<f64> = s
+        .split(',')
+        .map(|x| {
+            x.trim()
+                .parse::<f64>()
+                .map_err(|_| format!("'{x}' is not a number"))
+        })
+        .collect::<Result<_, _>>()?;
+    if v.iter().any(|x| !x.is_finite()) {
+        return Err(format!("'{s}' holds a non-finite number"));
+    }
+    match v.len() {
+        1 => Ok([v[0]; N]),
+        n if n == N => Ok(std::array::from_fn(|i| v[i])),
+        n => Err(format!(
+            "expected 1 or {N} comma-separated numbers, got {n}"
+        )),
+    }
+}
+pub(super) fn parse2(s: &str) -> Result<[f64; 2], String> {
+    parse_list::<2>(s)
+}
+pub(super) fn parse3(s: &str) -> Result<[f64; 3], String> {
+    parse_list::<3>(s)
+}
+
+pub(super) fn grid_dims(d: [f64; 3]) -> Result<[usize; 3]> {
+    d.iter()
+        .try_fold(Vec::new(), |mut acc, &x| {
+            if x < 1.0 || x.fract() != 0.0 {
+                bail!("grid dimensions must be positive integers, got {x}");
+            }
+            acc.push(x as usize);
+            Ok(acc)
+        })
+        .map(|v| [v[0], v[1], v[2]])
+}
+
+/// Merges command-line flags into the scene (flags win).
+fn merge(args: &ProjectArgs) -> Result<Scene> {
+    let mut s = match &args.scene {
+        Some(p) => Scene::load(p)?,
+        None => Scene::default(),
+    };
+    macro_rules! set {
+        ($dst:expr, $src:expr) => {
+            if let Some(x) = $src.clone() {
+                $dst = Some(x);
+            }
+        };
+    }
+    set!(s.volume.path, args.input);
+    set!(s.volume.units, args.units);
+    if args.allow_non_ct {
+        s.volume.allow_non_ct = Some(true);
+    }
+    set!(s.volume.energy_kev, args.energy_kev);
+    if let Some(d) = args.phantom_dims {
+        s.volume.phantom_dims = Some(grid_dims(d)?);
+    }
+    set!(s.volume.phantom_spacing_mm, args.phantom_spacing);
+    set!(s.geometry.beam, args.beam);
+    set!(s.geometry.sad_mm, args.sad);
+    set!(s.geometry.sid_mm, args.sid);
+    set!(s.geometry.isocentre_mm, args.isocentre);
+    set!(s.detector.rows, args.rows);
+    set!(s.detector.cols, args.cols);
+    set!(s.detector.pitch_mm, args.pitch);
+    set!(s.detector.offset_mm, args.offset);
+    if !args.views.is_empty() || args.arc.is_some() {
+        s.views.poses = Some(args.views.clone());
+        s.views.arc = args.arc.clone();
+        s.views.explicit.clear();
+    }
+    set!(s.projector.kind, args.projector);
+    set!(s.projector.step_voxels, args.step);
+    set!(s.projector.empty_below_per_mm, args.empty_below);
+    set!(s.output.dir, args.output);
+    set!(s.output.prefix, args.prefix);
+    if !args.format.is_empty() {
+        s.output.formats = Some(args.format.clone());
+    }
+    set!(s.output.quantity, args.quantity);
+    set!(s.output.i0, args.i0);
+    if let Some([lo, hi]) = args.window {
+        s.output.window = Some([lo as f32, hi as f32]);
+    }
+    args.physics.merge_into(&mut s)?;
+    Ok(s)
+}
+
+/// Renders view number `i`: one image per detector channel, and with real detector physics
+/// the parts (primary, scatter) it was made of.
+type RenderView<'a> = dyn Fn(usize, &View) -> Result<(Vec<Projection>, Option<Acquired>)> + 'a;
+
+pub fn run(args: ProjectArgs) -> Result<()> {
+    let t0 = Instant::now();
+    let scene = merge(&args)?;
+    let outputs = Outputs::from_scene(&scene)?;
+    let acquisition = physics::acquisition(&scene)?;
+    let (vol, source) = match &acquisition {
+        None => load_mu(&scene)?,
+        Some((acq, _)) => load_hu(&scene, acq.materials.calibration_kev)?,
+    };
+    let t_load = t0.elapsed();
+    let job = resolve(&scene, &vol)?;
+    // One view → one image per detector channel.
+    let prepared;
+    let renderer;
+    let meshes = |physics| -> Result<Option<Arc<MeshScene>>> {
+        let mut objects = Vec::new();
+        for (i, m) in scene.mesh.iter().enumerate() {
+            objects.extend(m.build(i, physics)?);
+        }
+        Ok((!objects.is_empty()).then(|| Arc::new(MeshScene::new(objects))))
+    };
+    let render: Box<RenderView> = match &acquisition {
+        None => {
+            let mut r = Renderer::new(&vol, job.projector)?;
+            if job.skipping.is_some() {
+                r = r.with_skipping(job.skipping)?;
+            }
+            // The HU → mu energy, at which a mesh's material gives its mu.
+            let energy_kev = matches!(source.attenuation, Attenuation::Hounsfield { .. })
+                .then(|| scene.volume.energy_kev.unwrap_or(DEFAULT_ENERGY_KEV));
+            if let Some(m) = meshes(MeshPhysics::Monochromatic { energy_kev })? {
+                r = r.with_meshes(m)?;
+            }
+            renderer = r;
+            Box::new(|_, view| Ok((vec![renderer.render(view)?.to_quantity(job.quantity)], None)))
+        }
+        Some((acq, seed)) => {
+            if job.skipping.is_some() {
+                bail!(
+                    "--empty-below is for the ideal DRR; empty-space skipping of a material \
+                     composition (real detector physics) is not supported yet"
+                );
+            }
+            if scene.output.quantity.is_some() || scene.output.i0.is_some() {
+                bail!(
+                    "--quantity and --i0 are for the ideal DRR; with real detector physics the \
+                     image is the detector's --signal (raw, flat-field or log-line-integral)"
+                );
+            }
+            prepared = acq.prepare_with_meshes(&vol, *seed, meshes(MeshPhysics::Polychromatic)?)?;
+            Box::new(|i, view| {
+                let mut parts = prepared.acquire_with_parts(job.projector, view, i)?;
+                Ok((std::mem::take(&mut parts.images), Some(parts)))
+            })
+        }
+    };
+    outputs.prepare()?;
+    let mut separate = ScatterWriters::new(
+        &outputs,
+        scene.scatter.as_ref().map_or(&[][..], |s| &s.images[..]),
+    );
+
+    let bar = ProgressBar::new(job.views.len() as u64).with_style(
+        ProgressStyle::with_template(
+            "{spinner} rendering view {pos}/{len} [{bar:30}] {elapsed} (eta {eta})",
+        )
+        .expect("valid template")
+        .progress_chars("=> "),
+    );
+    if job.views.len() < 2 {
+        bar.set_draw_target(indicatif::ProgressDrawTarget::hidden());
+    }
+    let mut render_time = std::time::Duration::ZERO;
+    let mut channels: Vec<Vec<Projection>> = Vec::new();
+    let mut channel_outputs: Vec<Outputs> = Vec::new();
+    for (i, view) in job.views.iter().enumerate() {
+        let t = Instant::now();
+        let (images, parts) = render(i, view)?;
+        render_time += t.elapsed();
+        if let Some(parts) = &parts {
+            separate.write_view(i, parts)?;
+        }
+        if channel_outputs.is_empty() {
+            channel_outputs = (0..images.len())
+                .map(|c| outputs.for_channel(c, images.len()))
+                .collect();
+            channels = vec![Vec::with_capacity(job.views.len()); images.len()];
+        }
+        for ((img, out), stack) in images.into_iter().zip(&channel_outputs).zip(&mut channels) {
+            out.write_view(i, &img)?;
+            stack.push(img);
+        }
+        bar.inc(1);
+    }
+    bar.finish_and_clear();
+    let mut sidecar = serde_json::to_value(output::Sidecar::new(&source, &job))?;
+    if let Some((acq, seed)) = &acquisition {
+        sidecar["quantity"] = serde_json::json!("detector signal (see acquisition)");
+        sidecar["acquisition"] = serde_json::to_value(acq)?;
+        sidecar["acquisition"]["seed"] = serde_json::json!(seed);
+        sidecar["acquisition"]["frame_seeds"] = serde_json::json!(
+            "view i: SplitMix64(seed ^ (i+1)·0x9E3779B97F4A7C15); calibration: frame 0"
+        );
+    }
+    let mut files = 0;
+    for (c, (out, images)) in channel_outputs.iter().zip(&channels).enumerate() {
+        let mut sc = sidecar.clone();
+        if channel_outputs.len() > 1 {
+            sc["channel"] = serde_json::json!(c);
+        }
+        files += out.finish(images, sc)?;
+    }
+    if !separate.is_empty() {
+        files += separate.finish(&sidecar)?;
+    }
+    eprintln!(
+        "rendered {} view(s) of {}×{} in {:.1} ms ({:.1} ms per view; loading {:.0} ms); wrote {} file(s) to {}",
+        job.views.len(),
+        job.views.first().map_or(0, |v| v.rows),
+        job.views.first().map_or(0, |v| v.cols),
+        render_time.as_secs_f64() * 1e3,
+        render_time.as_secs_f64() * 1e3 / job.views.len().max(1) as f64,
+        t_load.as_secs_f64() * 1e3,
+        files,
+        outputs.dir.display()
+    );
+    Ok(())
+}
+
+/// Formats named on the command line.
+pub fn parse_formats(names: &[String]) -> Result<Vec<Format>> {
+    names.iter().map(|n| Format::parse(n)).collect()
+}

@@ -1,0 +1,128 @@
+//! The input volume: a NIfTI file, a DICOM series or the built-in phantom, as mu or HU.
+
+use crate::scene::Scene;
+use anyhow::{Result, bail};
+use glam::DVec3;
+use std::path::PathBuf;
+use tomograf_sim::Volume;
+use tomograf_sim::attenuation::Attenuation;
+use tomograf_sim::phantom::Phantom;
+
+/// Default grid of the built-in phantom when rendered directly: 256 × 256 × 133 voxels of
+/// 1.4 × 1.4 × 2.5 mm (a chest CT's field of view at half its in-plane resolution).
+pub const PHANTOM_DIMS: [usize; 3] = [256, 256, 133];
+/// See [`PHANTOM_DIMS`].
+pub const PHANTOM_SPACING: [f64; 3] = [1.4, 1.4, 2.5];
+
+/// The built-in thorax phantom on a grid centred at the world origin, in HU.
+pub fn phantom_volume(dims: [usize; 3], spacing: [f64; 3]) -> Result<Volume> {
+    Ok(Phantom::thorax().voxelize(dims, DVec3::from(spacing), DVec3::ZERO)?)
+}
+
+/// Where the volume came from, for the sidecar.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct VolumeSource {
+    pub path: Option<PathBuf>,
+    pub phantom: Option<&'static str>,
+    pub units: String,
+    pub attenuation: Attenuation,
+    pub dims: [usize; 3],
+    pub spacing_mm: [f64; 3],
+    pub origin_mm: [f64; 3],
+    pub direction: [[f64; 3]; 3],
+}
+
+/// Effective energy (keV) of the HU → mu conversion of the ideal DRR when none is given.
+pub(super) const DEFAULT_ENERGY_KEV: f64 = 60.0;
+
+/// Loads the input volume (or phantom) and converts it to mu (mm⁻¹).
+pub fn load_mu(scene: &Scene) -> Result<(Volume, VolumeSource)> {
+    load(scene, None)
+}
+
+/// Loads the input volume (or phantom) in HU, for real detector physics whose tissue
+/// model is calibrated at `calibration_kev` (recorded as the volume's HU → mu energy).
+pub fn load_hu(scene: &Scene, calibration_kev: f64) -> Result<(Volume, VolumeSource)> {
+    load(scene, Some(calibration_kev))
+}
+
+/// Loads the input; converts HU to mu unless `keep_hu` (the calibration energy) is given.
+fn load(scene: &Scene, keep_hu: Option<f64>) -> Result<(Volume, VolumeSource)> {
+    let v = &scene.volume;
+    let units = v
+        .units
+        .clone()
+        .unwrap_or_else(|| "hu".into())
+        .to_ascii_lowercase();
+    let (vol, phantom) = match &v.path {
+        Some(p) => (load_volume_file(p, v.allow_non_ct.unwrap_or(false))?, None),
+        None => (
+            phantom_volume(
+                v.phantom_dims.unwrap_or(PHANTOM_DIMS),
+                v.phantom_spacing_mm.unwrap_or(PHANTOM_SPACING),
+            )?,
+            Some("thorax"),
+        ),
+    };
+    let attenuation = match (units.as_str(), keep_hu) {
+        ("hu", Some(e)) => {
+            if v.energy_kev.is_some() {
+                bail!(
+                    "--energy-kev is the monochromatic DRR's energy; with a spectrum the CT's \
+                     energy is [materials] calibration_kev"
+                );
+            }
+            Attenuation::hounsfield_at_kev(e)?
+        }
+        (_, Some(_)) => bail!(
+            "real detector physics classifies tissues by CT number: the input must be in HU \
+             (--units hu)"
+        ),
+        ("hu", None) => Attenuation::hounsfield_at_kev(v.energy_kev.unwrap_or(DEFAULT_ENERGY_KEV))?,
+        ("mu", None) => {
+            if v.energy_kev.is_some() {
+                bail!("--energy-kev only applies to HU input (--units hu)");
+            }
+            Attenuation::LinearPerMm
+        }
+        (other, None) => bail!("unknown units '{other}': use hu (Hounsfield) or mu (mm⁻¹)"),
+    };
+    let mu = match keep_hu {
+        Some(_) => vol,
+        None => attenuation.to_mu(vol)?,
+    };
+    let d = mu.direction();
+    let source = VolumeSource {
+        path: v.path.clone(),
+        phantom,
+        units,
+        attenuation,
+        dims: mu.dims(),
+        spacing_mm: mu.spacing().to_array(),
+        origin_mm: mu.origin().to_array(),
+        direction: [
+            d.x_axis.to_array(),
+            d.y_axis.to_array(),
+            d.z_axis.to_array(),
+        ],
+    };
+    Ok((mu, source))
+}
+
+/// Reads a CT volume: a NIfTI file or a folder holding one DICOM series.
+pub fn load_volume_file(path: &std::path::Path, allow_non_ct: bool) -> Result<Volume> {
+    let name = path.to_string_lossy().to_ascii_lowercase();
+    if path.is_dir() {
+        Ok(tomograf_datasets::dicom::read_dicom_series(
+            path,
+            allow_non_ct,
+        )?)
+    } else if name.ends_with(".nii") || name.ends_with(".nii.gz") {
+        Ok(tomograf_datasets::nifti::read_nifti(path)?)
+    } else {
+        bail!(
+            "cannot read {}: give a NIfTI volume (.nii, .nii.gz) or a folder holding one DICOM series",
+            path.display()
+        )
+    }
+}
