@@ -32,6 +32,27 @@ fn err(path: &Path, e: impl std::fmt::Display) -> ModelError {
     ModelError::file(path, e)
 }
 
+/// Writes an optimizer's state with its tensors sorted by name ("{param id}.{field}"):
+/// burn lists them in hash-map order, so the same state would give different bytes.
+fn save_optimizer(
+    o: &burn::optim::ModuleOptimizer,
+    path: &Path,
+) -> std::result::Result<(), Box<dyn std::error::Error>> {
+    let reader = burn_pack::Reader::from_bytes(o.to_record().into_bytes()?)?;
+    let (scalars, metadata) = (reader.scalars().clone(), reader.metadata().clone());
+    let mut tensors = reader.into_tensors()?;
+    tensors.sort_by(|a, b| a.name.cmp(&b.name));
+    let mut writer = burn_pack::Writer::new(tensors);
+    for (key, value) in &scalars {
+        writer = writer.with_scalar(key, *value);
+    }
+    for (key, value) in &metadata {
+        writer = writer.with_metadata(key, value);
+    }
+    writer.write_to_file(path)?;
+    Ok(())
+}
+
 /// Saves `trainer` (with the training data's density scale and, when given, the mean
 /// training volume as `mean_volume.npy`) to the folder `dir`.
 pub fn save(
@@ -75,7 +96,7 @@ pub fn save(
         ("opt_d2.bpk", &trainer.opt_d2),
     ] {
         let p = tmp.join(n);
-        o.save(&p).map_err(|e| err(&p, e))?;
+        save_optimizer(o, &p).map_err(|e| err(&p, e))?;
     }
     if let Some(m) = mean {
         let p = tmp.join("mean_volume.npy");

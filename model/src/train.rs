@@ -104,6 +104,20 @@ pub struct Trainer {
     pub device: Device,
 }
 
+/// Gives parameters the ids `n + 1, n + 2, …` in the module's traversal order.
+struct NumberParams(u64);
+
+impl burn::module::ModuleMapper for NumberParams {
+    fn map_float<const D: usize>(
+        &mut self,
+        param: burn::module::Param<Tensor<D>>,
+    ) -> burn::module::Param<Tensor<D>> {
+        let (_, value, mapper) = param.consume();
+        self.0 += 1;
+        burn::module::Param::from_mapped_value(burn::module::ParamId::from(self.0), value, mapper)
+    }
+}
+
 /// One batch of real patches P, sub-volumes V and the rays that produced them.
 struct Batch {
     rays: RayTensors,
@@ -143,6 +157,11 @@ impl Trainer {
             let _ = d2.forward(Tensor::zeros([1, 1, side, side], device), k);
         }
         drop(guard);
+        // burn gives each parameter a random id, which checkpoints store: number them instead
+        // so the same seed writes the same checkpoint bytes.
+        let field = field.map(&mut NumberParams(0));
+        let d1 = d1.map(&mut NumberParams(1 << 32));
+        let d2 = d2.map(&mut NumberParams(2 << 32));
         Ok(Self {
             field,
             d1,
