@@ -82,9 +82,11 @@ pub struct Scale {
     pub name: String,
     /// CT grid (size³) and detector (size²).
     pub size: usize,
-    /// Projections per rotation in the data sets (a multiple of 10 for the 5- and 10-view
-    /// sets), besides AP and lateral.
+    /// Projections per rotation in the training sets, besides AP and lateral.
     pub views: usize,
+    /// Projections per rotation in the test sets, besides AP and lateral: a multiple of 10,
+    /// so that the 5- and 10-view sets (every 72° and 36°) are among them.
+    pub test_views: usize,
     pub train_phantoms: usize,
     pub test_phantoms: usize,
     /// Model configuration preset (`tomograf train --config`).
@@ -95,15 +97,16 @@ pub struct Scale {
 
 impl Scale {
     pub fn parse(name: &str) -> Result<Self> {
-        let (size, views, train, test, config, photons) = match name {
-            "tiny" => (16, 10, 4, 2, "tiny", 100),
-            "small" => (64, 36, 32, 8, "small", 5_000),
+        let (size, views, test_views, train, test, config, photons) = match name {
+            "tiny" => (16, 10, 10, 4, 2, "tiny", 100),
+            "small" => (64, 36, 10, 32, 8, "small", 5_000),
             other => bail!("unknown --scale '{other}': use tiny or small"),
         };
         Ok(Self {
             name: name.into(),
             size,
             views,
+            test_views,
             train_phantoms: train,
             test_phantoms: test,
             config: config.into(),
@@ -293,7 +296,11 @@ impl Study {
             profile: spec.profile.into(),
             table: spec.table,
             pacemaker: spec.pacemaker,
-            views: s.scale.views,
+            views: if test {
+                s.scale.test_views
+            } else {
+                s.scale.views
+            },
             size: s.scale.size,
             hu_window: Vec::new(),
             crop_hu: -900.0,
@@ -417,4 +424,24 @@ pub fn relative(dir: &Path, path: &Path) -> String {
         .unwrap_or(path)
         .to_string_lossy()
         .into_owned()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::Scale;
+
+    /// `tomograf evaluate` takes the 5- and 10-view sets every 72° and 36° of a test set's
+    /// rotation: every scale must make test sets with a multiple of 10 views (`small` once
+    /// made 36 and its evaluation stopped with "no projection at θ = 72°").
+    #[test]
+    fn every_scale_makes_test_sets_the_evaluation_can_use() {
+        for name in ["tiny", "small"] {
+            let s = Scale::parse(name).unwrap();
+            assert!(
+                s.test_views > 0 && s.test_views.is_multiple_of(10),
+                "{name}: {} test views",
+                s.test_views
+            );
+        }
+    }
 }

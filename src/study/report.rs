@@ -165,7 +165,8 @@ fn intro(study: &Study) -> Vec<Block> {
     let sc = &s.scale;
     let mut b = vec![Block::Para(format!(
         "Scale `{}` (CT {n}³, detector {n}², {} training and {} test phantoms per set, {} \
-         views per rotation + AP + lateral, model configuration `{}`), seed {}. Views as in \
+         training and {} test views per rotation + AP + lateral, model configuration `{}`), \
+         seed {}. Views as in \
          the paper: 1 = AP, 2 = AP + lateral, 5 = every 72°, 10 = every 36°. Metrics on the \
          [0, 1]-normalised CT (HU window −1024..2048): PSNR, 3D SSIM (7³ windows), RMSE in \
          HU; mean ± std over the test phantoms. FDK and SART-TV use the same views and do \
@@ -175,6 +176,7 @@ fn intro(study: &Study) -> Vec<Block> {
         sc.train_phantoms,
         sc.test_phantoms,
         sc.views,
+        sc.test_views,
         sc.config,
         s.seed,
         match s.kind {
