@@ -150,23 +150,7 @@ pub fn uv_sphere(radius: f64, segments: u32, rings: u32) -> Result<TriMesh> {
         }
     }
     vertices.push(DVec3::new(0.0, 0.0, radius));
-    let top = (vertices.len() - 1) as u32;
-    let ring = |r: u32, s: u32| 1 + (r - 1) * segments + s % segments;
-    let mut triangles = Vec::new();
-    for s in 0..segments {
-        triangles.push([0, ring(1, s + 1), ring(1, s)]);
-        triangles.push([top, ring(rings - 1, s), ring(rings - 1, s + 1)]);
-        for r in 1..rings - 1 {
-            let (a, b, c, d) = (
-                ring(r, s),
-                ring(r, s + 1),
-                ring(r + 1, s + 1),
-                ring(r + 1, s),
-            );
-            triangles.push([a, b, c]);
-            triangles.push([a, c, d]);
-        }
-    }
+    let triangles = uv_triangles(vertices.len(), segments, rings);
     Ok(outward(TriMesh {
         vertices,
         triangles,
@@ -214,23 +198,7 @@ pub fn rounded_box(half: DVec3, radius: f64, segments: u32, rings: u32) -> Resul
     for v in &mut vertices {
         *v += DVec3::new(side(v.x), side(v.y), side(v.z)) * inner;
     }
-    let top = (vertices.len() - 1) as u32;
-    let ring = |r: u32, s: u32| 1 + (r - 1) * segments + s % segments;
-    let mut triangles = Vec::new();
-    for s in 0..segments {
-        triangles.push([0, ring(1, s + 1), ring(1, s)]);
-        triangles.push([top, ring(rings - 1, s), ring(rings - 1, s + 1)]);
-        for r in 1..rings - 1 {
-            let (a, b, c, d) = (
-                ring(r, s),
-                ring(r, s + 1),
-                ring(r + 1, s + 1),
-                ring(r + 1, s),
-            );
-            triangles.push([a, b, c]);
-            triangles.push([a, c, d]);
-        }
-    }
+    let triangles = uv_triangles(vertices.len(), segments, rings);
     Ok(outward(TriMesh {
         vertices,
         triangles,
@@ -426,4 +394,27 @@ pub fn table_top(width: f64, length: f64, thickness: f64) -> Result<TriMesh> {
     let slab = prism(&outline, length)?;
     // prism extrudes along z: the table's length runs head–feet (z).
     Ok(slab)
+}
+
+/// The triangles of a UV-sphere vertex layout of `n` vertices: the bottom pole (vertex 0),
+/// `rings − 1` rings of `segments` vertices, the top pole (the last vertex).
+fn uv_triangles(n: usize, segments: u32, rings: u32) -> Vec<[u32; 3]> {
+    let top = (n - 1) as u32;
+    let ring = |r: u32, s: u32| 1 + (r - 1) * segments + s % segments;
+    let mut triangles = Vec::new();
+    for s in 0..segments {
+        triangles.push([0, ring(1, s + 1), ring(1, s)]);
+        triangles.push([top, ring(rings - 1, s), ring(rings - 1, s + 1)]);
+        for r in 1..rings - 1 {
+            let (a, b, c, d) = (
+                ring(r, s),
+                ring(r, s + 1),
+                ring(r + 1, s + 1),
+                ring(r + 1, s),
+            );
+            triangles.push([a, b, c]);
+            triangles.push([a, c, d]);
+        }
+    }
+    triangles
 }
