@@ -5,7 +5,8 @@
 # by maturin, then pytest: the API, independent readers (nibabel, OpenImageIO) and the
 # Mitsuba cross-validation (in its own process). Idempotent and quiet: packages are
 # reinstalled only when the requirements file changes.
-# Environment: TOMOGRAF_VENV (default .venv), PYTHON (default python3).
+# Environment: TOMOGRAF_VENV (default .venv), PYTHON (default python3), TOMOGRAF_BIN (the
+# CLI to test; built with `cargo build --release` when unset).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 venv="${TOMOGRAF_VENV:-.venv}"
@@ -32,5 +33,9 @@ if ! cmp -s bridge/requirements-test.txt "$stamp"; then
 fi
 export DRJIT_LIBLLVM_PATH="${DRJIT_LIBLLVM_PATH:-$(libllvm)}"
 (cd bridge && VIRTUAL_ENV="$venv" PATH="$venv/bin:$PATH" maturin develop --release -q)
-cargo build --release --quiet --bin tomograf
-TOMOGRAF_BIN="$PWD/target/release/tomograf" "$venv/bin/python" -m pytest -q -p no:cacheprovider bridge/tests
+# The CLI the tests drive: TOMOGRAF_BIN when the caller built it (scripts/test.sh), else built here.
+if [ -z "${TOMOGRAF_BIN:-}" ]; then
+  cargo build --release --quiet --bin tomograf
+  export TOMOGRAF_BIN="$PWD/target/release/tomograf"
+fi
+"$venv/bin/python" -m pytest -q -p no:cacheprovider bridge/tests

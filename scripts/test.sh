@@ -10,4 +10,6 @@ cargo test --workspace --release
 
 # Python bridge: module build, pytest (API, nibabel/OpenImageIO readers, Mitsuba 3
 # cross-validation); installs its own virtualenv and libLLVM 19 (see bridge/test.sh).
-bridge/test.sh
+# It uses the CLI binary `cargo test` just built: `cargo build` would resolve other
+# features (dev-dependencies off) and compile the whole burn stack a second time.
+TOMOGRAF_BIN="$PWD/target/release/tomograf" bridge/test.sh
