@@ -257,11 +257,23 @@ fn domain_shift_end_to_end_and_in_shards() {
             let mut args = base.to_vec();
             args.extend(["--stage", stage, "--shard", shard]);
             ok(&tomograf(&args));
+            if (stage, shard) == ("evaluate", "1/2") {
+                // A report of half the shards says which cells are short, and by how much.
+                let mut args = base.to_vec();
+                args.extend(["--stage", "report"]);
+                ok(&tomograf(&args));
+                let md = std::fs::read_to_string(d.join("report.md")).unwrap();
+                assert!(md.contains("**Partial evaluation**"), "{md}");
+                assert!(md.contains("`lidc` × model `lidc`: 1 of 2"), "{md}");
+                assert!(md.contains("`paper-in-house` × FDK: 1 of 2"), "{md}");
+            }
         }
     }
     let mut args = base.to_vec();
     args.extend(["--stage", "report"]);
     ok(&tomograf(&args));
+    let md = std::fs::read_to_string(d.join("report.md")).unwrap();
+    assert!(!md.contains("Partial evaluation"), "{md}");
     let subset = ["lidc", "paper-in-house"];
     assert_eq!(
         rows_for(&d.join("results.csv"), &subset),

@@ -112,6 +112,7 @@ pub fn write(study: &Study) -> Result<()> {
     let figures = study.dir.join("figures");
     std::fs::create_dir_all(&figures)?;
     let mut blocks = intro(study);
+    blocks.extend(coverage(study, &stats));
     blocks.extend(tables(study, &stats));
     blocks.extend(plots(study, &stats)?);
     if let Some(id) = first_item {
@@ -250,6 +251,36 @@ fn row_keys(study: &Study) -> Vec<(Option<String>, String, String)> {
     keys.push((None, "FDK".into(), "FDK".into()));
     keys.push((None, "SART-TV".into(), "SART-TV".into()));
     keys
+}
+
+/// A warning when some test phantoms are not scored yet (a sharded evaluation that ran only
+/// some shards): the tables then average fewer items than the intro names.
+fn coverage(study: &Study, stats: &[Stat]) -> Option<Block> {
+    let want = study.settings.scale.test_phantoms;
+    // (test set, what was scored) → fewest items over its view counts.
+    let mut short: Vec<(String, String, usize)> = Vec::new();
+    for s in stats.iter().filter(|s| s.scores.len() < want) {
+        let what = s
+            .train
+            .as_deref()
+            .map_or_else(|| s.method.clone(), |t| format!("model `{t}`"));
+        match short.iter_mut().find(|(t, w, _)| *t == s.test && *w == what) {
+            Some(c) => c.2 = c.2.min(s.scores.len()),
+            None => short.push((s.test.clone(), what, s.scores.len())),
+        }
+    }
+    (!short.is_empty()).then(|| {
+        let cells: Vec<String> = short
+            .iter()
+            .map(|(t, w, n)| format!("`{t}` × {w}: {n} of {want}"))
+            .collect();
+        Block::Para(format!(
+            "**Partial evaluation**: these cells average fewer test phantoms than the {want} \
+             of the scale (run the evaluate stage on the remaining shards to complete them): \
+             {}.",
+            cells.join("; ")
+        ))
+    })
 }
 
 fn find<'a>(
