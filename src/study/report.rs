@@ -264,7 +264,10 @@ fn coverage(study: &Study, stats: &[Stat]) -> Option<Block> {
             .train
             .as_deref()
             .map_or_else(|| s.method.clone(), |t| format!("model `{t}`"));
-        match short.iter_mut().find(|(t, w, _)| *t == s.test && *w == what) {
+        match short
+            .iter_mut()
+            .find(|(t, w, _)| *t == s.test && *w == what)
+        {
             Some(c) => c.2 = c.2.min(s.scores.len()),
             None => short.push((s.test.clone(), what, s.scores.len())),
         }
