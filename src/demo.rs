@@ -92,6 +92,7 @@ pub fn run(args: DemoArgs) -> Result<()> {
         split: None,
         items: None,
         iterations: (args.iterations > 0).then_some(args.iterations),
+        psnr_threshold: None,
         tune: None,
         seed: 0,
         backend: args.backend,

@@ -46,6 +46,10 @@ pub struct EvaluateArgs {
     /// Override the checkpoint's inference iteration cap.
     #[arg(long)]
     pub iterations: Option<usize>,
+    /// Override the checkpoint's inference stopping threshold: the PSNR (dB) every input
+    /// view's rendered rays must reach (the paper's 25).
+    #[arg(long, allow_negative_numbers = true)]
+    pub psnr_threshold: Option<f64>,
     /// What to fine-tune: codes-and-generator (default) or codes.
     #[arg(long)]
     pub tune: Option<Tune>,
@@ -114,6 +118,9 @@ pub struct Job {
     pub seed: u64,
     pub iterations: Option<usize>,
     pub tune: Option<Tune>,
+    /// Inference stopping threshold, dB (absent in folders written before it existed).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub psnr_threshold: Option<f64>,
 }
 
 /// One score: an item, a view count, a method.
@@ -144,6 +151,7 @@ pub struct Evaluation<'a> {
     pub split: Option<&'a str>,
     pub items: Option<usize>,
     pub iterations: Option<usize>,
+    pub psnr_threshold: Option<f64>,
     pub tune: Option<Tune>,
     pub seed: u64,
     pub backend: Option<&'a str>,
@@ -174,6 +182,7 @@ pub fn run(args: EvaluateArgs) -> Result<()> {
         split: args.split.as_deref(),
         items: args.items,
         iterations: args.iterations,
+        psnr_threshold: args.psnr_threshold,
         tune: args.tune,
         seed: args.seed,
         backend: args.backend.as_deref(),
@@ -218,6 +227,7 @@ pub fn evaluate(e: &Evaluation) -> Result<usize> {
         seed: e.seed,
         iterations: e.iterations,
         tune: e.tune,
+        psnr_threshold: e.psnr_threshold,
     };
     if !job.model && !job.classical {
         bail!("nothing to evaluate: give a checkpoint or score the classical baselines");
@@ -235,6 +245,9 @@ pub fn evaluate(e: &Evaluation) -> Result<usize> {
             }
             if let Some(n) = e.iterations {
                 infer.iterations = n;
+            }
+            if let Some(t) = e.psnr_threshold {
+                infer.set_psnr_threshold(t)?;
             }
             let mean = checkpoint::load_mean(ck)?
                 .context("the checkpoint has no mean_volume.npy (written by `tomograf train`)")?;

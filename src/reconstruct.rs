@@ -35,6 +35,10 @@ pub struct ReconstructArgs {
     /// Override the checkpoint's inference iteration cap.
     #[arg(long)]
     pub iterations: Option<usize>,
+    /// Override the checkpoint's inference stopping threshold: the PSNR (dB) every input
+    /// view's rendered rays must reach (the paper's 25).
+    #[arg(long, allow_negative_numbers = true)]
+    pub psnr_threshold: Option<f64>,
     /// Seed of the initial codes and ray jitter.
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
@@ -161,6 +165,9 @@ pub fn run(args: ReconstructArgs) -> Result<()> {
     }
     if let Some(n) = args.iterations {
         infer.iterations = n;
+    }
+    if let Some(t) = args.psnr_threshold {
+        infer.set_psnr_threshold(t)?;
     }
     let rec = run_one(
         &args.checkpoint,

@@ -80,6 +80,33 @@ fn train_resume_reconstruct_evaluate() {
     ]));
     assert!(vol.is_file());
 
+    // A stopping threshold every view reaches at once ends inference after one iteration
+    // (the cap is 3); a threshold that is not a number is refused, naming it.
+    let reconstruct = |threshold: &str| {
+        tomograf(&[
+            "reconstruct",
+            data.join("00000").to_str().unwrap(),
+            "--checkpoint",
+            run.join("checkpoint").to_str().unwrap(),
+            "--views",
+            "1",
+            "--iterations",
+            "3",
+            "--psnr-threshold",
+            threshold,
+            "-o",
+            vol.to_str().unwrap(),
+        ])
+    };
+    let out = reconstruct("-1000");
+    ok(&out);
+    let e = String::from_utf8_lossy(&out.stderr);
+    assert!(e.contains("1 iterations,"), "{e}");
+    let out = reconstruct("NaN");
+    assert!(!out.status.success());
+    let e = String::from_utf8_lossy(&out.stderr);
+    assert!(e.contains("PSNR threshold NaN"), "{e}");
+
     // Evaluate at 1 and 2 views: every method scored for every item and view count.
     let eval = tmp.path().join("eval");
     ok(&tomograf(&[

@@ -68,6 +68,18 @@ pub struct InferConfig {
     pub tune: Tune,
 }
 
+impl InferConfig {
+    /// Sets the stopping threshold (dB); it must be finite.
+    pub fn set_psnr_threshold(&mut self, db: f64) -> Result<()> {
+        ensure!(
+            db.is_finite(),
+            "inference PSNR threshold {db} dB must be a finite number"
+        );
+        self.psnr_threshold = db;
+        Ok(())
+    }
+}
+
 /// A training configuration.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -160,6 +172,11 @@ impl TrainConfig {
         ] {
             ensure!(v.is_finite() && v > 0.0, "{n} = {v} must be > 0");
         }
+        ensure!(
+            self.infer.psnr_threshold.is_finite(),
+            "infer.psnr_threshold = {} must be a finite number (dB)",
+            self.infer.psnr_threshold
+        );
         ensure!(
             self.checkpoint_every > 0 && self.log_every > 0,
             "checkpoint_every and log_every must be > 0"

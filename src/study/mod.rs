@@ -404,6 +404,7 @@ impl Study {
                     split: None,
                     items: None,
                     iterations: None,
+                    psnr_threshold: None,
                     tune: None,
                     seed: self.settings.seed,
                     backend: self.backend.as_deref(),
