@@ -170,7 +170,7 @@ pub fn run(args: EvaluateArgs) -> Result<()> {
         .transpose()?
         .unwrap_or((0, 1));
     if args.merge {
-        let md = merge(&args.output)?;
+        let md = merge(&args.output, false)?;
         println!("{md}");
         return Ok(());
     }
@@ -201,7 +201,7 @@ pub fn run(args: EvaluateArgs) -> Result<()> {
             args.output.display()
         );
     } else {
-        let md = merge(&args.output)?;
+        let md = merge(&args.output, false)?;
         println!("{md}");
     }
     Ok(())
@@ -406,7 +406,9 @@ fn parse_rows(path: &Path) -> Result<Vec<Row>> {
 
 /// Every score of a finished evaluation folder, in the job's item order; errors naming
 /// the items no shard has scored yet.
-pub fn load_rows(output: &Path) -> Result<Vec<Row>> {
+/// The scores of every item of `output`'s job; an error naming the items not scored yet,
+/// unless `partial` (then the scored items only).
+pub fn load_rows(output: &Path, partial: bool) -> Result<Vec<Row>> {
     let path = output.join("job.json");
     let job: Job = serde_json::from_slice(
         &std::fs::read(&path).with_context(|| format!("cannot read {}", path.display()))?,
@@ -418,7 +420,7 @@ pub fn load_rows(output: &Path) -> Result<Vec<Row>> {
         .filter(|id| !item_path(output, id).exists())
         .map(String::as_str)
         .collect();
-    if !missing.is_empty() {
+    if !missing.is_empty() && !partial {
         bail!(
             "{}: {} of {} item(s) not scored yet ({}); run the missing shards first",
             output.display(),
@@ -428,7 +430,11 @@ pub fn load_rows(output: &Path) -> Result<Vec<Row>> {
         );
     }
     let mut rows = Vec::new();
-    for id in &job.items {
+    for id in job
+        .items
+        .iter()
+        .filter(|id| !missing.contains(&id.as_str()))
+    {
         rows.extend(parse_rows(&item_path(output, id))?);
     }
     Ok(rows)
@@ -452,8 +458,8 @@ pub fn summarise(rows: &[Row]) -> Vec<(usize, String, Vec<Scores>)> {
 
 /// Writes `results.csv` (every score) and `results.md` (mean ± std per view count and
 /// method) from the items' scores; returns the markdown.
-pub fn merge(output: &Path) -> Result<String> {
-    let rows = load_rows(output)?;
+pub fn merge(output: &Path, partial: bool) -> Result<String> {
+    let rows = load_rows(output, partial)?;
     let mut csv = format!("{ITEM_HEADER}\n");
     for r in &rows {
         let _ = writeln!(

@@ -74,6 +74,10 @@ pub struct CommonArgs {
     /// Backend: flex (CPU, default), ndarray, cuda, wgpu (as compiled in).
     #[arg(long)]
     pub backend: Option<String>,
+    /// With --stage report: report on the test items scored so far (an interim report of a
+    /// sharded evaluation; it names the cells that average fewer phantoms than the scale).
+    #[arg(long)]
+    pub partial: bool,
 }
 
 /// Sizes of a study.
@@ -190,6 +194,9 @@ pub fn run(command: StudyCommand) -> Result<()> {
         .map(parse_shard)
         .transpose()?
         .unwrap_or((0, 1));
+    if common.partial && stage != Stage::Report {
+        bail!("--partial is for --stage report (an interim report while shards still run)");
+    }
     if shard.1 > 1 && matches!(stage, Stage::All | Stage::Report) {
         bail!(
             "--shard splits one stage: give --stage data, train or evaluate (each after the \
@@ -222,7 +229,7 @@ pub fn run(command: StudyCommand) -> Result<()> {
         study.evaluate(shard)?;
     }
     if all || stage == Stage::Report {
-        report::write(&study)?;
+        report::write(&study, common.partial)?;
         eprintln!(
             "report: {0}/report.md, {0}/report.html, {0}/results.csv, figures in {0}/figures",
             study.dir.display()

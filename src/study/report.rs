@@ -89,7 +89,9 @@ fn stats_of(rows: &[Row], train: Option<&str>, test: &str, out: &mut Vec<Stat>) 
 }
 
 /// Writes the study's results, figures and report from its evaluation folders.
-pub fn write(study: &Study) -> Result<()> {
+/// With `partial`, from the items scored so far (the report names the short cells);
+/// otherwise every evaluation must be complete.
+pub fn write(study: &Study, partial: bool) -> Result<()> {
     let s = &study.settings;
     let mut stats = Vec::new();
     let mut first_item = None;
@@ -97,13 +99,14 @@ pub fn write(study: &Study) -> Result<()> {
         let cells = std::iter::once(None).chain(s.train_sets.iter().map(|t| Some(t.as_str())));
         for train in cells {
             let dir = study.eval_dir(test, train);
-            merge(&dir).with_context(|| {
+            merge(&dir, partial).with_context(|| {
                 format!(
-                    "{}: run the evaluate stage (on every shard) first",
+                    "{}: run the evaluate stage (on every shard) first, or report on the \
+                     items scored so far with --partial",
                     dir.display()
                 )
             })?;
-            let rows = load_rows(&dir)?;
+            let rows = load_rows(&dir, partial)?;
             first_item = first_item.or_else(|| rows.first().map(|r| r.item.clone()));
             stats_of(&rows, train, test, &mut stats);
         }
