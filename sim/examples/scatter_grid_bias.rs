@@ -12,11 +12,12 @@
 //! the interpolation's error with most of the Monte Carlo noise cancelled. What noise is
 //! left is measured with two seeds: with d₁, d₂ the two seeds' differences,
 //! mean(((d₁+d₂)/2)²) − mean(((d₁−d₂)/2)²) estimates the squared bias alone.
-use glam::DVec3;
+#[path = "common/scatter_chest.rs"]
+mod case;
+
 use tomograf_sim::acquisition::Acquisition;
-use tomograf_sim::phantom::Phantom;
 use tomograf_sim::scatter::ScatterModel;
-use tomograf_sim::*;
+use tomograf_sim::{View, Volume};
 
 const PIXELS: usize = 61;
 const PHOTONS: u64 = 6_000;
@@ -37,18 +38,8 @@ fn scatter(hu: &Volume, view: &View, grid: usize, seed: u64) -> Vec<f64> {
 }
 
 fn main() {
-    let hu = Phantom::thorax()
-        .voxelize([80, 56, 40], DVec3::new(4.5, 4.5, 8.3), DVec3::ZERO)
-        .unwrap();
-    let g = Geometry {
-        beam: Beam::Cone {
-            sad_mm: 1000.0,
-            sid_mm: 1500.0,
-        },
-        detector: Detector::new(PIXELS, PIXELS, 256.0 * 1.68 / PIXELS as f64),
-        isocentre: DVec3::ZERO,
-    };
-    let view = g.view(Pose::new(0.0, 0.0)).unwrap();
+    let hu = case::thorax();
+    let view = case::ap_view(PIXELS);
     let reference: Vec<Vec<f64>> = SEEDS
         .iter()
         .map(|&s| scatter(&hu, &view, PIXELS, s))
@@ -86,7 +77,7 @@ fn main() {
             worst = worst.max(m.abs());
         }
         let rms_bias = ((sum2 - noise2) / n).max(0.0).sqrt();
-        let spacing = (PIXELS - 1) as f64 * 256.0 * 1.68 / PIXELS as f64 / (grid - 1) as f64;
+        let spacing = (PIXELS - 1) as f64 * case::PANEL_MM / PIXELS as f64 / (grid - 1) as f64;
         println!(
             "| {grid}×{grid} | {spacing:.1} | {:.2} % | {:+.2} % | {:.1} % | {:.2} % |",
             100.0 * rms_bias,

@@ -3,11 +3,11 @@
 //! getrusage (user + system of the whole process, all threads).
 //!
 //! `cargo run --release -p tomograf-sim --example scatter_speed`
-use glam::DVec3;
+#[path = "common/scatter_chest.rs"]
+mod case;
+
 use tomograf_sim::acquisition::Acquisition;
-use tomograf_sim::phantom::Phantom;
 use tomograf_sim::scatter::ScatterModel;
-use tomograf_sim::*;
 
 fn cpu_seconds() -> f64 {
     let mut u = std::mem::MaybeUninit::<libc::rusage>::uninit();
@@ -21,19 +21,9 @@ fn cpu_seconds() -> f64 {
 }
 
 fn main() {
-    let hu = Phantom::thorax()
-        .voxelize([80, 56, 40], DVec3::new(4.5, 4.5, 8.3), DVec3::ZERO)
-        .unwrap();
-    // SAD 1000 / SID 1500 mm, a 430 mm panel read as 256 × 256 pixels of 1.68 mm.
-    let g = Geometry {
-        beam: Beam::Cone {
-            sad_mm: 1000.0,
-            sid_mm: 1500.0,
-        },
-        detector: Detector::new(256, 256, 1.68),
-        isocentre: DVec3::ZERO,
-    };
-    let view = g.view(Pose::new(0.0, 0.0)).unwrap();
+    // A 430 mm panel read as 256 × 256 pixels of 1.68 mm.
+    let hu = case::thorax();
+    let view = case::ap_view(256);
     // The variance of one scoring point's estimate does not depend on how many other points
     // there are, so the photons needed for 2 % per point come from the run with the most
     // batches (16 × 16, 20 000 photons = 79 batches); the cost per history from each run.
