@@ -64,45 +64,36 @@ fn train_resume_reconstruct_evaluate() {
     let resumed = losses(&run);
     assert_eq!(resumed.len(), 5, "resume continues to 5 iterations");
 
-    // Reconstruct one item from its AP view: a NIfTI volume of finite HU.
+    // Reconstruct one item from its AP view (cap 3 iterations), with `extra` flags.
     let vol = tmp.path().join("rec.nii.gz");
-    ok(&tomograf(&[
-        "reconstruct",
-        data.join("00000").to_str().unwrap(),
-        "--checkpoint",
-        run.join("checkpoint").to_str().unwrap(),
-        "--views",
-        "1",
-        "--iterations",
-        "3",
-        "-o",
-        vol.to_str().unwrap(),
-    ]));
-    assert!(vol.is_file());
-
-    // A stopping threshold every view reaches at once ends inference after one iteration
-    // (the cap is 3); a threshold that is not a number is refused, naming it.
-    let reconstruct = |threshold: &str| {
-        tomograf(&[
+    let reconstruct = |extra: &[&str]| {
+        let (item, ck) = (data.join("00000"), run.join("checkpoint"));
+        let mut args = vec![
             "reconstruct",
-            data.join("00000").to_str().unwrap(),
+            item.to_str().unwrap(),
             "--checkpoint",
-            run.join("checkpoint").to_str().unwrap(),
+            ck.to_str().unwrap(),
             "--views",
             "1",
             "--iterations",
             "3",
-            "--psnr-threshold",
-            threshold,
             "-o",
             vol.to_str().unwrap(),
-        ])
+        ];
+        args.extend_from_slice(extra);
+        tomograf(&args)
     };
-    let out = reconstruct("-1000");
+    // A NIfTI volume of finite HU.
+    ok(&reconstruct(&[]));
+    assert!(vol.is_file());
+
+    // A stopping threshold every view reaches at once ends inference after one iteration
+    // (the cap is 3); a threshold that is not a number is refused, naming it.
+    let out = reconstruct(&["--psnr-threshold", "-1000"]);
     ok(&out);
     let e = String::from_utf8_lossy(&out.stderr);
     assert!(e.contains("1 iterations,"), "{e}");
-    let out = reconstruct("NaN");
+    let out = reconstruct(&["--psnr-threshold", "NaN"]);
     assert!(!out.status.success());
     let e = String::from_utf8_lossy(&out.stderr);
     assert!(e.contains("PSNR threshold NaN"), "{e}");
