@@ -170,7 +170,7 @@ pub fn run(args: EvaluateArgs) -> Result<()> {
         .transpose()?
         .unwrap_or((0, 1));
     if args.merge {
-        let md = merge(&args.output, false)?;
+        let (md, _) = merge(&args.output, false)?;
         println!("{md}");
         return Ok(());
     }
@@ -201,7 +201,7 @@ pub fn run(args: EvaluateArgs) -> Result<()> {
             args.output.display()
         );
     } else {
-        let md = merge(&args.output, false)?;
+        let (md, _) = merge(&args.output, false)?;
         println!("{md}");
     }
     Ok(())
@@ -239,16 +239,9 @@ pub fn evaluate(e: &Evaluation) -> Result<usize> {
         Some(ck) => {
             let (config, _, _) = checkpoint::load_generator(ck, &device)
                 .with_context(|| format!("checkpoint {}", ck.display()))?;
-            let mut infer = config.infer.clone();
-            if let Some(t) = e.tune {
-                infer.tune = t;
-            }
-            if let Some(n) = e.iterations {
-                infer.iterations = n;
-            }
-            if let Some(t) = e.psnr_threshold {
-                infer.set_psnr_threshold(t)?;
-            }
+            let infer = config
+                .infer
+                .overridden(e.tune, e.iterations, e.psnr_threshold)?;
             let mean = checkpoint::load_mean(ck)?
                 .context("the checkpoint has no mean_volume.npy (written by `tomograf train`)")?;
             Some((ck, infer, mean))
@@ -404,10 +397,8 @@ fn parse_rows(path: &Path) -> Result<Vec<Row>> {
     Ok(rows)
 }
 
-/// Every score of a finished evaluation folder, in the job's item order; errors naming
-/// the items no shard has scored yet.
-/// The scores of every item of `output`'s job; an error naming the items not scored yet,
-/// unless `partial` (then the scored items only).
+/// Every score of an evaluation folder, in the job's item order; an error naming the items
+/// no shard has scored yet, unless `partial` (then the scored items only).
 pub fn load_rows(output: &Path, partial: bool) -> Result<Vec<Row>> {
     let path = output.join("job.json");
     let job: Job = serde_json::from_slice(
@@ -457,8 +448,8 @@ pub fn summarise(rows: &[Row]) -> Vec<(usize, String, Vec<Scores>)> {
 }
 
 /// Writes `results.csv` (every score) and `results.md` (mean ± std per view count and
-/// method) from the items' scores; returns the markdown.
-pub fn merge(output: &Path, partial: bool) -> Result<String> {
+/// method) from the items' scores ([`load_rows`]); returns the markdown and the scores.
+pub fn merge(output: &Path, partial: bool) -> Result<(String, Vec<Row>)> {
     let rows = load_rows(output, partial)?;
     let mut csv = format!("{ITEM_HEADER}\n");
     for r in &rows {
@@ -515,5 +506,5 @@ pub fn merge(output: &Path, partial: bool) -> Result<String> {
     write_atomic(&output.join("results.md"), |w| {
         std::io::Write::write_all(w, md.as_bytes())
     })?;
-    Ok(md)
+    Ok((md, rows))
 }

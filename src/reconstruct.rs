@@ -159,16 +159,9 @@ pub fn run(args: ReconstructArgs) -> Result<()> {
         None => paper_poses(args.views)?,
     };
     let (config, _, _) = checkpoint::load_generator(&args.checkpoint, &device)?;
-    let mut infer = config.infer.clone();
-    if let Some(t) = args.tune {
-        infer.tune = t;
-    }
-    if let Some(n) = args.iterations {
-        infer.iterations = n;
-    }
-    if let Some(t) = args.psnr_threshold {
-        infer.set_psnr_threshold(t)?;
-    }
+    let infer = config
+        .infer
+        .overridden(args.tune, args.iterations, args.psnr_threshold)?;
     let rec = run_one(
         &args.checkpoint,
         &item,

@@ -69,14 +69,29 @@ pub struct InferConfig {
 }
 
 impl InferConfig {
-    /// Sets the stopping threshold (dB); it must be finite.
-    pub fn set_psnr_threshold(&mut self, db: f64) -> Result<()> {
-        ensure!(
-            db.is_finite(),
-            "inference PSNR threshold {db} dB must be a finite number"
-        );
-        self.psnr_threshold = db;
-        Ok(())
+    /// This config with the given settings overridden (`None` keeps the config's); the
+    /// stopping threshold (dB) must be finite.
+    pub fn overridden(
+        &self,
+        tune: Option<Tune>,
+        iterations: Option<usize>,
+        psnr_threshold: Option<f64>,
+    ) -> Result<Self> {
+        let mut c = self.clone();
+        if let Some(t) = tune {
+            c.tune = t;
+        }
+        if let Some(n) = iterations {
+            c.iterations = n;
+        }
+        if let Some(db) = psnr_threshold {
+            ensure!(
+                db.is_finite(),
+                "inference PSNR threshold {db} dB must be a finite number"
+            );
+            c.psnr_threshold = db;
+        }
+        Ok(c)
     }
 }
 

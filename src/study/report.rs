@@ -5,7 +5,7 @@
 
 use super::render::{Block, render};
 use super::{Kind, Study, VIEWS, relative};
-use crate::evaluate::{Row, Scores, load_rows, merge};
+use crate::evaluate::{Row, Scores, merge};
 use crate::figures::{Axes, COLOUR_NAMES, plot_histograms, plot_points};
 use anyhow::{Context, Result};
 use std::fmt::Write as _;
@@ -99,14 +99,13 @@ pub fn write(study: &Study, partial: bool) -> Result<()> {
         let cells = std::iter::once(None).chain(s.train_sets.iter().map(|t| Some(t.as_str())));
         for train in cells {
             let dir = study.eval_dir(test, train);
-            merge(&dir, partial).with_context(|| {
+            let (_, rows) = merge(&dir, partial).with_context(|| {
                 format!(
                     "{}: run the evaluate stage (on every shard) first, or report on the \
                      items scored so far with --partial",
                     dir.display()
                 )
             })?;
-            let rows = load_rows(&dir, partial)?;
             first_item = first_item.or_else(|| rows.first().map(|r| r.item.clone()));
             stats_of(&rows, train, test, &mut stats);
         }
