@@ -366,6 +366,21 @@ impl Prepared {
         Ok((object, open))
     }
 
+    /// The same acquisition with its scatter transport tracked with majorants per brick of
+    /// `size³` voxels (`Some`; the default, 16³) or one for the whole volume (`None`), for
+    /// ablations (`sim/examples/scatter_tracking.rs`). No effect without scatter.
+    pub fn with_majorant_bricks(mut self, size: Option<usize>) -> Result<Self> {
+        if let Some((model, engine)) = self.scatter.take() {
+            self.scatter = Some((model, engine.with_majorant_bricks(size)?));
+        }
+        Ok(self)
+    }
+
+    /// The scatter engine, when scatter is modelled.
+    pub fn scatter_engine(&self) -> Option<&ScatterEngine> {
+        self.scatter.as_ref().map(|(_, engine)| engine)
+    }
+
     /// The scatter images of view number `index` (`None` when scatter is not modelled).
     /// Their random streams derive from the seed and `index` alone.
     pub fn scatter(&self, view: &View, index: usize) -> Result<Option<ScatterImages>> {

@@ -138,11 +138,37 @@ fn merge(v: &mut Vec<Interval>) {
 }
 
 /// Fills `out` with the sorted, merged intervals of `ray` inside occupied bricks of `map`,
-/// walking the brick grid with a 3-D DDA.
+/// walking the brick grid with a 3-D DDA ([`walk_bricks`]).
 pub fn dda_intervals(map: &BrickMap, ray: &GridRay, out: &mut Vec<Interval>) {
     out.clear();
-    let s = map.size() as i64;
-    let nb = map.brick_dims().map(|n| n as i64);
+    let mut open: Option<f64> = None;
+    let mut t_stop = ray.t_enter;
+    walk_bricks(map.size(), map.brick_dims(), ray, |b, t0, t1| {
+        if map.is_occupied(b) {
+            open.get_or_insert(t0);
+        } else if let Some(start) = open.take() {
+            push(out, start, t0);
+        }
+        t_stop = t1;
+        true
+    });
+    if let Some(t0) = open {
+        push(out, t0, t_stop);
+    }
+}
+
+/// Visits, in order along `ray`, every brick of `size³` voxels (a grid of `brick_dims`
+/// bricks) that the ray crosses, as `visit(brick, t0, t1)` with the parameter interval
+/// (mm) inside it; stops early when `visit` returns `false`. A 3-D DDA (Amanatides &
+/// Woo) whose crossings are [`plane_t`] of the brick planes, as Siddon computes them.
+pub fn walk_bricks(
+    size: usize,
+    brick_dims: [usize; 3],
+    ray: &GridRay,
+    mut visit: impl FnMut([usize; 3], f64, f64) -> bool,
+) {
+    let s = size as i64;
+    let nb = brick_dims.map(|n| n as i64);
     let (g0, gd, inv) = (ray.g0, ray.gd, ray.inv);
     let mut b = [0i64; 3];
     let mut step = [0i64; 3];
@@ -159,32 +185,21 @@ pub fn dda_intervals(map: &BrickMap, ray: &GridRay, out: &mut Vec<Interval>) {
         }
     }
     let mut t = ray.t_enter;
-    let mut open: Option<f64> = None;
-    let mut t_stop = ray.t_exit;
     loop {
         let a = if next[1] < next[0] { 1 } else { 0 };
         let a = if next[2] < next[a] { 2 } else { a };
         let end = next[a] >= ray.t_exit;
         let t_next = if end { ray.t_exit } else { next[a] };
-        if map.is_occupied(b.map(|x| x as usize)) {
-            open.get_or_insert(t);
-        } else if let Some(t0) = open.take() {
-            push(out, t0, t);
-        }
-        if end {
-            break;
+        if !visit(b.map(|x| x as usize), t, t_next) || end {
+            return;
         }
         t = t_next;
         b[a] += step[a];
         if b[a] < 0 || b[a] >= nb[a] {
             // Only rounding at the exit can get here: the walk has left the grid.
-            t_stop = t;
-            break;
+            return;
         }
         next[a] = plane_t(brick_plane(b[a], step[a], s), g0[a], inv[a]);
-    }
-    if let Some(t0) = open {
-        push(out, t0, t_stop);
     }
 }
 

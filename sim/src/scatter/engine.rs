@@ -143,6 +143,13 @@ impl ScatterEngine {
         Ok(self)
     }
 
+    /// The same engine with majorants per brick of `size³` voxels or one global majorant
+    /// (`None`): see [`Medium::with_majorant_bricks`].
+    pub fn with_majorant_bricks(mut self, size: Option<usize>) -> Result<Self> {
+        self.medium = self.medium.with_majorant_bricks(size)?;
+        Ok(self)
+    }
+
     /// The medium.
     pub fn medium(&self) -> &Medium {
         &self.medium

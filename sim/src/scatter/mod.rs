@@ -3,6 +3,7 @@
 //!
 //! * [`anti_scatter_grid`] — the focused linear grid's transmission for primary and scatter;
 //! * [`cross_sections`] — where a scattered photon goes (KN × S, Thomson × F²);
+//! * [`majorant`] — per-brick majorants for Woodcock tracking;
 //! * [`transport`] — Woodcock tracking and interaction sampling in the voxel composition;
 //! * [`estimator`] — the point-detector (forced detection) estimator on a coarse grid;
 //! * [`engine`] — photons from the source, batches, seeds, the separate images;
@@ -19,6 +20,7 @@ pub mod cross_sections;
 pub mod engine;
 pub mod estimate;
 pub mod estimator;
+pub mod majorant;
 pub mod matched;
 pub mod transport;
 

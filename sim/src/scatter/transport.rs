@@ -1,5 +1,6 @@
-//! Photon transport through a voxel composition: Woodcock (delta) tracking with a global
-//! majorant, interactions sampled from the material tables — photoelectric absorption
+//! Photon transport through a voxel composition: Woodcock (delta) tracking with a majorant
+//! per brick of voxels ([`super::majorant`]; or one for the whole volume), interactions
+//! sampled from the material tables — photoelectric absorption
 //! (no fluorescence: the energy is taken as deposited locally), Compton (Klein–Nishina ×
 //! S) and Rayleigh (Thomson × F²).
 //!
@@ -7,6 +8,8 @@
 //! linear attenuation mm⁻¹.
 
 use super::cross_sections::{ScatterFactors, compton_ratio};
+use super::majorant::{DEFAULT_BRICK, MajorantGrid};
+use crate::accel::intervals::walk_bricks;
 use crate::composition::{Composition, unpack};
 use crate::error::{Result, SimError};
 use crate::material::Material;
@@ -33,6 +36,8 @@ pub struct Medium {
     materials: Vec<MaterialData>,
     /// Global majorant per 1 keV grid point, mm⁻¹.
     majorant: Vec<f64>,
+    /// Per-brick majorants; `None`: the global one everywhere.
+    bricks: Option<MajorantGrid>,
     e_max_kev: f64,
 }
 
@@ -82,11 +87,8 @@ impl Medium {
         }
         let n = e_max_kev.ceil() as usize + 1;
         let present = composition.present();
-        let mut rho_max = vec![0.0f64; materials.len()];
-        for &v in composition.packed().data() {
-            let (r, m) = unpack(v);
-            rho_max[m] = rho_max[m].max(f64::from(r));
-        }
+        let grid = MajorantGrid::build(composition.packed(), materials.len(), DEFAULT_BRICK)?;
+        let rho_max = grid.global_max();
         let mut data = Vec::with_capacity(materials.len());
         for (i, m) in materials.iter().enumerate() {
             let factors = ScatterFactors::new(m)?;
@@ -117,12 +119,44 @@ impl Medium {
                     * (1.0 + 1e-9)
             })
             .collect();
-        Ok(Self {
+        let medium = Self {
             composition: composition.clone(),
             materials: data,
             majorant,
+            bricks: None,
             e_max_kev,
+        };
+        Ok(Self {
+            bricks: Some(medium.tabulated(grid)),
+            ..medium
         })
+    }
+
+    /// `grid` with its majorants tabulated on this medium's 1 keV grid.
+    fn tabulated(&self, mut grid: MajorantGrid) -> MajorantGrid {
+        grid.tabulate(self.majorant.len(), |m, k| {
+            self.materials[m]
+                .tab
+                .get(k)
+                .map_or(0.0, |row| row[3] / 10.0)
+        });
+        grid
+    }
+
+    /// The same medium tracked with a majorant per brick of `size³` voxels (`Some`, the
+    /// default with [`DEFAULT_BRICK`]) or one majorant for the whole volume (`None`). The
+    /// choice changes which random numbers are drawn, not what is sampled.
+    pub fn with_majorant_bricks(mut self, size: Option<usize>) -> Result<Self> {
+        self.bricks = size
+            .map(|s| MajorantGrid::build(self.composition.packed(), self.materials.len(), s))
+            .transpose()?
+            .map(|grid| self.tabulated(grid));
+        Ok(self)
+    }
+
+    /// The per-brick majorants, if tracking uses them.
+    pub fn majorant_bricks(&self) -> Option<&MajorantGrid> {
+        self.bricks.as_ref()
     }
 
     /// Highest tabulated energy, keV.
@@ -180,16 +214,32 @@ impl Medium {
     /// Flies a photon from `p` along unit `d` to its next real collision (Woodcock):
     /// `None` if it leaves the volume first.
     pub fn fly<R: Rng>(&self, p: DVec3, d: DVec3, e: f64, rng: &mut R) -> Option<Collision> {
-        let packed = self.composition.packed();
         let ray = Ray {
             origin: p,
             direction: d,
             t_min: 0.0,
             t_max: f64::INFINITY,
         };
-        let g = GridRay::clip(packed, &ray)?;
-        let dims = packed.dims();
-        let data = packed.data();
+        let g = GridRay::clip(self.composition.packed(), &ray)?;
+        let t = match &self.bricks {
+            None => self.fly_global(&g, e, rng),
+            Some(grid) => self.fly_bricks(grid, &g, e, rng),
+        }?;
+        let (_, m) = self.voxel_at(&g, t)?;
+        let tot = self.table(m, e, 3);
+        let (pe, inc) = (self.table(m, e, 0), self.table(m, e, 1));
+        Some(Collision {
+            position: p + d * t,
+            energy_kev: e,
+            material: m,
+            p_photo: pe / tot,
+            p_compton: inc / tot,
+            p_rayleigh: 1.0 - (pe + inc) / tot,
+        })
+    }
+
+    /// Woodcock tracking with the global majorant: the parameter of the real collision.
+    fn fly_global<R: Rng>(&self, g: &GridRay, e: f64, rng: &mut R) -> Option<f64> {
         let maj = self.majorant(e);
         if maj <= 0.0 {
             return None;
@@ -200,29 +250,72 @@ impl Medium {
             if t >= g.t_exit {
                 return None;
             }
-            let at = g.at(t);
-            let (i, j, k) = (at[0] as usize, at[1] as usize, at[2] as usize);
-            if i >= dims[0] || j >= dims[1] || k >= dims[2] {
-                continue;
-            }
-            let (rho, m) = unpack(data[i + dims[0] * (j + dims[1] * k)]);
-            if rho <= 0.0 {
-                continue;
-            }
-            let rho = f64::from(rho);
-            let tot = self.table(m, e, 3);
-            if rng.random::<f64>() * maj < tot * rho / 10.0 {
-                let (pe, inc) = (self.table(m, e, 0), self.table(m, e, 1));
-                return Some(Collision {
-                    position: p + d * t,
-                    energy_kev: e,
-                    material: m,
-                    p_photo: pe / tot,
-                    p_compton: inc / tot,
-                    p_rayleigh: 1.0 - (pe + inc) / tot,
-                });
+            if self.accept(g, t, e, maj, rng) {
+                return Some(t);
             }
         }
+    }
+
+    /// Woodcock tracking with per-brick majorants: an exponential optical depth is spent
+    /// brick by brick (each at its own majorant, empty bricks crossed for free); where it
+    /// runs out is a tentative collision, accepted with probability σ(x)/σ̄_b, else a new
+    /// depth is drawn there.
+    fn fly_bricks<R: Rng>(
+        &self,
+        grid: &MajorantGrid,
+        g: &GridRay,
+        e: f64,
+        rng: &mut R,
+    ) -> Option<f64> {
+        let interval = ((e - 1.0).max(0.0) as usize).min(self.majorant.len() - 2);
+        let mut depth = -(1.0 - rng.random::<f64>()).ln();
+        let mut hit = None;
+        walk_bricks(grid.size(), grid.brick_dims(), g, |b, t0, t1| {
+            let sigma = grid.sigma_in(b, interval);
+            if sigma <= 0.0 {
+                return true;
+            }
+            let mut t = t0;
+            loop {
+                let room = (t1 - t) * sigma;
+                if depth >= room {
+                    depth -= room;
+                    return true;
+                }
+                t += depth / sigma;
+                if self.accept(g, t, e, sigma, rng) {
+                    hit = Some(t);
+                    return false;
+                }
+                depth = -(1.0 - rng.random::<f64>()).ln();
+            }
+        });
+        hit
+    }
+
+    /// Whether a tentative collision at `t` under majorant `sigma` (mm⁻¹) is real.
+    #[inline]
+    fn accept<R: Rng>(&self, g: &GridRay, t: f64, e: f64, sigma: f64, rng: &mut R) -> bool {
+        let Some((rho, m)) = self.voxel_at(g, t) else {
+            return false;
+        };
+        rng.random::<f64>() * sigma < self.table(m, e, 3) * rho / 10.0
+    }
+
+    /// The packed voxel at parameter `t` of `g`: (density g/cm³, material), `None` past
+    /// the grid's far faces (rounding) or in a voxel of zero density.
+    #[inline]
+    fn voxel_at(&self, g: &GridRay, t: f64) -> Option<(f64, usize)> {
+        let packed = self.composition.packed();
+        let dims = packed.dims();
+        let at = g.at(t);
+        // `as usize` saturates: a coordinate rounded below 0 is voxel 0.
+        let (i, j, k) = (at[0] as usize, at[1] as usize, at[2] as usize);
+        if i >= dims[0] || j >= dims[1] || k >= dims[2] {
+            return None;
+        }
+        let (rho, m) = unpack(packed.data()[i + dims[0] * (j + dims[1] * k)]);
+        (rho > 0.0).then_some((f64::from(rho), m))
     }
 
     /// Compton density p(μ) (sr⁻¹) and E′ at a collision towards cos θ = `mu`.

@@ -1,0 +1,164 @@
+//! Local majorants for Woodcock tracking: the composition grid cut into bricks of `size³`
+//! voxels, each holding, per material, the largest density found within one voxel of it.
+//!
+//! At energy E a brick's majorant is σ̄_b(E) = max_m (μ/ρ)_m(E) · ρ̄_{b,m} (mm⁻¹), which
+//! bounds the attenuation of every voxel a point inside the brick can be looked up in
+//! (the brick grown by one voxel covers the `floor` of points on its faces, whatever the
+//! rounding). Tracking with the brick's own majorant instead of the volume's makes fewer
+//! null collisions where the medium is thinner than its densest voxel (lung next to bone)
+//! and none at all in empty bricks (air), and it stays unbiased: the free path is sampled
+//! piecewise, and the optical depth left when a brick is exited carries over to the next
+//! ([`super::transport::Medium::fly`]).
+//!
+//! Tracking looks the majorant up in a table per brick and 1 keV energy interval
+//! ([`MajorantGrid::tabulate`]), one load per brick crossed. Memory: `k` + `n` f32 per
+//! brick (`k` materials, `n` 1 keV intervals); the default 16³ bricks of a 512×512×133
+//! grid take 5.8 MB for six materials at 150 kVp.
+
+use crate::composition::unpack;
+use crate::error::{Result, SimError};
+use crate::volume::Volume;
+use rayon::prelude::*;
+
+/// Default brick edge, voxels: the fastest of 4, 8 and 16 or level with the fastest in
+/// every case of `sim/examples/scatter_tracking.rs` (docs/scatter.md, "Tracking").
+pub const DEFAULT_BRICK: usize = 16;
+
+/// Per-brick, per-material maximum densities of a packed composition grid.
+#[derive(Debug, Clone, PartialEq)]
+pub struct MajorantGrid {
+    size: usize,
+    bricks: [usize; 3],
+    materials: usize,
+    /// ρ̄ (g/cm³), `materials` values per brick, bricks `x`-fastest.
+    rho_max: Vec<f32>,
+    /// Majorants (mm⁻¹) per energy interval of a 1 keV table ([`MajorantGrid::tabulate`]):
+    /// interval-major, a row of one value per brick each.
+    sigma: Vec<f32>,
+    bricks_total: usize,
+}
+
+impl MajorantGrid {
+    /// Scans `packed` (a [`crate::composition`] grid of `materials` materials) in bricks of
+    /// `size³` voxels (≥ 1).
+    pub fn build(packed: &Volume, materials: usize, size: usize) -> Result<Self> {
+        if size == 0 {
+            return Err(SimError::OutOfRange(
+                "majorant brick size is 0 voxels; it must be ≥ 1".into(),
+            ));
+        }
+        let dims = packed.dims();
+        let bricks = dims.map(|d| d.div_ceil(size));
+        let data = packed.data();
+        let (nx, nxy) = (dims[0], dims[0] * dims[1]);
+        let rho_max: Vec<f32> = (0..bricks[0] * bricks[1] * bricks[2])
+            .into_par_iter()
+            .flat_map_iter(|b| {
+                let bi = [
+                    b % bricks[0],
+                    (b / bricks[0]) % bricks[1],
+                    b / (bricks[0] * bricks[1]),
+                ];
+                // The brick grown by one voxel on every side, clamped to the grid.
+                let lo: [usize; 3] = std::array::from_fn(|a| (bi[a] * size).saturating_sub(1));
+                let hi: [usize; 3] = std::array::from_fn(|a| ((bi[a] + 1) * size + 1).min(dims[a]));
+                let mut rho = vec![0.0f32; materials];
+                for k in lo[2]..hi[2] {
+                    for j in lo[1]..hi[1] {
+                        let row = k * nxy + j * nx;
+                        for &v in &data[row + lo[0]..row + hi[0]] {
+                            let (r, m) = unpack(v);
+                            if m < materials && r > rho[m] {
+                                rho[m] = r;
+                            }
+                        }
+                    }
+                }
+                rho
+            })
+            .collect();
+        Ok(Self {
+            size,
+            bricks,
+            materials,
+            rho_max,
+            sigma: Vec::new(),
+            bricks_total: bricks[0] * bricks[1] * bricks[2],
+        })
+    }
+
+    /// Tabulates every brick's majorant for the energy intervals `[k, k+1]` of a table of
+    /// μ/ρ at `knots` energies (`mu_per_density(m, k)`, mm⁻¹ per g/cm³): the larger of the
+    /// two knots' majorants, which bounds any interpolation between them; rounded up to f32.
+    pub fn tabulate(&mut self, knots: usize, mu_per_density: impl Fn(usize, usize) -> f64 + Sync) {
+        let n = self.bricks_total;
+        let at_knot = |k: usize| -> Vec<f64> {
+            let mu: Vec<f64> = (0..self.materials).map(|m| mu_per_density(m, k)).collect();
+            (0..n).map(|b| self.sigma_of(b, &mu)).collect()
+        };
+        let mut sigma = Vec::with_capacity(knots.saturating_sub(1) * n);
+        let mut lo = at_knot(0);
+        for k in 1..knots {
+            let hi = at_knot(k);
+            sigma.extend(
+                lo.iter()
+                    .zip(&hi)
+                    .map(|(a, b)| (a.max(*b) * (1.0 + 1e-6)) as f32),
+            );
+            lo = hi;
+        }
+        self.sigma = sigma;
+    }
+
+    /// The tabulated majorant (mm⁻¹) of brick `b` for energy interval `interval` (after
+    /// [`MajorantGrid::tabulate`]).
+    #[inline]
+    pub fn sigma_in(&self, b: [usize; 3], interval: usize) -> f64 {
+        let i = b[0] + self.bricks[0] * (b[1] + self.bricks[1] * b[2]);
+        f64::from(self.sigma[interval * self.bricks_total + i])
+    }
+
+    #[inline]
+    fn sigma_of(&self, i: usize, mu_per_density: &[f64]) -> f64 {
+        self.rho_max[i * self.materials..(i + 1) * self.materials]
+            .iter()
+            .zip(mu_per_density)
+            .fold(0.0, |s, (&r, &mu)| s.max(f64::from(r) * mu))
+    }
+
+    /// Brick edge, voxels.
+    pub fn size(&self) -> usize {
+        self.size
+    }
+
+    /// Bricks per axis.
+    pub fn brick_dims(&self) -> [usize; 3] {
+        self.bricks
+    }
+
+    /// The majorant (mm⁻¹) of brick `b` given each material's μ/ρ at the photon's energy
+    /// in mm⁻¹ per g/cm³ (`mu_per_density[m]`).
+    #[inline]
+    pub fn sigma(&self, b: [usize; 3], mu_per_density: &[f64]) -> f64 {
+        self.sigma_of(
+            b[0] + self.bricks[0] * (b[1] + self.bricks[1] * b[2]),
+            mu_per_density,
+        )
+    }
+
+    /// The densest voxel of each material over the whole grid (g/cm³).
+    pub fn global_max(&self) -> Vec<f64> {
+        let mut out = vec![0.0f64; self.materials];
+        for brick in self.rho_max.chunks(self.materials.max(1)) {
+            for (o, &r) in out.iter_mut().zip(brick) {
+                *o = o.max(f64::from(r));
+            }
+        }
+        out
+    }
+
+    /// Heap bytes held.
+    pub fn memory_bytes(&self) -> usize {
+        (self.rho_max.len() + self.sigma.len()) * std::mem::size_of::<f32>()
+    }
+}
