@@ -5,20 +5,12 @@
 //! `cargo run --release -p tomograf-sim --example scatter_speed`
 #[path = "common/scatter_chest.rs"]
 mod case;
+#[path = "common/cpu_time.rs"]
+mod cpu_time;
 
+use cpu_time::cpu_seconds;
 use tomograf_sim::acquisition::Acquisition;
 use tomograf_sim::scatter::ScatterModel;
-
-fn cpu_seconds() -> f64 {
-    let mut u = std::mem::MaybeUninit::<libc::rusage>::uninit();
-    // SAFETY: getrusage fills the struct it is given.
-    let u = unsafe {
-        libc::getrusage(libc::RUSAGE_SELF, u.as_mut_ptr());
-        u.assume_init()
-    };
-    let t = |v: libc::timeval| v.tv_sec as f64 + v.tv_usec as f64 * 1e-6;
-    t(u.ru_utime) + t(u.ru_stime)
-}
 
 fn main() {
     // A 430 mm panel read as 256 × 256 pixels of 1.68 mm.

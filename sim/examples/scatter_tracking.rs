@@ -8,7 +8,10 @@
 //! `cargo run --release -p tomograf-sim --example scatter_tracking`
 #[path = "common/scatter_chest.rs"]
 mod case;
+#[path = "common/cpu_time.rs"]
+mod cpu_time;
 
+use cpu_time::cpu_seconds;
 use glam::DVec3;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -21,17 +24,6 @@ use tomograf_sim::phantom::Phantom;
 use tomograf_sim::scatter::transport::Medium;
 use tomograf_sim::scatter::{ScatterImages, ScatterModel};
 use tomograf_sim::{View, Volume};
-
-fn cpu_seconds() -> f64 {
-    let mut u = std::mem::MaybeUninit::<libc::rusage>::uninit();
-    // SAFETY: getrusage fills the struct it is given.
-    let u = unsafe {
-        libc::getrusage(libc::RUSAGE_SELF, u.as_mut_ptr());
-        u.assume_init()
-    };
-    let t = |v: libc::timeval| v.tv_sec as f64 + v.tv_usec as f64 * 1e-6;
-    t(u.ru_utime) + t(u.ru_stime)
-}
 
 /// Analog histories per CPU second through `medium`: energies from the spectrum
 /// (`energies`, `fluence`), aimed uniformly over `view`'s panel from `source`.
@@ -104,27 +96,13 @@ fn main() {
         // The reference: global majorant, scatter stream 0. Every other run uses stream 1,
         // so its z against the reference is that of two independent estimates; the
         // "global, other stream" row is the control (≈ 1 when the standard errors are right).
-        let reference = a
-            .prepare(&hu, 7)
-            .unwrap()
-            .with_majorant_bricks(None)
-            .unwrap();
-        let r0 = analog_rate(
-            reference.scatter_engine().unwrap().medium(),
-            &view,
-            source,
-            energies,
-            fluence,
-        );
-        let t0 = cpu_seconds();
-        let s0 = reference.scatter(&view, 0).unwrap().unwrap();
-        let f0 = cpu_seconds() - t0;
-        println!("| global | {r0:.0} | 1.00 | {f0:.1} | 1.00 | — |");
-        for (size, label) in [
-            (None, "global, other stream"),
-            (Some(4), "bricks 4³"),
-            (Some(8), "bricks 8³"),
-            (Some(16), "bricks 16³ (default)"),
+        let mut reference: Option<(f64, f64, ScatterImages)> = None;
+        for (size, stream, label) in [
+            (None, 0, "global"),
+            (None, 1, "global, other stream"),
+            (Some(4), 1, "bricks 4³"),
+            (Some(8), 1, "bricks 8³"),
+            (Some(16), 1, "bricks 16³ (default)"),
         ] {
             let p = a
                 .prepare(&hu, 7)
@@ -139,13 +117,18 @@ fn main() {
                 fluence,
             );
             let t0 = cpu_seconds();
-            let s = p.scatter(&view, 1).unwrap().unwrap();
+            let s = p.scatter(&view, stream).unwrap().unwrap();
             let f = cpu_seconds() - t0;
+            let Some((r0, f0, s0)) = &reference else {
+                println!("| {label} | {r:.0} | 1.00 | {f:.1} | 1.00 | — |");
+                reference = Some((r, f, s));
+                continue;
+            };
             println!(
                 "| {label} | {r:.0} | {:.2} | {f:.1} | {:.2} | {:.2} |",
                 r / r0,
                 f0 / f,
-                rms_z(&s, &s0)
+                rms_z(&s, s0)
             );
         }
     }

@@ -25,6 +25,27 @@ pub struct BrickMap {
     occupied: Vec<bool>,
 }
 
+/// The voxel index ranges `lo..hi` per axis of brick number `b` (bricks `x`-fastest in a
+/// grid of `bricks`) of `size³` voxels grown by `dilate` voxels on every side, clamped to
+/// a grid of `dims` voxels.
+pub fn brick_voxels(
+    b: usize,
+    bricks: [usize; 3],
+    size: usize,
+    dilate: usize,
+    dims: [usize; 3],
+) -> ([usize; 3], [usize; 3]) {
+    let bi = [
+        b % bricks[0],
+        (b / bricks[0]) % bricks[1],
+        b / (bricks[0] * bricks[1]),
+    ];
+    (
+        std::array::from_fn(|a| (bi[a] * size).saturating_sub(dilate)),
+        std::array::from_fn(|a| ((bi[a] + 1) * size + dilate).min(dims[a])),
+    )
+}
+
 impl BrickMap {
     /// Marks the bricks of `size³` voxels of `volume` holding a voxel within `dilate` voxels
     /// for which `occupied(value)` is true. `size` must be ≥ 1.
@@ -45,14 +66,7 @@ impl BrickMap {
         let occupied: Vec<bool> = (0..count)
             .into_par_iter()
             .map(|b| {
-                let bi = [
-                    b % bricks[0],
-                    (b / bricks[0]) % bricks[1],
-                    b / (bricks[0] * bricks[1]),
-                ];
-                let lo: [usize; 3] = std::array::from_fn(|a| (bi[a] * size).saturating_sub(dilate));
-                let hi: [usize; 3] =
-                    std::array::from_fn(|a| ((bi[a] + 1) * size + dilate).min(dims[a]));
+                let (lo, hi) = brick_voxels(b, bricks, size, dilate, dims);
                 (lo[2]..hi[2]).any(|k| {
                     (lo[1]..hi[1]).any(|j| {
                         let row = k * nxy + j * nx;

@@ -15,6 +15,7 @@
 //! brick (`k` materials, `n` 1 keV intervals); the default 16³ bricks of a 512×512×133
 //! grid take 5.8 MB for six materials at 150 kVp.
 
+use crate::accel::bricks::brick_voxels;
 use crate::composition::unpack;
 use crate::error::{Result, SimError};
 use crate::volume::Volume;
@@ -54,14 +55,8 @@ impl MajorantGrid {
         let rho_max: Vec<f32> = (0..bricks[0] * bricks[1] * bricks[2])
             .into_par_iter()
             .flat_map_iter(|b| {
-                let bi = [
-                    b % bricks[0],
-                    (b / bricks[0]) % bricks[1],
-                    b / (bricks[0] * bricks[1]),
-                ];
                 // The brick grown by one voxel on every side, clamped to the grid.
-                let lo: [usize; 3] = std::array::from_fn(|a| (bi[a] * size).saturating_sub(1));
-                let hi: [usize; 3] = std::array::from_fn(|a| ((bi[a] + 1) * size + 1).min(dims[a]));
+                let (lo, hi) = brick_voxels(b, bricks, size, 1, dims);
                 let mut rho = vec![0.0f32; materials];
                 for k in lo[2]..hi[2] {
                     for j in lo[1]..hi[1] {

@@ -121,6 +121,17 @@ packet_kernel!("avx2,fma", 4, __m256d, __m256d, {
             ))
         }
     }
+    // Every lane: a tile of 4 rows × 1 column.
+    #[inline]
+    #[target_feature(enable = "avx2,fma")]
+    fn prefetch(field: &[f32], index: V) {
+        let mut idx = [0i32; 4];
+        // SAFETY: 4 i32 into a local array of that size.
+        unsafe { _mm_storeu_si128(idx.as_mut_ptr().cast(), _mm256_cvtpd_epi32(index)) };
+        for i in idx {
+            prefetch_at(field, i);
+        }
+    }
     #[inline]
     #[target_feature(enable = "avx2,fma")]
     fn gather_packed(field: &[f32], index: V) -> (V, V) {

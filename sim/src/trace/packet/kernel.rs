@@ -7,7 +7,8 @@
 /// `select` (mask ? a : b), `load`/`store` (from/to `[f64; LANES]`), `gather` (f32
 /// values at f64-valued indices, widened to f64), and for compositions `gather_packed`
 /// (density and material index of packed values), `eq`, `and` and `add_where` (s + w where
-/// the mask is set).
+/// the mask is set), and `prefetch` (bring the cache lines of some lanes' voxels towards
+/// L1, through [`prefetch_at`]).
 #[cfg(target_arch = "x86_64")]
 macro_rules! packet_kernel {
     ($features:literal, $lanes:literal, $vec:ty, $mask:ty, { $($prims:item)* }) => {
@@ -21,6 +22,19 @@ macro_rules! packet_kernel {
         type V = $vec;
         type M = $mask;
         const LANES: usize = $lanes;
+
+        /// Voxel layers ahead of the one being traced whose voxels a packet prefetches:
+        /// consecutive layers lie a row or a slice apart in memory, a stride the hardware
+        /// prefetchers do not follow for gathers (docs/projector.md, "Prefetching").
+        const PREFETCH_LAYERS: i64 = 4;
+
+        /// Hints that `field[index]` (clamped into `field`) will be read soon.
+        #[inline]
+        fn prefetch_at(field: &[f32], index: i32) {
+            let i = (index.max(0) as usize).min(field.len() - 1);
+            // SAFETY: a prefetch of an address inside `field`; it never faults.
+            unsafe { _mm_prefetch::<_MM_HINT_T0>(field.as_ptr().add(i).cast()) };
+        }
 
         $($prims)*
 
@@ -287,7 +301,12 @@ macro_rules! packet_kernel {
                     loop {
                         let p_b = splat(entry_plane(j + dir));
                         let base_m = splat((j as usize * strides[m]) as f64);
+                        let ahead = (j + PREFETCH_LAYERS * dir).clamp(0, n_m - 1);
+                        let base_ahead = splat((ahead as usize * strides[m]) as f64);
                         for ((p, sum), e) in packets.iter().zip(sums.chunks_mut(slot)).zip(entries.iter_mut()) {
+                            // The voxels this packet meets PREFETCH_LAYERS layers on, if it
+                            // crosses no other-axis plane until then.
+                            prefetch(field, fmadd(e.a1, oth1.stride, fmadd(e.a2, oth2.stride, base_ahead)));
                             layer::<PACKED>(field, p, &oth1, &oth2, e, p_b, base_m, sum);
                         }
                         if j == last {
