@@ -151,7 +151,7 @@ pub fn run(args: BenchArgs) -> Result<()> {
     };
     writeln!(
         md,
-        "### Exact Siddon throughput (thorax phantom in a 360 mm cube, cone beam θ = 20°, SAD 1000 / SID 1500, panel covering 360 mm at the isocentre)\n"
+        "### Exact Siddon throughput (thorax phantom in a 360 mm cube, cone beam θ = 20°, SAD 1000 / SID 1500, panel covering 396 mm at the isocentre)\n"
     )?;
     writeln!(
         md,
