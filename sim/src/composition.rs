@@ -15,6 +15,7 @@
 //! clipping to the occupied box still applies.
 
 use crate::error::{Result, SimError};
+use crate::ray::GridBox;
 use crate::volume::Volume;
 use rayon::prelude::*;
 
@@ -54,6 +55,9 @@ pub fn unpack(value: f32) -> (f32, usize) {
 pub struct Composition {
     packed: Volume,
     materials: Vec<String>,
+    /// The box of voxels with non-zero density (exact Siddon clips rays to it), found once
+    /// here rather than at every render.
+    occupied: Option<GridBox>,
 }
 
 impl Composition {
@@ -129,7 +133,17 @@ impl Composition {
             grid.direction(),
             values,
         )?;
-        Ok(Self { packed, materials })
+        let occupied = packed.occupied();
+        Ok(Self {
+            packed,
+            materials,
+            occupied,
+        })
+    }
+
+    /// The smallest box of voxels holding every voxel of non-zero density (`None`: none).
+    pub fn occupied(&self) -> Option<GridBox> {
+        self.occupied
     }
 
     /// The packed grid (see the module documentation), for the tracers.

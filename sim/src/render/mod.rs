@@ -166,6 +166,16 @@ impl<'a> Renderer<'a> {
 
     /// A renderer over `field` with no skipping and no meshes.
     fn build(mu: &'a Volume, projector: Projector) -> Result<Self> {
+        Self::build_with(mu, projector, || mu.occupied())
+    }
+
+    /// As [`Renderer::build`], with the box of non-zero voxels from `occupied` (called only
+    /// for Siddon).
+    fn build_with(
+        mu: &'a Volume,
+        projector: Projector,
+        occupied: impl FnOnce() -> Option<GridBox>,
+    ) -> Result<Self> {
         if let Projector::Trilinear { step_voxels } = projector
             && !(step_voxels.is_finite() && step_voxels > 0.0)
         {
@@ -174,7 +184,7 @@ impl<'a> Renderer<'a> {
             )));
         }
         let bounds = match projector {
-            Projector::Siddon => mu.occupied(),
+            Projector::Siddon => occupied(),
             Projector::Trilinear { .. } => Some(GridBox::whole(mu.dims())),
         };
         Ok(Self {
@@ -263,7 +273,7 @@ impl<'a> Renderer<'a> {
     /// nearest-neighbour material grid, and trilinear marching of each material's partial
     /// density field.
     pub fn for_composition(composition: &'a Composition, projector: Projector) -> Result<Self> {
-        let mut r = Self::build(composition.packed(), projector)?;
+        let mut r = Self::build_with(composition.packed(), projector, || composition.occupied())?;
         r.materials = composition.materials().len();
         Ok(r)
     }
