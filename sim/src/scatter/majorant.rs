@@ -151,9 +151,4 @@ impl MajorantGrid {
         }
         out
     }
-
-    /// Heap bytes held.
-    pub fn memory_bytes(&self) -> usize {
-        (self.rho_max.len() + self.sigma.len()) * std::mem::size_of::<f32>()
-    }
 }

@@ -154,11 +154,6 @@ impl Medium {
         Ok(self)
     }
 
-    /// The per-brick majorants, if tracking uses them.
-    pub fn majorant_bricks(&self) -> Option<&MajorantGrid> {
-        self.bricks.as_ref()
-    }
-
     /// Highest tabulated energy, keV.
     pub fn e_max_kev(&self) -> f64 {
         self.e_max_kev
