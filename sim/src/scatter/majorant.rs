@@ -21,8 +21,9 @@ use crate::error::{Result, SimError};
 use crate::volume::Volume;
 use rayon::prelude::*;
 
-/// Default brick edge, voxels: the fastest of 4, 8 and 16 or level with the fastest in
-/// every case of `sim/examples/scatter_tracking.rs` (docs/scatter.md, "Tracking").
+/// Default brick edge, voxels: of 4, 8 and 16 the fastest in two of the three cases of
+/// `sim/examples/scatter_tracking.rs` and within run-to-run spread in the third
+/// (docs/scatter.md, "Tracking").
 pub const DEFAULT_BRICK: usize = 16;
 
 /// Per-brick, per-material maximum densities of a packed composition grid.
