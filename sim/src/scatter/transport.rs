@@ -216,11 +216,10 @@ impl Medium {
             t_max: f64::INFINITY,
         };
         let g = GridRay::clip(self.composition.packed(), &ray)?;
-        let t = match &self.bricks {
+        let (t, m) = match &self.bricks {
             None => self.fly_global(&g, e, rng),
             Some(grid) => self.fly_bricks(grid, &g, e, rng),
         }?;
-        let (_, m) = self.voxel_at(&g, t)?;
         let tot = self.table(m, e, 3);
         let (pe, inc) = (self.table(m, e, 0), self.table(m, e, 1));
         Some(Collision {
@@ -233,8 +232,9 @@ impl Medium {
         })
     }
 
-    /// Woodcock tracking with the global majorant: the parameter of the real collision.
-    fn fly_global<R: Rng>(&self, g: &GridRay, e: f64, rng: &mut R) -> Option<f64> {
+    /// Woodcock tracking with the global majorant: the parameter of the real collision and
+    /// the material there.
+    fn fly_global<R: Rng>(&self, g: &GridRay, e: f64, rng: &mut R) -> Option<(f64, usize)> {
         let maj = self.majorant(e);
         if maj <= 0.0 {
             return None;
@@ -245,8 +245,8 @@ impl Medium {
             if t >= g.t_exit {
                 return None;
             }
-            if self.accept(g, t, e, maj, rng) {
-                return Some(t);
+            if let Some(m) = self.accept(g, t, e, maj, rng) {
+                return Some((t, m));
             }
         }
     }
@@ -261,7 +261,7 @@ impl Medium {
         g: &GridRay,
         e: f64,
         rng: &mut R,
-    ) -> Option<f64> {
+    ) -> Option<(f64, usize)> {
         let interval = ((e - 1.0).max(0.0) as usize).min(self.majorant.len() - 2);
         let mut depth = -(1.0 - rng.random::<f64>()).ln();
         let mut hit = None;
@@ -278,8 +278,8 @@ impl Medium {
                     return true;
                 }
                 t += depth / sigma;
-                if self.accept(g, t, e, sigma, rng) {
-                    hit = Some(t);
+                if let Some(m) = self.accept(g, t, e, sigma, rng) {
+                    hit = Some((t, m));
                     return false;
                 }
                 depth = -(1.0 - rng.random::<f64>()).ln();
@@ -288,13 +288,19 @@ impl Medium {
         hit
     }
 
-    /// Whether a tentative collision at `t` under majorant `sigma` (mm⁻¹) is real.
+    /// The material at a tentative collision at `t` under majorant `sigma` (mm⁻¹) if the
+    /// collision is real, `None` if it is a null collision.
     #[inline]
-    fn accept<R: Rng>(&self, g: &GridRay, t: f64, e: f64, sigma: f64, rng: &mut R) -> bool {
-        let Some((rho, m)) = self.voxel_at(g, t) else {
-            return false;
-        };
-        rng.random::<f64>() * sigma < self.table(m, e, 3) * rho / 10.0
+    fn accept<R: Rng>(
+        &self,
+        g: &GridRay,
+        t: f64,
+        e: f64,
+        sigma: f64,
+        rng: &mut R,
+    ) -> Option<usize> {
+        let (rho, m) = self.voxel_at(g, t)?;
+        (rng.random::<f64>() * sigma < self.table(m, e, 3) * rho / 10.0).then_some(m)
     }
 
     /// The packed voxel at parameter `t` of `g`: (density g/cm³, material), `None` past
