@@ -25,25 +25,29 @@ pub struct BrickMap {
     occupied: Vec<bool>,
 }
 
-/// The voxel index ranges `lo..hi` per axis of brick number `b` (bricks `x`-fastest in a
-/// grid of `bricks`) of `size³` voxels grown by `dilate` voxels on every side, clamped to
-/// a grid of `dims` voxels.
-pub fn brick_voxels(
+/// The runs of linear voxel indices (`i + nx·(j + ny·k)`, one per row of constant `j`, `k`)
+/// of brick number `b` (bricks `x`-fastest in a grid of `bricks`) of `size³` voxels grown
+/// by `dilate` voxels on every side, clamped to a grid of `dims` voxels.
+pub fn brick_rows(
     b: usize,
     bricks: [usize; 3],
     size: usize,
     dilate: usize,
     dims: [usize; 3],
-) -> ([usize; 3], [usize; 3]) {
+) -> impl Iterator<Item = std::ops::Range<usize>> {
     let bi = [
         b % bricks[0],
         (b / bricks[0]) % bricks[1],
         b / (bricks[0] * bricks[1]),
     ];
-    (
-        std::array::from_fn(|a| (bi[a] * size).saturating_sub(dilate)),
-        std::array::from_fn(|a| ((bi[a] + 1) * size + dilate).min(dims[a])),
-    )
+    let lo: [usize; 3] = std::array::from_fn(|a| (bi[a] * size).saturating_sub(dilate));
+    let hi: [usize; 3] = std::array::from_fn(|a| ((bi[a] + 1) * size + dilate).min(dims[a]));
+    (lo[2]..hi[2]).flat_map(move |k| {
+        (lo[1]..hi[1]).map(move |j| {
+            let row = (k * dims[1] + j) * dims[0];
+            row + lo[0]..row + hi[0]
+        })
+    })
 }
 
 impl BrickMap {
@@ -61,18 +65,12 @@ impl BrickMap {
         let dims = volume.dims();
         let bricks = dims.map(|d| d.div_ceil(size));
         let data = volume.data();
-        let (nx, nxy) = (dims[0], dims[0] * dims[1]);
         let count = bricks[0] * bricks[1] * bricks[2];
         let occupied: Vec<bool> = (0..count)
             .into_par_iter()
             .map(|b| {
-                let (lo, hi) = brick_voxels(b, bricks, size, dilate, dims);
-                (lo[2]..hi[2]).any(|k| {
-                    (lo[1]..hi[1]).any(|j| {
-                        let row = k * nxy + j * nx;
-                        data[row + lo[0]..row + hi[0]].iter().any(|&v| occupied(v))
-                    })
-                })
+                brick_rows(b, bricks, size, dilate, dims)
+                    .any(|r| data[r].iter().any(|&v| occupied(v)))
             })
             .collect();
         Ok(Self {
