@@ -109,11 +109,10 @@ fn beam_hardening_follows_closed_form() {
     let sum = |f: &dyn Fn(usize) -> f64| (0..e.len()).map(f).sum::<f64>();
     let open_ei = ei.unattenuated()[0];
     let (mut last_mu, mut last_mean) = (f64::INFINITY, 0.0);
-    let mut scratch = vec![0.0; e.len()];
     for t_cm in [0.5, 1.0, 2.0, 5.0, 10.0, 20.0, 30.0] {
         let (mut m_ei, mut m_pc, mut s) = ([0.0], [0.0], [0.0]);
-        ei.pixel(&[t_cm], &mut scratch, &mut m_ei, &mut s);
-        pc.pixel(&[t_cm], &mut scratch, &mut m_pc, &mut s);
+        ei.pixel(&[t_cm], &mut m_ei, &mut s);
+        pc.pixel(&[t_cm], &mut m_pc, &mut s);
         let mu_eff = -(m_ei[0] / open_ei).ln() / t_cm;
         let mean_e = m_ei[0] / m_pc[0];
         let closed_ei = sum(&|b| n[b] * e[b] * (-att[b] * t_cm).exp());
@@ -129,11 +128,48 @@ fn beam_hardening_follows_closed_form() {
         (last_mu, last_mean) = (mu_eff, mean_e);
     }
     // Hardening is large through 30 cm of water: the mean energy rises by > 10 keV.
-    let mut scratch = vec![0.0; e.len()];
     let (mut a, mut b, mut s) = ([0.0], [0.0], [0.0]);
-    ei.pixel(&[0.0], &mut scratch, &mut a, &mut s);
-    pc.pixel(&[0.0], &mut scratch, &mut b, &mut s);
+    ei.pixel(&[0.0], &mut a, &mut s);
+    pc.pixel(&[0.0], &mut b, &mut s);
     assert!(last_mean - a[0] / b[0] > 10.0);
+}
+
+/// The kernel takes bins in blocks of 8, padded with bins that must add exactly nothing:
+/// every bin count from 1 to 17 (whole, partial and single blocks) and two materials, one
+/// of them absent from the pixel, against the closed-form sum (1e-12: same sums, other
+/// code and order).
+#[test]
+fn every_bin_count_matches_closed_form() {
+    let water = material::by_name("water").unwrap();
+    let bone = material::by_name("cortical bone").unwrap();
+    for bins in 1..=17 {
+        let e: Vec<f64> = (0..bins).map(|b| 30.0 + 5.0 * b as f64).collect();
+        let n: Vec<f64> = (0..bins).map(|b| 1e3 + 10.0 * b as f64).collect();
+        let att = |m: &Material| e.iter().map(|&e| m.mass_attenuation(e).unwrap()).collect();
+        let integ = SpectralIntegrator::new(
+            e.clone(),
+            &n,
+            vec![("water".into(), att(&water)), ("bone".into(), att(&bone))],
+            &weights(Mode::energy_integrating(1.0), &e),
+        )
+        .unwrap();
+        for t in [[3.0, 0.0], [0.0, 1.5], [2.0, 0.7]] {
+            let (mut mean, mut second) = ([0.0], [0.0]);
+            integ.pixel(&t, &mut mean, &mut second);
+            let closed: f64 = (0..bins)
+                .map(|b| {
+                    let tau = t[0] * water.mass_attenuation(e[b]).unwrap()
+                        + t[1] * bone.mass_attenuation(e[b]).unwrap();
+                    n[b] * e[b] * (-tau).exp()
+                })
+                .sum();
+            assert!(
+                (mean[0] / closed - 1.0).abs() < 1e-12,
+                "{bins} bins, t = {t:?}: {} vs {closed}",
+                mean[0]
+            );
+        }
+    }
 }
 
 fn mono_matches_projector(model: TissueModel) {
