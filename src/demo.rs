@@ -97,6 +97,7 @@ pub fn run(args: DemoArgs) -> Result<()> {
         seed: 0,
         backend: args.backend,
         shard: None,
+        no_baselines: false,
         merge: false,
     })?;
     eprintln!(

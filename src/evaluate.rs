@@ -63,6 +63,10 @@ pub struct EvaluateArgs {
     /// the shards' results with --merge.
     #[arg(long)]
     pub shard: Option<String>,
+    /// With --checkpoint: score the model only, not FDK and SART-TV (as `tomograf study`
+    /// does in its model cells; it scores the baselines once per test set).
+    #[arg(long, requires = "checkpoint")]
+    pub no_baselines: bool,
     /// Score nothing: combine the finished items' scores under --output into results.md
     /// and results.csv (errors naming the items still missing).
     #[arg(long)]
@@ -187,7 +191,7 @@ pub fn run(args: EvaluateArgs) -> Result<()> {
         seed: args.seed,
         backend: args.backend.as_deref(),
         shard,
-        classical: true,
+        classical: !args.no_baselines,
         show: true,
     };
     let made = evaluate(&e)?;

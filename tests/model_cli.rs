@@ -131,6 +131,44 @@ fn train_resume_reconstruct_evaluate() {
         }
     }
     assert!(eval.join("results.md").is_file());
+
+    // --no-baselines scores the model alone (as the studies' model cells do).
+    let model_only = tmp.path().join("eval-model");
+    ok(&tomograf(&[
+        "evaluate",
+        data.to_str().unwrap(),
+        "--checkpoint",
+        run.join("checkpoint").to_str().unwrap(),
+        "--views",
+        "1",
+        "--iterations",
+        "2",
+        "--no-baselines",
+        "-o",
+        model_only.to_str().unwrap(),
+    ]));
+    let csv = std::fs::read_to_string(model_only.join("results.csv")).unwrap();
+    let methods: std::collections::BTreeSet<&str> = csv
+        .lines()
+        .skip(1)
+        .filter_map(|l| l.split(',').nth(2))
+        .collect();
+    assert_eq!(
+        methods,
+        ["TomoGRAF", "mean training volume"].into(),
+        "{csv}"
+    );
+    // Without a checkpoint there is nothing left to score: clap names the missing flag.
+    let out = tomograf(&[
+        "evaluate",
+        data.to_str().unwrap(),
+        "--no-baselines",
+        "-o",
+        tmp.path().join("eval-none").to_str().unwrap(),
+    ]);
+    assert!(!out.status.success());
+    let e = String::from_utf8_lossy(&out.stderr);
+    assert!(e.contains("--checkpoint"), "{e}");
 }
 
 #[test]
