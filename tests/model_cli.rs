@@ -98,20 +98,28 @@ fn train_resume_reconstruct_evaluate() {
     let e = String::from_utf8_lossy(&out.stderr);
     assert!(e.contains("PSNR threshold NaN"), "{e}");
 
+    // Evaluates the trained checkpoint at `views` (2 inference iterations) into `out`.
+    let checkpoint = run.join("checkpoint");
+    let evaluate = |views: &str, extra: &[&str], out: &Path| {
+        let mut args = vec![
+            "evaluate",
+            data.to_str().unwrap(),
+            "--checkpoint",
+            checkpoint.to_str().unwrap(),
+            "--views",
+            views,
+            "--iterations",
+            "2",
+            "-o",
+            out.to_str().unwrap(),
+        ];
+        args.extend_from_slice(extra);
+        ok(&tomograf(&args));
+    };
+
     // Evaluate at 1 and 2 views: every method scored for every item and view count.
     let eval = tmp.path().join("eval");
-    ok(&tomograf(&[
-        "evaluate",
-        data.to_str().unwrap(),
-        "--checkpoint",
-        run.join("checkpoint").to_str().unwrap(),
-        "--views",
-        "1,2",
-        "--iterations",
-        "2",
-        "-o",
-        eval.to_str().unwrap(),
-    ]));
+    evaluate("1,2", &[], &eval);
     let csv = std::fs::read_to_string(eval.join("results.csv")).unwrap();
     for views in ["1", "2"] {
         for method in ["TomoGRAF", "mean training volume", "FDK", "SART-TV"] {
@@ -134,19 +142,7 @@ fn train_resume_reconstruct_evaluate() {
 
     // --no-baselines scores the model alone (as the studies' model cells do).
     let model_only = tmp.path().join("eval-model");
-    ok(&tomograf(&[
-        "evaluate",
-        data.to_str().unwrap(),
-        "--checkpoint",
-        run.join("checkpoint").to_str().unwrap(),
-        "--views",
-        "1",
-        "--iterations",
-        "2",
-        "--no-baselines",
-        "-o",
-        model_only.to_str().unwrap(),
-    ]));
+    evaluate("1", &["--no-baselines"], &model_only);
     let csv = std::fs::read_to_string(model_only.join("results.csv")).unwrap();
     let methods: std::collections::BTreeSet<&str> = csv
         .lines()
