@@ -257,6 +257,18 @@ fn domain_shift_end_to_end_and_in_shards() {
             let mut args = base.to_vec();
             args.extend(["--stage", stage, "--shard", shard]);
             ok(&tomograf(&args));
+            if (stage, shard) == ("train", "0/2") {
+                // Before any evaluation an interim report names every cell as empty.
+                let mut args = base.to_vec();
+                args.extend(["--stage", "report", "--partial"]);
+                ok(&tomograf(&args));
+                let md = std::fs::read_to_string(d.join("report.md")).unwrap();
+                assert!(md.contains("`lidc` × model `lidc`: 0 of 2"), "{md}");
+                assert!(
+                    md.contains("`paper-in-house` × classical baselines: 0 of 2"),
+                    "{md}"
+                );
+            }
             if (stage, shard) == ("evaluate", "1/2") {
                 // A report of half the shards is refused, naming what is missing, unless
                 // asked for as an interim report; that one says which cells are short.

@@ -94,18 +94,30 @@ fn stats_of(rows: &[Row], train: Option<&str>, test: &str, out: &mut Vec<Stat>) 
 pub fn write(study: &Study, partial: bool) -> Result<()> {
     let s = &study.settings;
     let mut stats = Vec::new();
+    // (test set, what) of the cells with nothing scored yet (only with `partial`).
+    let mut unscored = Vec::new();
     let mut first_item = None;
     for test in &s.test_sets {
         let cells = std::iter::once(None).chain(s.train_sets.iter().map(|t| Some(t.as_str())));
         for train in cells {
             let dir = study.eval_dir(test, train);
-            let (_, rows) = merge(&dir, partial).with_context(|| {
-                format!(
-                    "{}: run the evaluate stage (on every shard) first, or report on the \
-                     items scored so far with --partial",
-                    dir.display()
-                )
-            })?;
+            let rows = if partial && !dir.join("job.json").exists() {
+                Vec::new()
+            } else {
+                merge(&dir, partial)
+                    .with_context(|| {
+                        format!(
+                            "{}: run the evaluate stage (on every shard) first, or report on \
+                             the items scored so far with --partial",
+                            dir.display()
+                        )
+                    })?
+                    .1
+            };
+            if rows.is_empty() {
+                unscored.push((test.clone(), cell_name(train)));
+                continue;
+            }
             first_item = first_item.or_else(|| rows.first().map(|r| r.item.clone()));
             stats_of(&rows, train, test, &mut stats);
         }
@@ -114,7 +126,7 @@ pub fn write(study: &Study, partial: bool) -> Result<()> {
     let figures = study.dir.join("figures");
     std::fs::create_dir_all(&figures)?;
     let mut blocks = intro(study);
-    blocks.extend(coverage(study, &stats));
+    blocks.extend(coverage(study, &stats, &unscored));
     blocks.extend(tables(study, &stats));
     blocks.extend(plots(study, &stats)?);
     if let Some(id) = first_item {
@@ -257,7 +269,14 @@ fn row_keys(study: &Study) -> Vec<(Option<String>, String, String)> {
 
 /// A warning when some test phantoms are not scored yet (a sharded evaluation that ran only
 /// some shards): the tables then average fewer items than the intro names.
-fn coverage(study: &Study, stats: &[Stat]) -> Option<Block> {
+/// How a cell is named in the report: its model, or the classical baselines.
+fn cell_name(train: Option<&str>) -> String {
+    train.map_or_else(|| "classical baselines".into(), |t| format!("model `{t}`"))
+}
+
+/// The paragraph naming the cells of a partial report: those averaging fewer test phantoms
+/// than the scale's, and `unscored` (test set, cell) with none.
+fn coverage(study: &Study, stats: &[Stat], unscored: &[(String, String)]) -> Option<Block> {
     let want = study.settings.scale.test_phantoms;
     // (test set, what was scored) → fewest items over its view counts.
     let mut short: Vec<(String, String, usize)> = Vec::new();
@@ -274,6 +293,7 @@ fn coverage(study: &Study, stats: &[Stat]) -> Option<Block> {
             None => short.push((s.test.clone(), what, s.scores.len())),
         }
     }
+    short.extend(unscored.iter().map(|(t, w)| (t.clone(), w.clone(), 0)));
     (!short.is_empty()).then(|| {
         let cells: Vec<String> = short
             .iter()
@@ -281,8 +301,8 @@ fn coverage(study: &Study, stats: &[Stat]) -> Option<Block> {
             .collect();
         Block::Para(format!(
             "**Partial evaluation**: these cells average fewer test phantoms than the {want} \
-             of the scale (run the evaluate stage on the remaining shards to complete them): \
-             {}.",
+             of the scale (run the evaluate stage on the remaining shards to complete them; \
+             \"—\" in a table: nothing scored yet): {}.",
             cells.join("; ")
         ))
     })
