@@ -8,6 +8,7 @@ use super::{Kind, Study, VIEWS, relative};
 use crate::evaluate::{Row, Scores, merge};
 use crate::figures::{Axes, COLOUR_NAMES, plot_histograms, plot_points};
 use anyhow::{Context, Result};
+use std::collections::BTreeSet;
 use std::fmt::Write as _;
 use std::path::Path;
 use tomograf_datasets::atomic::write_atomic;
@@ -89,17 +90,17 @@ fn stats_of(rows: &[Row], train: Option<&str>, test: &str, out: &mut Vec<Stat>) 
 }
 
 /// Writes the study's results, figures and report from its evaluation folders.
-/// With `partial`, from the items scored so far (the report names the short cells);
-/// otherwise every evaluation must be complete.
+/// With `partial`, from the items scored so far: every cell is averaged over the test
+/// phantoms scored in every cell that has any, so that all numbers compare the same
+/// phantoms, and the report says which (and which cells have nothing yet). Otherwise every
+/// evaluation must be complete.
 pub fn write(study: &Study, partial: bool) -> Result<()> {
     let s = &study.settings;
-    let mut stats = Vec::new();
-    // (test set, what) of the cells with nothing scored yet (only with `partial`).
-    let mut unscored = Vec::new();
-    let mut first_item = None;
+    // (test set, train set or None for the classical cell, its rows).
+    let mut cells = Vec::new();
     for test in &s.test_sets {
-        let cells = std::iter::once(None).chain(s.train_sets.iter().map(|t| Some(t.as_str())));
-        for train in cells {
+        let trains = std::iter::once(None).chain(s.train_sets.iter().map(|t| Some(t.as_str())));
+        for train in trains {
             let dir = study.eval_dir(test, train);
             let rows = if partial && !dir.join("job.json").exists() {
                 Vec::new()
@@ -114,19 +115,43 @@ pub fn write(study: &Study, partial: bool) -> Result<()> {
                     })?
                     .1
             };
-            if rows.is_empty() {
-                unscored.push((test.clone(), cell_name(train)));
-                continue;
-            }
-            first_item = first_item.or_else(|| rows.first().map(|r| r.item.clone()));
-            stats_of(&rows, train, test, &mut stats);
+            cells.push((test.clone(), train, rows));
         }
     }
+    // The items every non-empty cell has scored (all items, when complete).
+    let mut common: Option<BTreeSet<String>> = None;
+    for (_, _, rows) in cells.iter().filter(|c| !c.2.is_empty()) {
+        let items: BTreeSet<String> = rows.iter().map(|r| r.item.clone()).collect();
+        common = Some(match common {
+            Some(c) => c.intersection(&items).cloned().collect(),
+            None => items,
+        });
+    }
+    let common = common.unwrap_or_default();
+    let mut stats = Vec::new();
+    let mut unscored = Vec::new();
+    let mut left_out = BTreeSet::new();
+    for (test, train, rows) in &cells {
+        if rows.is_empty() {
+            unscored.push((test.clone(), cell_name(*train)));
+            continue;
+        }
+        let (kept, other): (Vec<Row>, Vec<Row>) =
+            rows.iter().cloned().partition(|r| common.contains(&r.item));
+        left_out.extend(other.into_iter().map(|r| r.item));
+        stats_of(&kept, *train, test, &mut stats);
+    }
+    let first_item = common.first().cloned();
+    let coverage = Coverage {
+        common: common.into_iter().collect(),
+        left_out: left_out.into_iter().collect(),
+        unscored,
+    };
     write_csv(&study.dir, &stats)?;
     let figures = study.dir.join("figures");
     std::fs::create_dir_all(&figures)?;
     let mut blocks = intro(study);
-    blocks.extend(coverage(study, &stats, &unscored));
+    blocks.extend(coverage.paragraph(study));
     blocks.extend(tables(study, &stats));
     blocks.extend(plots(study, &stats)?);
     if let Some(id) = first_item {
@@ -274,38 +299,49 @@ fn cell_name(train: Option<&str>) -> String {
     train.map_or_else(|| "classical baselines".into(), |t| format!("model `{t}`"))
 }
 
-/// The paragraph naming the cells of a partial report: those averaging fewer test phantoms
-/// than the scale's, and `unscored` (test set, cell) with none.
-fn coverage(study: &Study, stats: &[Stat], unscored: &[(String, String)]) -> Option<Block> {
-    let want = study.settings.scale.test_phantoms;
-    // (test set, what was scored) → fewest items over its view counts.
-    let mut short: Vec<(String, String, usize)> = Vec::new();
-    for s in stats.iter().filter(|s| s.scores.len() < want) {
-        let what = s
-            .train
-            .as_deref()
-            .map_or_else(|| s.method.clone(), |t| format!("model `{t}`"));
-        match short
-            .iter_mut()
-            .find(|(t, w, _)| *t == s.test && *w == what)
-        {
-            Some(c) => c.2 = c.2.min(s.scores.len()),
-            None => short.push((s.test.clone(), what, s.scores.len())),
+/// What a partial report averages over.
+struct Coverage {
+    /// The test items every non-empty cell has scored: every cell averages these.
+    common: Vec<String>,
+    /// Items some cells have scored and others not (not averaged anywhere).
+    left_out: Vec<String>,
+    /// (test set, cell) with nothing scored yet.
+    unscored: Vec<(String, String)>,
+}
+
+impl Coverage {
+    /// The paragraph of a partial report (`None` when every cell has every item).
+    fn paragraph(&self, study: &Study) -> Option<Block> {
+        let want = study.settings.scale.test_phantoms;
+        if self.common.len() == want && self.unscored.is_empty() {
+            return None;
         }
+        let mut text = format!(
+            "**Partial evaluation**: every cell averages the same {} of the scale's {want} test \
+             phantoms, those scored in every cell that has any ({}).",
+            self.common.len(),
+            self.common.join(", ")
+        );
+        if !self.left_out.is_empty() {
+            text += &format!(
+                " Left out, scored in some cells only: {}.",
+                self.left_out.join(", ")
+            );
+        }
+        if !self.unscored.is_empty() {
+            let cells: Vec<String> = self
+                .unscored
+                .iter()
+                .map(|(t, w)| format!("`{t}` × {w}"))
+                .collect();
+            text += &format!(
+                " Nothing scored yet (\"—\" in the tables): {}.",
+                cells.join("; ")
+            );
+        }
+        text += " Run the evaluate stage on the remaining shards to complete it.";
+        Some(Block::Para(text))
     }
-    short.extend(unscored.iter().map(|(t, w)| (t.clone(), w.clone(), 0)));
-    (!short.is_empty()).then(|| {
-        let cells: Vec<String> = short
-            .iter()
-            .map(|(t, w, n)| format!("`{t}` × {w}: {n} of {want}"))
-            .collect();
-        Block::Para(format!(
-            "**Partial evaluation**: these cells average fewer test phantoms than the {want} \
-             of the scale (run the evaluate stage on the remaining shards to complete them; \
-             \"—\" in a table: nothing scored yet): {}.",
-            cells.join("; ")
-        ))
-    })
 }
 
 fn find<'a>(
