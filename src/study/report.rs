@@ -292,14 +292,13 @@ fn row_keys(study: &Study) -> Vec<(Option<String>, String, String)> {
     keys
 }
 
-/// A warning when some test phantoms are not scored yet (a sharded evaluation that ran only
-/// some shards): the tables then average fewer items than the intro names.
 /// How a cell is named in the report: its model, or the classical baselines.
 fn cell_name(train: Option<&str>) -> String {
     train.map_or_else(|| "classical baselines".into(), |t| format!("model `{t}`"))
 }
 
-/// What a partial report averages over.
+/// What a partial report averages over (a sharded evaluation that ran only some shards):
+/// the tables then average fewer test phantoms than the intro names.
 struct Coverage {
     /// The test items every non-empty cell has scored: every cell averages these.
     common: Vec<String>,
