@@ -131,15 +131,15 @@ pub fn write(study: &Study, partial: bool) -> Result<()> {
     let mut stats = Vec::new();
     let mut unscored = Vec::new();
     let mut left_out = BTreeSet::new();
-    for (test, train, rows) in &cells {
+    for (test, train, rows) in cells {
         if rows.is_empty() {
-            unscored.push((test.clone(), cell_name(*train)));
+            unscored.push((test, cell_name(train)));
             continue;
         }
         let (kept, other): (Vec<Row>, Vec<Row>) =
-            rows.iter().cloned().partition(|r| common.contains(&r.item));
+            rows.into_iter().partition(|r| common.contains(&r.item));
         left_out.extend(other.into_iter().map(|r| r.item));
-        stats_of(&kept, *train, test, &mut stats);
+        stats_of(&kept, train, &test, &mut stats);
     }
     let first_item = common.first().cloned();
     let coverage = Coverage {
