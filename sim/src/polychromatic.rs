@@ -27,13 +27,16 @@ use rayon::prelude::*;
 const BIN_BLOCK: usize = 16;
 
 /// One detector channel's response per energy bin, in the kernel's precision (f32: see
-/// [`pixel_kernel`]).
+/// [`pixel_kernel`]), each moment divided by its largest bin so that any units of the
+/// spectrum and weights fit f32's range.
 #[derive(Debug, Clone, PartialEq)]
 struct Channel {
-    /// `N0_b · w_b` per unit exposure factor.
+    /// `N0_b · w_b` per unit exposure factor, divided by `scale.0`.
     first: Vec<f32>,
-    /// `N0_b · E[w²]_b` per unit exposure factor.
+    /// `N0_b · E[w²]_b` per unit exposure factor, divided by `scale.1`.
     second: Vec<f32>,
+    /// The largest bin of each moment (1 where all are 0).
+    scale: (f64, f64),
 }
 
 /// A beam (spectrum), the attenuation of each material and a detector's channel weights,
@@ -137,6 +140,12 @@ impl SpectralIntegrator {
                 .collect()
         };
         let narrow = |v: Vec<f64>| -> Vec<f32> { v.into_iter().map(|x| x as f32).collect() };
+        // A moment over its largest bin, in f32, and that largest bin.
+        let normalised = |v: Vec<f64>| -> (Vec<f32>, f64) {
+            let top = v.iter().copied().fold(0.0, f64::max);
+            let scale = if top > 0.0 { top } else { 1.0 };
+            (v.into_iter().map(|x| (x / scale) as f32).collect(), scale)
+        };
         // The open field in f64, from the kept bins (what the kernel's sums tend to as the
         // thicknesses go to 0).
         let open = channels
@@ -145,9 +154,14 @@ impl SpectralIntegrator {
             .collect();
         let channels: Vec<Channel> = channels
             .iter()
-            .map(|c| Channel {
-                first: narrow(pick(&c.0)),
-                second: narrow(pick(&c.1)),
+            .map(|c| {
+                let (first, s1) = normalised(pick(&c.0));
+                let (second, s2) = normalised(pick(&c.1));
+                Channel {
+                    first,
+                    second,
+                    scale: (s1, s2),
+                }
             })
             .collect();
         let mut energies_kev = pick(&energies_kev);
@@ -357,8 +371,8 @@ fn transmission_and_dots<const FMA: bool>(
         }
     }
     for (c, ch) in channels.iter().enumerate() {
-        mean[c] = dot::<FMA>(&ch.first, att);
-        second[c] = dot::<FMA>(&ch.second, att);
+        mean[c] = dot::<FMA>(&ch.first, att) * ch.scale.0;
+        second[c] = dot::<FMA>(&ch.second, att) * ch.scale.1;
     }
 }
 

@@ -330,3 +330,47 @@ fn bad_spectral_inputs_are_named() {
     .unwrap_err();
     assert!(e.to_string().contains("0 HU intervals"), "{e}");
 }
+
+/// Spectra in any units: photon counts far outside f32's range (1e-40 or 1e35 per bin) give
+/// the same signal as counts near 1, scaled — never 0, infinity or NaN (the kernel works
+/// in f32 on moments divided by their largest bin). 1e-6: f32 rounding.
+#[test]
+fn spectra_far_outside_f32_range_scale_exactly() {
+    let water = material::by_name("water").unwrap();
+    let e: Vec<f64> = (0..10).map(|b| 30.0 + 8.0 * b as f64).collect();
+    let att: Vec<f64> = e
+        .iter()
+        .map(|&e| water.mass_attenuation(e).unwrap())
+        .collect();
+    let at = |k: f64| {
+        let n: Vec<f64> = (0..10).map(|b| k * (1.0 + b as f64)).collect();
+        let integ = SpectralIntegrator::new(
+            e.clone(),
+            &n,
+            vec![("water".into(), att.clone())],
+            &weights(Mode::energy_integrating(1.0), &e),
+        )
+        .unwrap();
+        let (mut mean, mut second) = ([0.0], [0.0]);
+        integ.pixel(&[2.0], &mut mean, &mut second);
+        (mean[0], second[0])
+    };
+    let one = at(1.0);
+    for k in [1e-40, 1e35] {
+        let (m, s) = at(k);
+        assert!(
+            m.is_finite() && m > 0.0 && s.is_finite() && s > 0.0,
+            "{k}: {m}, {s}"
+        );
+        assert!(
+            (m / (k * one.0) - 1.0).abs() < 1e-6,
+            "{k}: {m} vs {}",
+            k * one.0
+        );
+        assert!(
+            (s / (k * one.1) - 1.0).abs() < 1e-6,
+            "{k}: {s} vs {}",
+            k * one.1
+        );
+    }
+}
