@@ -22,12 +22,17 @@ use crate::geometry::{View, ViewBeam};
 use crate::render::MassThickness;
 use rayon::prelude::*;
 
+#[cfg(target_arch = "x86_64")]
+mod avx512;
+mod kernel;
+use kernel::{RowOut, row_kernel};
+
 /// The kernel takes bins in blocks of this many (an AVX-512 register of f32): a partial
 /// block would leave a scalar, latency-bound exponential per leftover bin and pixel.
 const BIN_BLOCK: usize = 16;
 
 /// One detector channel's response per energy bin, in the kernel's precision (f32: see
-/// [`pixel_kernel`]), each moment divided by its largest bin so that any units of the
+/// [`row_kernel`]), each moment divided by its largest bin so that any units of the
 /// spectrum and weights fit f32's range.
 #[derive(Debug, Clone, PartialEq)]
 struct Channel {
@@ -199,31 +204,15 @@ impl SpectralIntegrator {
 
     /// Mean and second moment of each channel, per unit exposure factor, behind mass
     /// thicknesses `t` (g/cm², one per material), into `mean` and `second` (one value
-    /// per channel). Relative precision: that of f32 transmissions (see [`pixel_kernel`]).
+    /// per channel). Relative precision: that of f32 transmissions (see [`row_kernel`]).
     pub fn pixel(&self, t: &[f64], mean: &mut [f64], second: &mut [f64]) {
-        self.pixel_with(t, &mut vec![0.0; self.padded_bins], mean, second);
+        let mut out = RowOut {
+            mean: mean.chunks_mut(1).collect(),
+            second: second.chunks_mut(1).collect(),
+        };
+        row_kernel(self, t, &[1.0], &mut vec![0.0; self.padded_bins], &mut out);
     }
 
-    /// [`SpectralIntegrator::pixel`] with scratch `att` of `padded_bins` values.
-    fn pixel_with(&self, t: &[f64], att: &mut [f32], mean: &mut [f64], second: &mut [f64]) {
-        if t.iter().all(|&x| x == 0.0) {
-            // Nothing in the way (air): the open field.
-            for (c, &(m1, m2)) in self.open.iter().enumerate() {
-                mean[c] = m1;
-                second[c] = m2;
-            }
-            return;
-        }
-        pixel_kernel(
-            &self.mass_att,
-            self.padded_bins,
-            t,
-            att,
-            &self.channels,
-            mean,
-            second,
-        );
-    }
     /// The expected signal of a whole view at `mas` (mA·s), from its mass thicknesses.
     pub fn expected(
         &self,
@@ -245,29 +234,33 @@ impl SpectralIntegrator {
             )));
         }
         let k = self.materials.len();
-        self.image(view, mas, |p, att, mean, second| {
-            self.pixel_with(&thickness.data[p * k..(p + 1) * k], att, mean, second)
+        let cols = view.cols;
+        self.image(view, mas, |r, factors, out| {
+            let t = &thickness.data[r * cols * k..(r + 1) * cols * k];
+            row_kernel(self, t, factors, &mut vec![0.0; self.padded_bins], out);
         })
     }
 
     /// The expected signal of a view with nothing in the beam (the open field) at `mas`:
     /// [`SpectralIntegrator::unattenuated`] times each pixel's exposure factor.
     pub fn open(&self, view: &View, mas: f64) -> Result<ExpectedImage> {
-        let first: Vec<f64> = self.open.iter().map(|o| o.0).collect();
-        let sec: Vec<f64> = self.open.iter().map(|o| o.1).collect();
-        self.image(view, mas, |_, _, mean, second| {
-            mean.copy_from_slice(&first);
-            second.copy_from_slice(&sec);
+        self.image(view, mas, |_, factors, out| {
+            for (ch, &(m1, m2)) in self.open.iter().enumerate() {
+                for (c, &f) in factors.iter().enumerate() {
+                    out.mean[ch][c] = m1 * f;
+                    out.second[ch][c] = m2 * f;
+                }
+            }
         })
     }
 
-    /// An image whose pixel `p` (row-major) gets, per unit exposure, the channels' means
-    /// and second moments from `fill(p, scratch, mean, second)`.
+    /// An image whose row `r` is filled by `fill(r, factors, out)`: `factors` are the row's
+    /// exposure factors times `mas`, `out` the row of each channel's mean and second moment.
     fn image(
         &self,
         view: &View,
         mas: f64,
-        fill: impl Fn(usize, &mut [f32], &mut [f64], &mut [f64]) + Sync,
+        fill: impl Fn(usize, &[f64], &mut RowOut) + Sync,
     ) -> Result<ExpectedImage> {
         if !(mas.is_finite() && mas > 0.0) {
             return Err(SimError::OutOfRange(format!(
@@ -276,32 +269,34 @@ impl SpectralIntegrator {
         }
         view.validate()?;
         let (rows, cols, nc) = (view.rows, view.cols, self.channels.len());
-        let bins = self.padded_bins;
         let exposure = ExposureFactors::new(view);
-        // Pixel-major while computing (each row independent), channel-major at the end.
-        let mut pm = vec![0.0; rows * cols * nc * 2];
-        pm.par_chunks_mut(cols * nc * 2)
-            .enumerate()
-            .for_each(|(r, out)| {
-                let mut att = vec![0.0; bins];
-                for (c, px) in out.chunks_mut(nc * 2).enumerate() {
-                    let (mean, second) = px.split_at_mut(nc);
-                    fill(r * cols + c, &mut att, mean, second);
-                    let f = mas * exposure.at(r, c);
-                    mean.iter_mut()
-                        .chain(second.iter_mut())
-                        .for_each(|v| *v *= f);
-                }
-            });
         let n = rows * cols;
         let mut mean = vec![0.0; n * nc];
         let mut second_moment = vec![0.0; n * nc];
-        for (p, px) in pm.chunks(nc * 2).enumerate() {
-            for ch in 0..nc {
-                mean[ch * n + p] = px[ch];
-                second_moment[ch * n + p] = px[nc + ch];
+        // Channel-major images, handed out row by row: row r gets every channel's row r.
+        let mut out: Vec<RowOut> = (0..rows)
+            .map(|_| RowOut {
+                mean: Vec::with_capacity(nc),
+                second: Vec::with_capacity(nc),
+            })
+            .collect();
+        for (m, s) in mean.chunks_mut(n).zip(second_moment.chunks_mut(n)) {
+            for ((o, m), s) in out
+                .iter_mut()
+                .zip(m.chunks_mut(cols))
+                .zip(s.chunks_mut(cols))
+            {
+                o.mean.push(m);
+                o.second.push(s);
             }
         }
+        out.par_iter_mut().enumerate().for_each(|(r, o)| {
+            let mut factors = vec![0.0; cols];
+            exposure.row(r, &mut factors);
+            factors.iter_mut().for_each(|f| *f *= mas);
+            fill(r, &factors, o);
+        });
+        drop(out);
         Ok(ExpectedImage {
             rows,
             cols,
@@ -312,120 +307,6 @@ impl SpectralIntegrator {
             second_moment,
         })
     }
-}
-
-/// Transmission per bin behind thicknesses `t`, then each channel's two dot products; one
-/// body compiled for AVX-512, AVX2 and baseline x86-64, chosen at run time (results agree
-/// to rounding). Where the CPU has FMA, every multiply-add is fused.
-///
-/// Precision: optical depths, exponentials and per-lane partial sums are f32 (16 bins per
-/// AVX-512 register, twice the f64 rate), the lanes' sums are added in f64. An optical
-/// depth τ is then known to ≈ τ·2⁻²⁴ and its transmission to ≈ (τ + 1)·2⁻²³ relative:
-/// ≈ 1e-6 at τ = 10 (transmission 5e-5), far below the quantum noise of any exposure the
-/// detector models (1/√N ≥ 1e-4 for N ≤ 10⁸ photons) and the tabulated attenuation's own
-/// uncertainty (~1 %). The monochromatic projector stays f64 throughout.
-#[multiversion::multiversion(targets("x86_64+avx512f+avx2+fma", "x86_64+avx2+fma"))]
-fn pixel_kernel(
-    mass_att: &[f32],
-    bins: usize,
-    t: &[f64],
-    att: &mut [f32],
-    channels: &[Channel],
-    mean: &mut [f64],
-    second: &mut [f64],
-) {
-    if multiversion::target::target_cfg_f!(target_feature = "fma") {
-        transmission_and_dots::<true>(mass_att, bins, t, att, channels, mean, second);
-    } else {
-        transmission_and_dots::<false>(mass_att, bins, t, att, channels, mean, second);
-    }
-}
-
-/// The body of [`pixel_kernel`]; `FMA`: fuse multiply-adds (only where the CPU has FMA,
-/// which is otherwise emulated in software).
-#[inline(always)]
-fn transmission_and_dots<const FMA: bool>(
-    mass_att: &[f32],
-    bins: usize,
-    t: &[f64],
-    att: &mut [f32],
-    channels: &[Channel],
-    mean: &mut [f64],
-    second: &mut [f64],
-) {
-    // Block by block of BIN_BLOCK bins: fixed-size loops compile to straight-line vector
-    // code, where loops over all bins would run their few blocks through remainder loops.
-    for (i, a) in att.chunks_exact_mut(BIN_BLOCK).enumerate() {
-        let mut tau = [0.0f32; BIN_BLOCK];
-        for (m, &tm) in t.iter().enumerate() {
-            if tm != 0.0 {
-                let start = m * bins + i * BIN_BLOCK;
-                let mu = &mass_att[start..start + BIN_BLOCK];
-                for l in 0..BIN_BLOCK {
-                    tau[l] = madd::<FMA>(tm as f32, mu[l], tau[l]);
-                }
-            }
-        }
-        for l in 0..BIN_BLOCK {
-            a[l] = exp_neg::<FMA>(tau[l]);
-        }
-    }
-    for (c, ch) in channels.iter().enumerate() {
-        mean[c] = dot::<FMA>(&ch.first, att) * ch.scale.0;
-        second[c] = dot::<FMA>(&ch.second, att) * ch.scale.1;
-    }
-}
-
-/// a·b + c, fused when `FMA`.
-#[inline(always)]
-fn madd<const FMA: bool>(a: f32, b: f32, c: f32) -> f32 {
-    if FMA { a.mul_add(b, c) } else { a * b + c }
-}
-
-/// Σ a·b over whole blocks of [`BIN_BLOCK`] (the padded bins): one f32 partial sum per
-/// lane (each adds at most a few dozen positive terms), the lanes added in f64 as a tree
-/// (a chain of 16 dependent adds would cost more than the bins themselves at few bins).
-/// The order is fixed, so results are the same on every run.
-#[inline(always)]
-fn dot<const FMA: bool>(a: &[f32], b: &[f32]) -> f64 {
-    let mut s = [0.0f32; BIN_BLOCK];
-    for (x, y) in a.chunks_exact(BIN_BLOCK).zip(b.chunks_exact(BIN_BLOCK)) {
-        for l in 0..BIN_BLOCK {
-            s[l] = madd::<FMA>(x[l], y[l], s[l]);
-        }
-    }
-    let mut h: [f64; BIN_BLOCK / 2] =
-        std::array::from_fn(|l| f64::from(s[l]) + f64::from(s[l + BIN_BLOCK / 2]));
-    let mut n = BIN_BLOCK / 2;
-    while n > 1 {
-        n /= 2;
-        for l in 0..n {
-            h[l] += h[l + n];
-        }
-    }
-    h[0]
-}
-
-/// e^(−x) for x ≥ 0 in f32, branch-free so that loops over it vectorise: x·log₂e split
-/// into the nearest integer k and a remainder in [−½, ½], 2^remainder from its Taylor
-/// series to degree 7 (truncation < 6e-9 on [−½ ln 2, ½ ln 2], below f32 rounding), k put
-/// in the exponent. The rounding of x·log₂e adds ≈ x·2⁻²⁴ relative. Results below 2^−126
-/// (x > 87.3) are flushed to 0, like a transmission that underflows; never NaN. `FMA`:
-/// fused multiply-adds (see [`pixel_kernel`]).
-#[inline(always)]
-fn exp_neg<const FMA: bool>(x: f32) -> f32 {
-    let y = -x.clamp(0.0, 200.0) * std::f32::consts::LOG2_E; // in [−289, 0]
-    let k = y.round_ties_even();
-    let r = (y - k) * std::f32::consts::LN_2; // in [−½ ln 2, ½ ln 2]
-    // Horner form of Σ rⁿ/n!, n ≤ 7.
-    let mut p = 1.0 / 5040.0;
-    for d in [720.0, 120.0, 24.0, 6.0, 2.0, 1.0, 1.0] {
-        p = madd::<FMA>(p, r, 1.0 / d);
-    }
-    // 2^k through the exponent field; biased exponents ≤ 0 give +0.0.
-    let biased = (k + 127.0).max(0.0);
-    let scale = f32::from_bits((biased + 8_388_608.0).to_bits() << 23);
-    p * scale
 }
 
 /// Area (mm²) × inverse-square × obliquity factor of pixel `(r, c)`: multiplied by a
@@ -465,32 +346,21 @@ impl<'a> ExposureFactors<'a> {
             }
         }
     }
-}
 
-#[cfg(test)]
-mod tests {
-    use super::exp_neg;
-
-    /// Against f64's exp on [0, 87] (where f32 holds the result as a normal number): the
-    /// relative error stays within (x + 2)·2⁻²³, the bound [`exp_neg`] states (input
-    /// rounding x·2⁻²⁴ twice over, plus the polynomial's and the product's rounding).
-    #[test]
-    fn fast_exp_matches_std_exp() {
-        let mut worst = 0.0f64;
-        for i in 0..200_000 {
-            let x = i as f32 * 0.000_435; // 0 … 87
-            let b = (-f64::from(x)).exp();
-            for e in [exp_neg::<false>, exp_neg::<true>] {
-                let rel = ((f64::from(e(x)) - b) / b).abs();
-                worst = worst.max(rel / ((f64::from(x) + 2.0) * 2f64.powi(-23)));
+    /// The factors of row `r`, one per column, into `out` (as [`ExposureFactors::at`],
+    /// computed the same way; a loop over the columns that vectorises).
+    fn row(&self, r: usize, out: &mut [f64]) {
+        match self.view.beam {
+            ViewBeam::Cone { source } => {
+                let (o, u, n) = (self.view.detector_origin, self.view.u, self.normal);
+                let row = r as f64 * self.view.v;
+                for (c, f) in out.iter_mut().enumerate() {
+                    let d = o + c as f64 * u + row - source;
+                    let d2 = d.length_squared();
+                    *f = 1e6 * d.dot(n).abs() / (d2 * d2.sqrt());
+                }
             }
-        }
-        assert!(worst < 1.0, "worst error {worst} × the stated bound");
-        for e in [exp_neg::<false>, exp_neg::<true>] {
-            assert_eq!(e(0.0), 1.0);
-            assert_eq!(e(100.0), 0.0);
-            assert_eq!(e(f32::INFINITY), 0.0);
-            assert!(e(87.0) > 0.0 && e(87.0).is_finite());
+            ViewBeam::Parallel { .. } => out.fill(self.at(r, 0)),
         }
     }
 }
