@@ -82,7 +82,9 @@ pub fn section(quick: bool, repeats: usize) -> Result<String> {
         "## Polychromatic physics and the detector\n\n\
          `tomograf bench --physics{}`: the analytic thorax on {}³ voxels of {spacing} mm, one \
          {n}² cone-beam view (θ = 30°, SAD 1000, SID 1500 mm), 120 kVp + 2.5 mm Al + 0.1 mm Cu \
-         in 1 keV bins; CPU ms, medians of {repeats} runs (the mono render, the trace and the integration interleaved; the ratio is the median of the runs' ratios).\n",
+         in 1 keV bins; CPU ms, medians of {repeats} runs (the mono render, the trace and the integration interleaved; the ratio is the median of the runs' ratios). \
+         Materials: those of the model that occur in the phantom (the five-tissue model has \
+         five, Schneider's seven; the others are neither traced nor integrated).\n",
         if quick { " --quick" } else { "" },
         dims[0]
     )?;
