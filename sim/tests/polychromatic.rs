@@ -20,6 +20,7 @@ use tomograf_sim::detector::{ChannelWeights, DetectorModel, Mode};
 use tomograf_sim::material::{self, Material};
 use tomograf_sim::phantom::Phantom;
 use tomograf_sim::polychromatic::SpectralIntegrator;
+use tomograf_sim::render::MassThickness;
 use tomograf_sim::tissue::TissueModel;
 use tomograf_sim::{Beam, Detector, Geometry, Pose, Projector, Renderer, Volume};
 
@@ -312,6 +313,29 @@ fn photons_per_pixel_follow_fluence_mas_distance_and_obliquity() {
     );
     // Counting: the second moment equals the mean (Poisson).
     assert!((open.second_moment[0] / open.mean[0] - 1.0).abs() < 1e-12);
+    // Nothing in the way: the expected image is the open field, pixel for pixel, and each
+    // pixel through 1 g/cm² of water is it times exp(−μ/ρ).
+    let t = |v: f64| MassThickness {
+        rows: 3,
+        cols: 3,
+        materials: vec!["water".into()],
+        data: vec![v; 9],
+    };
+    let zero = integ.expected(&t(0.0), &view, 2.0).unwrap();
+    assert_eq!(zero.mean, open.mean);
+    let through = integ.expected(&t(1.0), &view, 2.0).unwrap();
+    let expected = (-water.mass_attenuation(60.0).unwrap()).exp();
+    for (a, b) in through.mean.iter().zip(&open.mean) {
+        assert!((a / b / expected - 1.0).abs() < 1e-6, "{a} / {b}");
+    }
+    // An image whose data does not match its size is refused, naming the counts.
+    let mut short = t(1.0);
+    short.data.pop();
+    let e = integ.expected(&short, &view, 2.0).unwrap_err().to_string();
+    assert!(
+        e.contains("8 mass thicknesses") && e.contains("need 9"),
+        "{e}"
+    );
 }
 
 #[test]

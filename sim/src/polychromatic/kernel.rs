@@ -55,7 +55,9 @@ fn row_body<const FMA: bool, const AVX512: bool>(
     out: &mut RowOut,
 ) {
     let k = integrator.materials.len();
-    for (c, (t, &f)) in t.chunks_exact(k).zip(factors).enumerate() {
+    debug_assert_eq!(t.len(), k * factors.len());
+    for (c, &f) in factors.iter().enumerate() {
+        let t = &t[c * k..(c + 1) * k];
         if t.iter().all(|&x| x == 0.0) {
             // Nothing in the way (air): the open field.
             for (ch, &(m1, m2)) in integrator.open.iter().enumerate() {

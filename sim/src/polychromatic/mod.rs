@@ -205,7 +205,19 @@ impl SpectralIntegrator {
     /// Mean and second moment of each channel, per unit exposure factor, behind mass
     /// thicknesses `t` (g/cm², one per material), into `mean` and `second` (one value
     /// per channel). Relative precision: that of f32 transmissions (see [`row_kernel`]).
+    ///
+    /// # Panics
+    /// If `t` does not hold one thickness per material, or `mean` or `second` one value
+    /// per channel.
     pub fn pixel(&self, t: &[f64], mean: &mut [f64], second: &mut [f64]) {
+        let (k, nc) = (self.materials.len(), self.channels.len());
+        assert!(
+            t.len() == k && mean.len() == nc && second.len() == nc,
+            "pixel: {} thicknesses for {k} materials, {} and {} moments for {nc} channels",
+            t.len(),
+            mean.len(),
+            second.len()
+        );
         let mut out = RowOut {
             mean: mean.chunks_mut(1).collect(),
             second: second.chunks_mut(1).collect(),
@@ -235,6 +247,15 @@ impl SpectralIntegrator {
         }
         let k = self.materials.len();
         let cols = view.cols;
+        if thickness.data.len() != view.rows * cols * k {
+            return Err(SimError::OutOfRange(format!(
+                "the image holds {} mass thicknesses; {}×{} pixels of {k} materials need {}",
+                thickness.data.len(),
+                view.rows,
+                cols,
+                view.rows * cols * k
+            )));
+        }
         self.image(view, mas, |r, factors, out| {
             let t = &thickness.data[r * cols * k..(r + 1) * cols * k];
             row_kernel(self, t, factors, &mut vec![0.0; self.padded_bins], out);
