@@ -56,6 +56,7 @@ fn row_body<const FMA: bool, const AVX512: bool>(
 ) {
     let k = integrator.materials.len();
     debug_assert_eq!(t.len(), k * factors.len());
+    let (mass_att, bins) = (&integrator.mass_att[..], integrator.padded_bins);
     for (c, &f) in factors.iter().enumerate() {
         let t = &t[c * k..(c + 1) * k];
         if t.iter().all(|&x| x == 0.0) {
@@ -66,31 +67,43 @@ fn row_body<const FMA: bool, const AVX512: bool>(
             }
             continue;
         }
-        let (mass_att, bins) = (&integrator.mass_att[..], integrator.padded_bins);
-        #[cfg(target_arch = "x86_64")]
-        if AVX512 && t.len() <= avx512::MAX_MATERIALS {
-            // SAFETY: `AVX512` is set only in the kernel's AVX-512 build, which runs only
-            // where the CPU has AVX-512.
-            unsafe { avx512::transmission(mass_att, bins, t, att) };
-        } else {
-            transmission::<FMA>(mass_att, bins, t, att);
-        }
-        #[cfg(not(target_arch = "x86_64"))]
-        transmission::<FMA>(mass_att, bins, t, att);
+        transmission_on::<FMA, AVX512>(mass_att, bins, t, att);
         for (ch, channel) in integrator.channels.iter().enumerate() {
-            #[cfg(target_arch = "x86_64")]
-            let (m1, m2) = if AVX512 {
-                // SAFETY: as above.
-                unsafe { avx512::dots(&channel.first, &channel.second, att) }
-            } else {
-                dots::<FMA>(&channel.first, &channel.second, att)
-            };
-            #[cfg(not(target_arch = "x86_64"))]
-            let (m1, m2) = dots::<FMA>(&channel.first, &channel.second, att);
+            let (m1, m2) = dots_on::<FMA, AVX512>(&channel.first, &channel.second, att);
             out.mean[ch][c] = m1 * channel.scale.0 * f;
             out.second[ch][c] = m2 * channel.scale.1 * f;
         }
     }
+}
+
+/// [`transmission`], by [`avx512::transmission`] where `AVX512` (and the materials fit
+/// its registers).
+#[inline(always)]
+fn transmission_on<const FMA: bool, const AVX512: bool>(
+    mass_att: &[f32],
+    bins: usize,
+    t: &[f64],
+    att: &mut [f32],
+) {
+    #[cfg(target_arch = "x86_64")]
+    if AVX512 && t.len() <= avx512::MAX_MATERIALS {
+        // SAFETY: `AVX512` is set only in the kernel's AVX-512 build, which runs only
+        // where the CPU has AVX-512.
+        unsafe { avx512::transmission(mass_att, bins, t, att) };
+        return;
+    }
+    transmission::<FMA>(mass_att, bins, t, att);
+}
+
+/// [`dots`], by [`avx512::dots`] where `AVX512`.
+#[inline(always)]
+fn dots_on<const FMA: bool, const AVX512: bool>(a: &[f32], b: &[f32], x: &[f32]) -> (f64, f64) {
+    #[cfg(target_arch = "x86_64")]
+    if AVX512 {
+        // SAFETY: as for `transmission_on`.
+        return unsafe { avx512::dots(a, b, x) };
+    }
+    dots::<FMA>(a, b, x)
 }
 
 /// The transmission per bin behind thicknesses `t` (g/cm², one per material) into `att`,
@@ -146,7 +159,7 @@ fn dots<const FMA: bool>(a: &[f32], b: &[f32], x: &[f32]) -> (f64, f64) {
 
 /// The sum of a block's lanes, in f64, as a tree.
 #[inline(always)]
-pub(super) fn lane_sum(s: &[f32; BIN_BLOCK]) -> f64 {
+fn lane_sum(s: &[f32; BIN_BLOCK]) -> f64 {
     let mut h: [f64; BIN_BLOCK / 2] =
         std::array::from_fn(|l| f64::from(s[l]) + f64::from(s[l + BIN_BLOCK / 2]));
     let mut n = BIN_BLOCK / 2;

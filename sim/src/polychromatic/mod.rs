@@ -357,31 +357,35 @@ impl<'a> ExposureFactors<'a> {
     /// `A · cos γ = |d⃗ · n⃗| / d` (|n⃗| = A), i.e. `10⁶ · |d⃗ · n⃗| / d³`.
     fn at(&self, r: usize, c: usize) -> f64 {
         match self.view.beam {
-            ViewBeam::Cone { source } => {
-                let d = self.view.pixel_centre(r as f64, c as f64) - source;
-                let d2 = d.length_squared();
-                1e6 * d.dot(self.normal).abs() / (d2 * d2.sqrt())
-            }
+            ViewBeam::Cone { source } => cone_factor(
+                self.view.pixel_centre(r as f64, c as f64) - source,
+                self.normal,
+            ),
             ViewBeam::Parallel { direction } => {
                 direction.dot(self.normal).abs() / direction.length()
             }
         }
     }
 
-    /// The factors of row `r`, one per column, into `out` (as [`ExposureFactors::at`],
-    /// computed the same way; a loop over the columns that vectorises).
+    /// The factors of row `r`, one per column, into `out` (as [`ExposureFactors::at`], with
+    /// the choice of beam made once: a loop over the columns that vectorises).
     fn row(&self, r: usize, out: &mut [f64]) {
         match self.view.beam {
             ViewBeam::Cone { source } => {
-                let (o, u, n) = (self.view.detector_origin, self.view.u, self.normal);
-                let row = r as f64 * self.view.v;
                 for (c, f) in out.iter_mut().enumerate() {
-                    let d = o + c as f64 * u + row - source;
-                    let d2 = d.length_squared();
-                    *f = 1e6 * d.dot(n).abs() / (d2 * d2.sqrt());
+                    let d = self.view.pixel_centre(r as f64, c as f64) - source;
+                    *f = cone_factor(d, self.normal);
                 }
             }
             ViewBeam::Parallel { .. } => out.fill(self.at(r, 0)),
         }
     }
+}
+
+/// `10⁶ · |d⃗ · n⃗| / d³`: the cone-beam exposure factor of a pixel at `d` (mm) from the
+/// source, `n` its normal scaled to its area ([`ExposureFactors::at`]).
+#[inline(always)]
+fn cone_factor(d: glam::DVec3, n: glam::DVec3) -> f64 {
+    let d2 = d.length_squared();
+    1e6 * d.dot(n).abs() / (d2 * d2.sqrt())
 }
