@@ -5,6 +5,9 @@
 //! * `TG_PACKET_THRESHOLD=x` — crossings per layer from which the SIMD tracer is used
 //!   (`inf`: scalar only), as used to choose `packet::default_threshold`.
 //! * `COUNT=1` — also print what the scalar tracer reports per ray (segments, runs).
+//! * `N=k` — time k back-to-back renders after the first (default 20) and print their
+//!   mean, fastest and median: on a shared machine compare builds by their fastest, in
+//!   interleaved runs.
 //!
 //! `cargo run --release -p tomograf-sim --example profile_ap -- 30`
 use glam::DVec3;
@@ -45,14 +48,24 @@ fn main() {
     let t = Instant::now();
     let _ = r.render(&v).unwrap();
     println!("first render: {:.2} ms", t.elapsed().as_secs_f64() * 1e3);
-    let t = Instant::now();
-    let n = 20;
-    for _ in 0..n {
-        std::hint::black_box(r.render(&v).unwrap());
-    }
+    let n: usize = std::env::var("N")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(20)
+        .max(1);
+    let mut times: Vec<f64> = (0..n)
+        .map(|_| {
+            let t = Instant::now();
+            std::hint::black_box(r.render(&v).unwrap());
+            t.elapsed().as_secs_f64() * 1e3
+        })
+        .collect();
+    times.sort_by(f64::total_cmp);
     println!(
-        "θ={theta}: {:.2} ms",
-        t.elapsed().as_secs_f64() * 1e3 / n as f64
+        "θ={theta}: mean {:.2} ms, min {:.2}, median {:.2}",
+        times.iter().sum::<f64>() / n as f64,
+        times[0],
+        times[n / 2]
     );
     if std::env::var_os("COUNT").is_some() {
         count(&mu, &v);

@@ -83,11 +83,6 @@ packet_kernel!("avx2,fma", 4, __m256d, __m256d, {
     }
     #[inline]
     #[target_feature(enable = "avx2,fma")]
-    fn or(a: M, b: M) -> M {
-        _mm256_or_pd(a, b)
-    }
-    #[inline]
-    #[target_feature(enable = "avx2,fma")]
     fn none(m: M) -> bool {
         _mm256_movemask_pd(m) == 0
     }

@@ -3,10 +3,10 @@
 /// The kernel body, instantiated per instruction set. The caller supplies the vector and
 /// mask types, the lane count and the primitives (all `#[inline]` with the set's target
 /// features): `splat`, `zero`, `min`, `max`, `add`, `sub`, `mul`, `fmadd` (a·b + c),
-/// `floor`, `gt`, `le`, `ne` (lane masks), `or` (of masks), `none` (no lane set),
+/// `floor`, `gt`, `le`, `ne` (lane masks), `and` (of masks), `none` (no lane set),
 /// `select` (mask ? a : b), `load`/`store` (from/to `[f64; LANES]`), `gather` (f32
 /// values at f64-valued indices, widened to f64), and for compositions `gather_packed`
-/// (density and material index of packed values), `eq`, `and` and `add_where` (s + w where
+/// (density and material index of packed values), `eq`, `all` and `add_where` (s + w where
 /// the mask is set), and `prefetch` (bring the cache lines of some lanes' voxels towards
 /// L1, through [`prefetch_at`]).
 #[cfg(target_arch = "x86_64")]
@@ -28,12 +28,14 @@ macro_rules! packet_kernel {
         /// prefetchers do not follow for gathers (docs/projector.md, "Against the ≤ 19 ms target").
         const PREFETCH_LAYERS: i64 = 4;
 
-        /// Hints that `field[index]` (clamped into `field`) will be read soon.
+        /// Hints that `field[index]` will be read soon. The callers' indices lie inside
+        /// `field` (indices clamped into the grid); a prefetch never faults in any case,
+        /// so the address is not checked.
         #[inline]
         fn prefetch_at(field: &[f32], index: i32) {
-            let i = (index.max(0) as usize).min(field.len() - 1);
-            // SAFETY: a prefetch of an address inside `field`; it never faults.
-            unsafe { _mm_prefetch::<_MM_HINT_T0>(field.as_ptr().add(i).cast()) };
+            let p = field.as_ptr().wrapping_offset(index as isize);
+            // SAFETY: a prefetch reads nothing architecturally and never faults.
+            unsafe { _mm_prefetch::<_MM_HINT_T0>(p.cast()) };
         }
 
         $($prims)*
@@ -47,6 +49,9 @@ macro_rules! packet_kernel {
             step: V,
             /// max(step, 0): offset from a voxel index to the plane crossed next.
             ahead: V,
+            /// (ahead − g0)·inv, so that the plane after voxel `a` is crossed at
+            /// `a·inv + next` (+∞ where the ray does not move along the axis).
+            next: V,
         }
 
         /// Per-lane constants of a packet of rays.
@@ -85,10 +90,18 @@ macro_rules! packet_kernel {
                 g0: lanes(rays, |r| r.g0[a]),
                 gd: lanes(rays, |r| r.gd[a]),
                 // Lanes that do not move along the axis never use their crossing parameter
-                // (it is selected away), so any finite value will do.
+                // in `cross` (it is selected away), so any finite value will do there; their
+                // next crossing is at +∞.
                 inv: lanes(rays, |r| if r.gd[a] != 0.0 { r.inv[a] } else { 0.0 }),
                 step,
                 ahead: max(step, zero()),
+                next: lanes(rays, |r| {
+                    if r.gd[a] != 0.0 {
+                        (f64::from(r.gd[a] > 0.0) - r.g0[a]) * r.inv[a]
+                    } else {
+                        f64::INFINITY
+                    }
+                }),
             }
         }
 
@@ -113,20 +126,38 @@ macro_rules! packet_kernel {
             (select(moved, t_c, t_b), select(moved, mul(ax.step, o.stride), zero()))
         }
 
-        /// Where a packet stands at a layer's entry plane: the (clamped) parameter and the
-        /// other axes' voxel indices there.
+        /// Where a packet stands at a layer's entry plane: the (clamped) parameter, the
+        /// other axes' voxel indices there, their part of the linear voxel index, and the
+        /// parameter where the ray crosses the next other-axis plane. That parameter only
+        /// chooses the code path of a layer (one segment, or the indices at the layer's
+        /// exit decide); should rounding put it a hair after a crossing that ends a layer,
+        /// a sliver of that size goes to the voxel before the plane, as elsewhere.
         #[derive(Clone, Copy)]
         struct Entry {
             t: V,
             a1: V,
             a2: V,
+            offset: V,
+            t_next: V,
+        }
+
+        #[inline]
+        #[target_feature(enable = $features)]
+        fn entry_at(p: &Packet, o1: &Other, o2: &Other, t: V, a1: V, a2: V) -> Entry {
+            Entry {
+                t,
+                a1,
+                a2,
+                offset: fmadd(a1, o1.stride, mul(a2, o2.stride)),
+                t_next: min(fmadd(a1, p.ax1.inv, p.ax1.next), fmadd(a2, p.ax2.inv, p.ax2.next)),
+            }
         }
 
         #[inline]
         #[target_feature(enable = $features)]
         fn entry(p: &Packet, o1: &Other, o2: &Other, plane: V) -> Entry {
             let t = min(max(mul(sub(plane, p.g0m), p.invm), p.t_in), p.t_out);
-            Entry { t, a1: index_at(&p.ax1, o1, t), a2: index_at(&p.ax2, o2, t) }
+            entry_at(p, o1, o2, t, index_at(&p.ax1, o1, t), index_at(&p.ax2, o2, t))
         }
 
         /// Adds one packet's contribution from the voxel layer entered at `e` and left at
@@ -149,12 +180,11 @@ macro_rules! packet_kernel {
         ) {
             let t_a = e.t;
             let t_b = min(max(mul(sub(p_b, p.g0m), p.invm), p.t_in), p.t_out);
-            let (a1, a2) = (e.a1, e.a2);
-            let (b1, b2) = (index_at(&p.ax1, o1, t_b), index_at(&p.ax2, o2, t_b));
-            let base = fmadd(a1, o1.stride, fmadd(a2, o2.stride, base_m));
-            *e = Entry { t: t_b, a1: b1, a2: b2 };
-            if none(or(ne(b1, a1), ne(b2, a2))) {
-                // No lane leaves its voxel inside this layer: one segment per lane.
+            let base = add(e.offset, base_m);
+            if none(and(gt(t_b, e.t_next), gt(t_b, t_a))) {
+                // No lane reaches another-axis plane inside this layer: one segment per
+                // lane, in the voxel it entered.
+                e.t = t_b;
                 let len = sub(t_b, t_a);
                 if PACKED {
                     let (rho, label) = gather_packed(field, base);
@@ -164,8 +194,12 @@ macro_rules! packet_kernel {
                 }
                 return;
             }
-            // Some lane changes voxel (an index moving against the ray's direction, which
-            // only rounding could cause, counts as no change).
+            // Some lane may change voxel: the indices at the exit decide (an index moving
+            // against the ray's direction, which only rounding could cause, counts as no
+            // change).
+            let (a1, a2) = (e.a1, e.a2);
+            let (b1, b2) = (index_at(&p.ax1, o1, t_b), index_at(&p.ax2, o2, t_b));
+            *e = entry_at(p, o1, o2, t_b, b1, b2);
             let (c1, d1) = cross(&p.ax1, o1, a1, b1, t_a, t_b);
             let (c2, d2) = cross(&p.ax2, o2, a2, b2, t_a, t_b);
             let (ca, cb) = (min(c1, c2), max(c1, c2));
@@ -306,7 +340,7 @@ macro_rules! packet_kernel {
                         for ((p, sum), e) in packets.iter().zip(sums.chunks_mut(slot)).zip(entries.iter_mut()) {
                             // The voxels this packet meets PREFETCH_LAYERS layers on, if it
                             // crosses no other-axis plane until then.
-                            prefetch(field, fmadd(e.a1, oth1.stride, fmadd(e.a2, oth2.stride, base_ahead)));
+                            prefetch(field, add(e.offset, base_ahead));
                             layer::<PACKED>(field, p, &oth1, &oth2, e, p_b, base_m, sum);
                         }
                         if j == last {

@@ -14,14 +14,20 @@
 //! * the layer's entry and exit parameters from its two m-planes, clamped to the ray's
 //!   own `[t_enter, t_exit]` (outside it every length is zero, so rays that start later,
 //!   end sooner or miss the volume add nothing);
-//! * the other axes' voxel indices at both ends from the ray's position there (`floor`),
-//!   clamped into the grid and to one step per layer in the ray's direction;
-//! * each crossing's parameter from its plane, clamped into the layer;
-//! * the voxel values (gathered) times the lengths, summed in f64.
+//! * if no lane's next other-axis crossing (kept from the layer where it last changed
+//!   voxel) falls inside the layer — most layers —, one segment per lane in the voxel
+//!   it entered;
+//! * otherwise the other axes' voxel indices at the exit from the ray's position there
+//!   (`floor`), clamped into the grid and to one step per layer in the ray's direction;
+//!   each crossing's parameter from its plane, clamped into the layer;
+//! * the voxel values (eight scalar loads with AVX-512, a gather with AVX2) times the
+//!   lengths, summed in f64.
 //!
-//! Nothing is carried from layer to layer but the sums. Rounding can only move a sliver
-//! of the order of 1e-16 of a voxel between neighbours, as in the scalar tracer; results
-//! agree with the brute-force reference to 1e-9 relative (`sim/tests/packet.rs`).
+//! Layer to layer a packet carries its sums and where it stands: the entry parameter,
+//! the other axes' indices and the next crossing's parameter, each recomputed from plane
+//! positions wherever a lane changes voxel (never accumulated). Rounding can only move a
+//! sliver of the order of 1e-16 of a voxel between neighbours, as in the scalar tracer;
+//! results agree with the brute-force reference to 1e-9 relative (`sim/tests/packet.rs`).
 //!
 //! Used by [`crate::render::Renderer`] when the CPU has AVX2 and FMA (or AVX-512F) and
 //! the grid has fewer than 2³¹ voxels; packets whose rays disagree on the dominant axis are
