@@ -104,9 +104,10 @@ packet_kernel!("avx2,fma", 4, __m256d, __m256d, {
         unsafe { _mm256_storeu_pd(v.as_mut_ptr(), a) };
         v
     }
+    // Always `vgatherdps`: the scalar-load choice (`LOADS`) was measured for AVX-512 only.
     #[inline]
     #[target_feature(enable = "avx2,fma")]
-    fn gather(mu: &[f32], index: V) -> V {
+    fn gather<const LOADS: bool>(mu: &[f32], index: V) -> V {
         // SAFETY: every index is a sum of clamped in-grid voxel indices times strides,
         // so below mu.len() < 2³¹ (checked by `trace_row`).
         unsafe {

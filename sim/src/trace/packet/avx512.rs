@@ -106,29 +106,23 @@ packet_kernel!("avx512f,avx2,fma", 8, __m512d, __mmask8, {
         unsafe { _mm512_storeu_pd(v.as_mut_ptr(), a) };
         v
     }
-    // Eight scalar loads rather than `vgatherdps`: on the Zen 4 this was measured on, the
-    // loads are faster (AP view of the chest-sized case, one thread: 26.3–26.8 → 24.7–24.9
-    // ms, `profile_ap`; docs/projector.md), as they are on Intel CPUs whose microcode
-    // slows gathers down (the "Downfall" mitigation).
+    // Eight scalar loads (`LOADS`) or one `vgatherdps`: see `super::scalar_voxel_loads`.
     #[inline]
     #[target_feature(enable = "avx512f,avx2,fma")]
-    fn gather(mu: &[f32], index: V) -> V {
-        let mut idx = [0i32; 8];
-        // SAFETY: 8 i32 into a local array of that size; every index is inside `mu`
-        // (indices are clamped into the grid), as for AVX2's gather.
+    fn gather<const LOADS: bool>(mu: &[f32], index: V) -> V {
+        let index = _mm512_cvtpd_epi32(index);
+        // SAFETY: every index is a sum of clamped in-grid voxel indices times strides, so
+        // inside `mu` (as for AVX2's gather); 8 i32 into a local array of that size.
         unsafe {
-            _mm256_storeu_si256(idx.as_mut_ptr().cast(), _mm512_cvtpd_epi32(index));
-            let v = |l: usize| *mu.get_unchecked(idx[l] as usize);
-            _mm512_cvtps_pd(_mm256_setr_ps(
-                v(0),
-                v(1),
-                v(2),
-                v(3),
-                v(4),
-                v(5),
-                v(6),
-                v(7),
-            ))
+            let g = if LOADS {
+                let mut idx = [0i32; 8];
+                _mm256_storeu_si256(idx.as_mut_ptr().cast(), index);
+                let v = |l: usize| *mu.get_unchecked(idx[l] as usize);
+                _mm256_setr_ps(v(0), v(1), v(2), v(3), v(4), v(5), v(6), v(7))
+            } else {
+                _mm256_i32gather_ps::<4>(mu.as_ptr(), index)
+            };
+            _mm512_cvtps_pd(g)
         }
     }
     // Lanes 0, 2, 4, 6: the first column of a 4-row × 2-column tile, one per row (the

@@ -4,8 +4,9 @@
 /// mask types, the lane count and the primitives (all `#[inline]` with the set's target
 /// features): `splat`, `zero`, `min`, `max`, `add`, `sub`, `mul`, `fmadd` (a·b + c),
 /// `floor`, `gt`, `le`, `ne` (lane masks), `and` (of masks), `none` (no lane set),
-/// `select` (mask ? a : b), `load`/`store` (from/to `[f64; LANES]`), `gather` (f32
-/// values at f64-valued indices, widened to f64), and for compositions `gather_packed`
+/// `select` (mask ? a : b), `load`/`store` (from/to `[f64; LANES]`), `gather::<LOADS>` (f32
+/// values at f64-valued indices, widened to f64; `LOADS`: by scalar loads, where the set
+/// offers that choice, see [`super::scalar_voxel_loads`]), and for compositions `gather_packed`
 /// (density and material index of packed values), `eq`, `all` and `add_where` (s + w where
 /// the mask is set), and `prefetch` (bring the cache lines of some lanes' voxels towards
 /// L1, through [`prefetch_at`]).
@@ -168,7 +169,7 @@ macro_rules! packet_kernel {
         #[inline]
         #[target_feature(enable = $features)]
         #[allow(clippy::too_many_arguments)]
-        fn layer<const PACKED: bool>(
+        fn layer<const PACKED: bool, const LOADS: bool>(
             field: &[f32],
             p: &Packet,
             o1: &Other,
@@ -190,7 +191,7 @@ macro_rules! packet_kernel {
                     let (rho, label) = gather_packed(field, base);
                     add_material(sums, label, mul(rho, len));
                 } else {
-                    sums[0] = add(sums[0], mul(gather(field, base), len));
+                    sums[0] = add(sums[0], mul(gather::<LOADS>(field, base), len));
                 }
                 return;
             }
@@ -220,9 +221,9 @@ macro_rules! packet_kernel {
                     add_material(sums, m2, w2);
                 }
             } else {
-                let v = mul(gather(field, base), l0);
-                let v = fmadd(gather(field, va), l1, v);
-                sums[0] = add(sums[0], fmadd(gather(field, vb), l2, v));
+                let v = mul(gather::<LOADS>(field, base), l0);
+                let v = fmadd(gather::<LOADS>(field, va), l1, v);
+                sums[0] = add(sums[0], fmadd(gather::<LOADS>(field, vb), l2, v));
             }
         }
 
@@ -260,7 +261,7 @@ macro_rules! packet_kernel {
 
         /// Traces a row: `k` sums per ray into `out[n·k..(n+1)·k]` (see [`layer`]).
         #[target_feature(enable = $features)]
-        pub(super) fn trace_row<const PACKED: bool>(
+        pub(super) fn trace_row<const PACKED: bool, const LOADS: bool>(
             field: &[f32],
             dims: [usize; 3],
             rays: &[Option<GridRay>],
@@ -341,7 +342,7 @@ macro_rules! packet_kernel {
                             // The voxels this packet meets PREFETCH_LAYERS layers on, if it
                             // crosses no other-axis plane until then.
                             prefetch(field, add(e.offset, base_ahead));
-                            layer::<PACKED>(field, p, &oth1, &oth2, e, p_b, base_m, sum);
+                            layer::<PACKED, LOADS>(field, p, &oth1, &oth2, e, p_b, base_m, sum);
                         }
                         if j == last {
                             break;

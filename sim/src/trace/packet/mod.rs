@@ -20,7 +20,7 @@
 //! * otherwise the other axes' voxel indices at the exit from the ray's position there
 //!   (`floor`), clamped into the grid and to one step per layer in the ray's direction;
 //!   each crossing's parameter from its plane, clamped into the layer;
-//! * the voxel values (eight scalar loads with AVX-512, a gather with AVX2) times the
+//! * the voxel values (a gather, or eight scalar loads: [`scalar_voxel_loads`]) times the
 //!   lengths, summed in f64.
 //!
 //! Layer to layer a packet carries its sums and where it stands: the entry parameter,
@@ -192,12 +192,16 @@ fn dispatch<const PACKED: bool>(
     #[cfg(target_arch = "x86_64")]
     // SAFETY: the kernel's CPU features were detected (`supported`).
     unsafe {
-        match kernel {
-            Kernel::Avx512 => {
-                avx512::trace_row::<PACKED>(field, dims, rays, min_crossings, k, out, handled)
+        let (f, r) = (field, rays);
+        match (kernel, scalar_voxel_loads()) {
+            (Kernel::Avx512, true) => {
+                avx512::trace_row::<PACKED, true>(f, dims, r, min_crossings, k, out, handled)
             }
-            Kernel::Avx2 => {
-                avx2::trace_row::<PACKED>(field, dims, rays, min_crossings, k, out, handled)
+            (Kernel::Avx512, false) => {
+                avx512::trace_row::<PACKED, false>(f, dims, r, min_crossings, k, out, handled)
+            }
+            (Kernel::Avx2, _) => {
+                avx2::trace_row::<PACKED, false>(f, dims, r, min_crossings, k, out, handled)
             }
         }
     }
@@ -261,6 +265,39 @@ pub fn kernel() -> Option<Kernel> {
     }
 }
 
+/// Whether the AVX-512 kernel reads a packet's eight voxel values with eight scalar loads
+/// rather than one `vgatherdps`. Measured on an AMD Zen 4 (EPYC), the loads are faster
+/// (chest-sized AP view, `profile_ap`: docs/projector.md, "Voxel loads"), so they are the
+/// default on AMD CPUs; elsewhere the gather stays, as measured in earlier sessions on an
+/// Intel Xeon. `TG_VOXEL_LOADS=scalar` or `=gather` overrides the choice (read once), for
+/// measuring other CPUs; the values read, and so the results, are the same either way.
+pub fn scalar_voxel_loads() -> bool {
+    static SCALAR: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
+    *SCALAR.get_or_init(|| match std::env::var("TG_VOXEL_LOADS").as_deref() {
+        Ok("scalar") => true,
+        Ok("gather") => false,
+        _ => cpu_is_amd(),
+    })
+}
+
+fn cpu_is_amd() -> bool {
+    #[cfg(target_arch = "x86_64")]
+    {
+        // cpuid leaf 0 exists on every x86-64 CPU.
+        let id = std::arch::x86_64::__cpuid(0);
+        // The vendor string "AuthenticAMD" is held in ebx, edx, ecx.
+        let vendor: Vec<u8> = [id.ebx, id.edx, id.ecx]
+            .iter()
+            .flat_map(|r| r.to_le_bytes())
+            .collect();
+        vendor == b"AuthenticAMD"
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        false
+    }
+}
+
 /// The dominant axis and direction shared by a packet's rays, if they share one and
 /// cross at least `threshold` other-axis planes per layer.
 fn packet_key(rays: &[Option<GridRay>], threshold: f64) -> Option<(usize, bool)> {
@@ -288,3 +325,62 @@ mod avx2;
 /// Eight lanes of f64 (AVX-512F; its masks are bit masks).
 #[cfg(target_arch = "x86_64")]
 mod avx512;
+
+#[cfg(all(test, target_arch = "x86_64"))]
+mod tests {
+    use super::*;
+    use crate::ray::GridBox;
+    use rand::{Rng, SeedableRng};
+
+    /// The AVX-512 kernel's two ways of reading voxels give the same bits (both read the
+    /// same f32 values), on random rows of rays through a random grid.
+    #[test]
+    fn scalar_loads_equal_the_gather() {
+        if kernel() != Some(Kernel::Avx512) {
+            eprintln!("no AVX-512 on this CPU: nothing to compare");
+            return;
+        }
+        let mut r = rand_chacha::ChaCha8Rng::seed_from_u64(40);
+        let dims = [37, 29, 23];
+        let mu: Vec<f32> = (0..dims.iter().product::<usize>())
+            .map(|_| r.random_range(0.0..0.05))
+            .collect();
+        let mut traced = 0;
+        for _ in 0..50 {
+            let m = r.random_range(0..3);
+            let rays: Vec<Option<GridRay>> = (0..64)
+                .map(|_| {
+                    let mut g0 = [0.0; 3];
+                    let mut gd = [0.0; 3];
+                    for a in 0..3 {
+                        g0[a] = r.random_range(-5.0..dims[a] as f64 + 5.0);
+                        gd[a] = r.random_range(-0.9..0.9);
+                    }
+                    gd[m] = 1.0;
+                    g0[m] = -10.0;
+                    GridRay::clip_box(&GridBox::whole(dims), g0, gd, 0.0, 100.0)
+                })
+                .collect();
+            let n = rays.len();
+            let (mut a, mut b) = (vec![0.0; n], vec![0.0; n]);
+            let (mut ha, mut hb) = (vec![false; n], vec![false; n]);
+            // SAFETY: AVX-512F was detected above.
+            unsafe {
+                avx512::trace_row::<false, true>(&mu, dims, &rays, 0.0, 1, &mut a, &mut ha);
+                avx512::trace_row::<false, false>(&mu, dims, &rays, 0.0, 1, &mut b, &mut hb);
+            }
+            assert_eq!(ha, hb);
+            for i in 0..n {
+                assert_eq!(
+                    a[i].to_bits(),
+                    b[i].to_bits(),
+                    "ray {i}: {} vs {}",
+                    a[i],
+                    b[i]
+                );
+            }
+            traced += ha.iter().filter(|&&h| h).count();
+        }
+        assert!(traced > 1000, "only {traced} rays traced");
+    }
+}
