@@ -9,6 +9,7 @@ mod common;
 use common::*;
 use glam::DVec3;
 use rand::Rng;
+use rand_chacha::ChaCha8Rng;
 use tomograf_sim::trace::packet;
 use tomograf_sim::{Beam, Detector, Geometry, GridRay, Pose, Ray, Volume};
 
@@ -32,6 +33,32 @@ fn check_group(vol: &Volume, rays: &[Ray; 4]) -> bool {
         }
     }
     used
+}
+
+/// Four rays whose grid direction is ±1 along a random axis m: through a grid point whose
+/// coordinate and direction component along each axis `point` draws (m's component is
+/// then replaced by the shared ±1), from `back` to `ahead` times the direction on either
+/// side of it (`length` draws both).
+fn group_along(
+    r: &mut ChaCha8Rng,
+    vol: &Volume,
+    mut point: impl FnMut(&mut ChaCha8Rng, usize) -> (f64, f64),
+    mut length: impl FnMut(&mut ChaCha8Rng) -> (f64, f64),
+) -> [Ray; 4] {
+    let m = r.random_range(0..3);
+    let sign = if r.random_bool(0.5) { 1.0 } else { -1.0 };
+    std::array::from_fn(|_| {
+        let (mut g, mut dir) = (DVec3::ZERO, DVec3::ZERO);
+        for a in 0..3 {
+            (g[a], dir[a]) = point(r, a);
+        }
+        dir[m] = sign;
+        let (back, ahead) = length(r);
+        Ray::segment(
+            grid_to_world(vol, g - back * dir),
+            grid_to_world(vol, g + ahead * dir),
+        )
+    })
 }
 
 #[test]
@@ -95,20 +122,17 @@ fn random_groups_with_mixed_slopes_and_misses() {
         for _ in 0..40 {
             // Rays mostly along grid axis m, each other component of either sign; some
             // start inside, some miss.
-            let m = r.random_range(0..3);
-            let sign = if r.random_bool(0.5) { 1.0 } else { -1.0 };
-            let rays: [Ray; 4] = std::array::from_fn(|_| {
-                let mut g = [0.0; 3];
-                let mut dir = [0.0; 3];
-                for a in 0..3 {
-                    g[a] = r.random_range(-3.0..d[a] as f64 + 3.0);
-                    dir[a] = r.random_range(-0.9..0.9);
-                }
-                dir[m] = sign;
-                let from = DVec3::from(g) - 40.0 * DVec3::from(dir);
-                let to = DVec3::from(g) + r.random_range(0.0..40.0) * DVec3::from(dir);
-                Ray::segment(grid_to_world(&vol, from), grid_to_world(&vol, to))
-            });
+            let rays = group_along(
+                &mut r,
+                &vol,
+                |r, a| {
+                    (
+                        r.random_range(-3.0..d[a] as f64 + 3.0),
+                        r.random_range(-0.9..0.9),
+                    )
+                },
+                |r| (40.0, r.random_range(0.0..40.0)),
+            );
             used += check_group(&vol, &rays) as usize;
         }
     }
@@ -140,21 +164,14 @@ fn degenerate_groups_match_reference() {
         let dims = [7 + case, 9, 6 + 2 * case];
         let vol = random_volume(&mut r, dims, false);
         for _ in 0..150 {
-            let m = r.random_range(0..3);
-            let sign = if r.random_bool(0.5) { 1.0 } else { -1.0 };
-            let rays: [Ray; 4] = std::array::from_fn(|_| {
-                let mut g = [0.0; 3];
-                let mut dir = [0.0; 3];
-                for a in 0..3 {
-                    // Grid points (corners, edges, faces), some half a voxel off.
-                    g[a] = r.random_range(0..=dims[a]) as f64
-                        + if r.random_bool(0.2) { 0.5 } else { 0.0 };
-                    dir[a] = slopes[r.random_range(0..slopes.len())];
-                }
-                dir[m] = sign;
-                let from = DVec3::from(g) - r.random_range(0.0..30.0) * DVec3::from(dir);
-                let to = DVec3::from(g) + r.random_range(0.0..30.0) * DVec3::from(dir);
-                Ray::segment(grid_to_world(&vol, from), grid_to_world(&vol, to))
+            // Through grid points (corners, edges, faces), some half a voxel off.
+            let point = |r: &mut ChaCha8Rng, a: usize| {
+                let g =
+                    r.random_range(0..=dims[a]) as f64 + if r.random_bool(0.2) { 0.5 } else { 0.0 };
+                (g, slopes[r.random_range(0..slopes.len())])
+            };
+            let rays = group_along(&mut r, &vol, point, |r| {
+                (r.random_range(0.0..30.0), r.random_range(0.0..30.0))
             });
             used += check_group(&vol, &rays) as usize;
         }
