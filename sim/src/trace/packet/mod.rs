@@ -267,10 +267,11 @@ pub fn kernel() -> Option<Kernel> {
 
 /// Whether the AVX-512 kernel reads a packet's eight voxel values with eight scalar loads
 /// rather than one `vgatherdps`. Measured on an AMD Zen 4 (EPYC), the loads are faster
-/// (chest-sized AP view, `profile_ap`: docs/projector.md, "Voxel loads"), so they are the
-/// default on AMD CPUs; elsewhere the gather stays, as measured in earlier sessions on an
-/// Intel Xeon. `TG_VOXEL_LOADS=scalar` or `=gather` overrides the choice (read once), for
-/// measuring other CPUs; the values read, and so the results, are the same either way.
+/// (chest-sized AP view, `profile_ap`: docs/projector.md, "Session 10"), so they are the
+/// default on AMD CPUs; elsewhere the gather stays, since the loads were not measured on
+/// other CPUs. `TG_VOXEL_LOADS=scalar` or `=gather` overrides the choice (read once; any
+/// other value keeps the default), for measuring other CPUs; the values read, and so the
+/// results, are the same either way.
 pub fn scalar_voxel_loads() -> bool {
     static SCALAR: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
     *SCALAR.get_or_init(|| match std::env::var("TG_VOXEL_LOADS").as_deref() {
