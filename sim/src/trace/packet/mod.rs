@@ -286,12 +286,9 @@ fn cpu_is_amd() -> bool {
     {
         // cpuid leaf 0 exists on every x86-64 CPU.
         let id = std::arch::x86_64::__cpuid(0);
-        // The vendor string "AuthenticAMD" is held in ebx, edx, ecx.
-        let vendor: Vec<u8> = [id.ebx, id.edx, id.ecx]
-            .iter()
-            .flat_map(|r| r.to_le_bytes())
-            .collect();
-        vendor == b"AuthenticAMD"
+        // The vendor string "AuthenticAMD", four bytes each in ebx, edx, ecx.
+        let word = |s: &[u8; 4]| u32::from_le_bytes(*s);
+        [id.ebx, id.edx, id.ecx] == [word(b"Auth"), word(b"enti"), word(b"cAMD")]
     }
     #[cfg(not(target_arch = "x86_64"))]
     {
