@@ -32,6 +32,10 @@ pub struct BenchArgs {
     /// `--out docs/physics-benchmarks.md`).
     #[arg(long)]
     pub physics: bool,
+    /// Measure TomoGRAF's training and inference iterations instead (e.g. with
+    /// `--out docs/model-benchmarks.md`).
+    #[arg(long)]
+    pub model: bool,
     /// Only the empty-space skipping and mesh sections (docs/benchmarks.md, docs/meshes.md).
     #[arg(long)]
     pub accel_only: bool,
@@ -110,20 +114,33 @@ fn rms_rel(a: &Projection, reference: &Projection) -> (f64, f64) {
     ((sq / n as f64).sqrt(), max)
 }
 
-pub fn run(args: BenchArgs) -> Result<()> {
-    if args.physics {
-        let md = crate::bench_physics::section(args.quick, args.repeats)?;
-        return write_page("Physics benchmarks", &md, args.out.as_deref());
-    }
-    let threads = rayon::current_num_threads();
-    let cpu = std::fs::read_to_string("/proc/cpuinfo")
+/// The CPU's model name from /proc/cpuinfo.
+pub(crate) fn cpu_model() -> String {
+    std::fs::read_to_string("/proc/cpuinfo")
         .ok()
         .and_then(|s| {
             s.lines()
                 .find(|l| l.starts_with("model name"))
                 .map(|l| l.split(':').nth(1).unwrap_or("").trim().to_string())
         })
-        .unwrap_or_else(|| "unknown CPU".into());
+        .unwrap_or_else(|| "unknown CPU".into())
+}
+
+pub fn run(args: BenchArgs) -> Result<()> {
+    if args.physics {
+        let md = crate::bench_physics::section(args.quick, args.repeats)?;
+        return write_page("Physics benchmarks", &md, args.out.as_deref());
+    }
+    let threads = rayon::current_num_threads();
+    let cpu = cpu_model();
+    if args.model {
+        let md = format!(
+            "Measured by `tomograf bench --model{}` on {cpu}, {threads} threads.\n\n{}",
+            if args.quick { " --quick" } else { "" },
+            crate::bench_model::section(args.quick, args.repeats)?
+        );
+        return write_page("Model benchmarks", &md, args.out.as_deref());
+    }
     let mut md = String::new();
     writeln!(
         md,

@@ -17,10 +17,11 @@ use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 use tomograf_datasets::atomic::write_atomic;
-use tomograf_model::baseline::{Baseline, Fdk, SartTv};
+use tomograf_model::baseline::{Baseline, Fdk, MeanVolume, SartTv};
 use tomograf_model::config::Tune;
 use tomograf_model::data::Item;
 use tomograf_model::metrics::{mean_std, psnr, rmse, ssim3d};
+use tomograf_model::pca::PcaMap;
 use tomograf_model::{backend, checkpoint, data};
 use tomograf_sim::Volume;
 
@@ -67,29 +68,57 @@ pub struct EvaluateArgs {
     /// does in its model cells; it scores the baselines once per test set).
     #[arg(long, requires = "checkpoint")]
     pub no_baselines: bool,
+    /// The model's training data set (a `tomograf dataset` folder with CTs): also score the
+    /// linear statistical prior built from its volumes (PCA-MAP: mean + principal
+    /// components, coefficients fitted to the views).
+    #[arg(long)]
+    pub train_data: Option<PathBuf>,
+    /// The PCA-MAP prior's assumed projection noise, as a fraction of the largest training
+    /// line integral.
+    #[arg(long, default_value_t = DEFAULT_PCA_NOISE)]
+    pub pca_noise: f64,
     /// Score nothing: combine the finished items' scores under --output into results.md
     /// and results.csv (errors naming the items still missing).
     #[arg(long)]
     pub merge: bool,
 }
 
-/// Metrics of one reconstruction.
+/// The PCA-MAP prior's default projection noise (fraction of the largest line integral).
+pub const DEFAULT_PCA_NOISE: f64 = 0.01;
+
+/// Metrics of one reconstruction: over the whole volume, and inside the body (voxels whose
+/// ground truth is above −900 HU; SSIM over the windows centred there), since air
+/// dominates whole-volume figures. Body figures are NaN in score files written before they
+/// existed.
 #[derive(Debug, Clone, Copy)]
 pub struct Scores {
     pub psnr: f64,
     pub ssim: f64,
     pub rmse_hu: f64,
+    pub body_psnr: f64,
+    pub body_ssim: f64,
+    pub body_rmse_hu: f64,
 }
+
+/// The body mask's threshold, HU.
+pub const BODY_HU: f32 = -900.0;
 
 pub fn score(item: &Item, volume: &Volume) -> Result<Scores> {
     let gt = item.ct.as_ref().context("item has no ground-truth CT")?;
     let width = f64::from(item.window.hi - item.window.lo);
     // The model's density is unbounded above; the ground truth is clamped to [0, 1].
     let v: Vec<f32> = volume.data().iter().map(|x| x.clamp(0.0, 1.0)).collect();
+    let body = (BODY_HU - item.window.lo) / (item.window.hi - item.window.lo);
+    let mask: Vec<bool> = gt.data().iter().map(|&x| x > body).collect();
+    let body_rmse = tomograf_model::metrics::rmse_in(&v, gt.data(), &mask)
+        .context("the ground truth has no voxel above −900 HU (no body to score)")?;
     Ok(Scores {
         psnr: psnr(&v, gt.data(), 1.0)?,
         ssim: ssim3d(&v, gt.data(), gt.dims(), 1.0)?,
         rmse_hu: rmse(&v, gt.data())? * width,
+        body_psnr: -20.0 * body_rmse.log10(),
+        body_ssim: tomograf_model::metrics::ssim3d_in(&v, gt.data(), gt.dims(), 1.0, Some(&mask))?,
+        body_rmse_hu: body_rmse * width,
     })
 }
 
@@ -125,6 +154,9 @@ pub struct Job {
     /// Inference stopping threshold, dB (absent in folders written before it existed).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub psnr_threshold: Option<f64>,
+    /// The PCA-MAP prior's training set and noise, when it is scored.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub pca: Option<(PathBuf, f64)>,
 }
 
 /// One score: an item, a view count, a method.
@@ -138,11 +170,13 @@ pub struct Row {
     pub seconds: f64,
 }
 
-const ITEM_HEADER: &str = "item,views,method,psnr_db,ssim,rmse_hu,iterations,seconds";
+const ITEM_HEADER: &str =
+    "item,views,method,psnr_db,ssim,rmse_hu,iterations,seconds,body_psnr_db,body_ssim,body_rmse_hu";
 
 impl PartialEq for Scores {
     fn eq(&self, o: &Self) -> bool {
-        (self.psnr, self.ssim, self.rmse_hu) == (o.psnr, o.ssim, o.rmse_hu)
+        let body = |s: &Self| [s.body_psnr, s.body_ssim, s.body_rmse_hu].map(f64::to_bits);
+        (self.psnr, self.ssim, self.rmse_hu) == (o.psnr, o.ssim, o.rmse_hu) && body(self) == body(o)
     }
 }
 
@@ -150,6 +184,8 @@ impl PartialEq for Scores {
 pub struct Evaluation<'a> {
     pub data: &'a Path,
     pub checkpoint: Option<&'a Path>,
+    /// The training set: also score the PCA-MAP prior built from its CTs.
+    pub train_data: Option<&'a Path>,
     pub output: &'a Path,
     pub views: &'a [usize],
     pub split: Option<&'a str>,
@@ -160,6 +196,8 @@ pub struct Evaluation<'a> {
     pub seed: u64,
     pub backend: Option<&'a str>,
     pub shard: (usize, usize),
+    /// The PCA-MAP prior's noise (with `train_data`).
+    pub pca_noise: f64,
     /// Also score FDK and SART-TV.
     pub classical: bool,
     /// Show inference progress bars.
@@ -181,6 +219,7 @@ pub fn run(args: EvaluateArgs) -> Result<()> {
     let e = Evaluation {
         data: &args.data,
         checkpoint: args.checkpoint.as_deref(),
+        train_data: args.train_data.as_deref(),
         output: &args.output,
         views: &args.views,
         split: args.split.as_deref(),
@@ -191,6 +230,7 @@ pub fn run(args: EvaluateArgs) -> Result<()> {
         seed: args.seed,
         backend: args.backend.as_deref(),
         shard,
+        pca_noise: args.pca_noise,
         classical: !args.no_baselines,
         show: true,
     };
@@ -232,6 +272,7 @@ pub fn evaluate(e: &Evaluation) -> Result<usize> {
         iterations: e.iterations,
         tune: e.tune,
         psnr_threshold: e.psnr_threshold,
+        pca: e.train_data.map(|p| (p.to_path_buf(), e.pca_noise)),
     };
     if !job.model && !job.classical {
         bail!("nothing to evaluate: give a checkpoint or score the classical baselines");
@@ -241,19 +282,36 @@ pub fn evaluate(e: &Evaluation) -> Result<usize> {
     check_job(e.output, &job)?;
     let model = match e.checkpoint {
         Some(ck) => {
-            let (config, _, _) = checkpoint::load_generator(ck, &device)
+            let generator = checkpoint::load_generator(ck, &device)
                 .with_context(|| format!("checkpoint {}", ck.display()))?;
-            let infer = config
-                .infer
-                .overridden(e.tune, e.iterations, e.psnr_threshold)?;
+            let infer =
+                generator
+                    .config
+                    .infer
+                    .overridden(e.tune, e.iterations, e.psnr_threshold)?;
             let mean = checkpoint::load_mean(ck)?
                 .context("the checkpoint has no mean_volume.npy (written by `tomograf train`)")?;
             Some((ck, infer, mean))
         }
         None => None,
     };
+    let pca = match e.train_data {
+        Some(dir) => {
+            let train = data::load_dataset(dir, None)
+                .with_context(|| format!("the PCA prior's training set {}", dir.display()))?;
+            let cts: Vec<&Volume> = train.iter().filter_map(|i| i.ct.as_ref()).collect();
+            // The model's projection scale when there is one, so both read noise alike.
+            let scale = match e.checkpoint {
+                Some(ck) => checkpoint::load_generator(ck, &device)?.state.proj_scale,
+                None => tomograf_model::train::projection_scale(&train)?,
+            };
+            eprintln!("PCA prior from {} training volumes", cts.len());
+            Some(PcaMap::from_volumes(&cts, e.pca_noise, scale)?)
+        }
+        None => None,
+    };
     let classical: Vec<Box<dyn Baseline>> = if e.classical {
-        vec![Box::new(Fdk), Box::new(SartTv)]
+        vec![Box::new(Fdk), Box::new(SartTv::FROM_ZERO)]
     } else {
         Vec::new()
     };
@@ -291,18 +349,28 @@ pub fn evaluate(e: &Evaluation) -> Result<usize> {
                     seconds,
                 });
                 volumes.push(rec.volume);
-                let v = mean.reconstruct(&refs, grid, &item.scale)?;
-                rows.push(Row {
-                    item: item.id.clone(),
-                    views: count,
-                    method: mean.name().into(),
-                    scores: score(item, &v)?,
-                    iterations: 0,
-                    seconds: 0.0,
-                });
-                volumes.push(v);
+                // Baselines that use the same training population as the model.
+                let sart = SartTv::from_mean(MeanVolume::clone(mean));
+                let priors: [&dyn Baseline; 2] = [mean, &sart];
+                for b in priors {
+                    let t0 = Instant::now();
+                    let v = b.reconstruct(&refs, grid, &item.scale)?;
+                    rows.push(Row {
+                        item: item.id.clone(),
+                        views: count,
+                        method: b.name().into(),
+                        scores: score(item, &v)?,
+                        iterations: 0,
+                        seconds: t0.elapsed().as_secs_f64(),
+                    });
+                    volumes.push(v);
+                }
             }
-            for b in &classical {
+            for b in pca
+                .iter()
+                .map(|p| p as &dyn Baseline)
+                .chain(classical.iter().map(|b| b.as_ref()))
+            {
                 let t0 = Instant::now();
                 let v = b.reconstruct(&refs, grid, &item.scale)?;
                 rows.push(Row {
@@ -359,7 +427,7 @@ fn write_rows(path: &Path, rows: &[Row]) -> Result<()> {
     for r in rows {
         let _ = writeln!(
             text,
-            "{},{},{},{:.6},{:.6},{:.4},{},{:.3}",
+            "{},{},{},{:.6},{:.6},{:.4},{},{:.3},{:.6},{:.6},{:.4}",
             r.item,
             r.views,
             r.method,
@@ -367,7 +435,10 @@ fn write_rows(path: &Path, rows: &[Row]) -> Result<()> {
             r.scores.ssim,
             r.scores.rmse_hu,
             r.iterations,
-            r.seconds
+            r.seconds,
+            r.scores.body_psnr,
+            r.scores.body_ssim,
+            r.scores.body_rmse_hu
         );
     }
     write_atomic(path, |w| std::io::Write::write_all(w, text.as_bytes()))?;
@@ -381,10 +452,11 @@ fn parse_rows(path: &Path) -> Result<Vec<Row>> {
     for (n, line) in text.lines().enumerate().skip(1) {
         let bad = || anyhow::anyhow!("{} line {}: not a score row", path.display(), n + 1);
         let f: Vec<&str> = line.split(',').collect();
-        if f.len() != 8 {
+        if f.len() != 8 && f.len() != 11 {
             return Err(bad());
         }
         let num = |i: usize| f[i].parse::<f64>().map_err(|_| bad());
+        let body = |i: usize| if f.len() == 11 { num(i) } else { Ok(f64::NAN) };
         rows.push(Row {
             item: f[0].into(),
             views: f[1].parse().map_err(|_| bad())?,
@@ -393,6 +465,9 @@ fn parse_rows(path: &Path) -> Result<Vec<Row>> {
                 psnr: num(3)?,
                 ssim: num(4)?,
                 rmse_hu: num(5)?,
+                body_psnr: body(8)?,
+                body_ssim: body(9)?,
+                body_rmse_hu: body(10)?,
             },
             iterations: f[6].parse().map_err(|_| bad())?,
             seconds: num(7)?,
@@ -459,7 +534,7 @@ pub fn merge(output: &Path, partial: bool) -> Result<(String, Vec<Row>)> {
     for r in &rows {
         let _ = writeln!(
             csv,
-            "{},{},{},{:.4},{:.5},{:.2},{},{:.2}",
+            "{},{},{},{:.4},{:.5},{:.2},{},{:.2},{:.4},{:.5},{:.2}",
             r.item,
             r.views,
             r.method,
@@ -467,22 +542,30 @@ pub fn merge(output: &Path, partial: bool) -> Result<(String, Vec<Row>)> {
             r.scores.ssim,
             r.scores.rmse_hu,
             r.iterations,
-            r.seconds
+            r.seconds,
+            r.scores.body_psnr,
+            r.scores.body_ssim,
+            r.scores.body_rmse_hu
         );
     }
     write_atomic(&output.join("results.csv"), |w| {
         std::io::Write::write_all(w, csv.as_bytes())
     })?;
-    let mut md = "| views | method | PSNR (dB) | SSIM | RMSE (HU) |\n|---:|---|---:|---:|---:|\n"
+    let mut md = "| views | method | PSNR (dB) | SSIM | RMSE (HU) | body PSNR (dB) | body SSIM | \
+                  body RMSE (HU) |\n|---:|---|---:|---:|---:|---:|---:|---:|\n"
         .to_string();
     for (v, m, s) in summarise(&rows) {
         let f = |g: fn(&Scores) -> f64| mean_std(&s.iter().map(g).collect::<Vec<_>>());
         let (p, ps) = f(|s| s.psnr);
         let (q, qs) = f(|s| s.ssim);
         let (r, rs) = f(|s| s.rmse_hu);
+        let (bp, bps) = f(|s| s.body_psnr);
+        let (bq, bqs) = f(|s| s.body_ssim);
+        let (br, brs) = f(|s| s.body_rmse_hu);
         let _ = writeln!(
             md,
-            "| {v} | {m} | {p:.2} ± {ps:.2} | {q:.3} ± {qs:.3} | {r:.1} ± {rs:.1} |"
+            "| {v} | {m} | {p:.2} ± {ps:.2} | {q:.3} ± {qs:.3} | {r:.1} ± {rs:.1} | \
+             {bp:.2} ± {bps:.2} | {bq:.3} ± {bqs:.3} | {br:.1} ± {brs:.1} |"
         );
     }
     let model: Vec<&Row> = rows.iter().filter(|r| r.method == "TomoGRAF").collect();

@@ -9,7 +9,7 @@ use anyhow::{Context, Result};
 use plotters::prelude::*;
 use std::path::{Path, PathBuf};
 use tomograf_model::data::Item;
-use tomograf_sim::{Projection, Volume};
+use tomograf_sim::Volume;
 
 /// Series colours, in order.
 const COLOURS: [RGBColor; 8] = [
@@ -53,7 +53,8 @@ fn slices(v: &Volume) -> [Vec<f32>; 3] {
 }
 
 /// `<stem>_slices.png` (rows: axial, coronal, sagittal; columns: ground truth, each of
-/// `recons` in order, |first − truth| × 4; normalised units, window [0, 1]) and
+/// `recons` in order, |first − truth| × 4; titled columns and a grey scale in HU over the
+/// item's window) and
 /// `<stem>_profile.png` (the row through the centre of the axial slice: truth, then
 /// `recons` named by `names`, coloured as [`COLOUR_NAMES`]). Volumes that are not cubes
 /// are skipped.
@@ -85,29 +86,19 @@ pub fn slices_and_profile(
     columns.extend(recons.iter().copied());
     columns.push(&residual);
     let cols: Vec<[Vec<f32>; 3]> = columns.iter().map(|v| slices(v)).collect();
-    let gap = 2;
-    let k = cols.len();
-    let (w, h) = (k * n + (k - 1) * gap, 3 * n + 2 * gap);
-    let mut img = vec![1.0f32; w * h];
-    for (c, s) in cols.iter().enumerate() {
-        for (r, tile) in s.iter().enumerate() {
-            for y in 0..n {
-                for x in 0..n {
-                    img[(r * (n + gap) + y) * w + c * (n + gap) + x] =
-                        tile[y * n + x].clamp(0.0, 1.0);
-                }
-            }
-        }
-    }
-    let p = Projection {
-        rows: h,
-        cols: w,
-        data: img,
-    };
-    tomograf_datasets::image::write_png(
+    let mut titles = vec!["truth".to_string()];
+    titles.extend(names.iter().map(|n| n.to_string()));
+    titles.push(format!(
+        "|{} − truth| × 4",
+        names.first().copied().unwrap_or("")
+    ));
+    draw_slices(
         &PathBuf::from(format!("{}_slices.png", stem.display())),
-        &p,
-        (0.0, 1.0),
+        &format!("Item {}: orthogonal mid-slices", item.id),
+        &titles,
+        &cols,
+        n,
+        (item.window.lo, item.window.hi),
     )?;
     let line = |v: &Volume| -> Vec<(f64, f64)> {
         let s = &slices(v)[0];
@@ -136,6 +127,80 @@ pub struct Axes<'a> {
     pub title: &'a str,
     pub x: &'a str,
     pub y: &'a str,
+}
+
+/// A grid of slice tiles (`cols[c][r]`, `n × n`, values in [0, 1] = the HU window) with a
+/// title, column titles, row labels and a grey-scale bar in HU; tiles drawn 3× enlarged.
+fn draw_slices(
+    path: &Path,
+    title: &str,
+    titles: &[String],
+    cols: &[[Vec<f32>; 3]],
+    n: usize,
+    window_hu: (f32, f32),
+) -> Result<()> {
+    font()?;
+    let plot_err = |e: &dyn std::fmt::Display| anyhow::anyhow!("plot {}: {e}", path.display());
+    let zoom = (192 / n.max(1)).max(1);
+    let tile = n * zoom;
+    let (gap, left, top, bar) = (8usize, 80usize, 56usize, 90usize);
+    let w = left + cols.len() * (tile + gap) + bar;
+    let h = top + 3 * (tile + gap) + 10;
+    let root = BitMapBackend::new(path, (w as u32, h as u32)).into_drawing_area();
+    root.fill(&WHITE).map_err(|e| plot_err(&e))?;
+    let text = |size: u32| ("sans-serif", size).into_font().color(&BLACK);
+    root.draw_text(title, &text(18), (left as i32, 8))
+        .map_err(|e| plot_err(&e))?;
+    let grey = |v: f32| {
+        let g = (v.clamp(0.0, 1.0) * 255.0).round() as u8;
+        RGBColor(g, g, g)
+    };
+    for (c, col) in cols.iter().enumerate() {
+        let x0 = left + c * (tile + gap);
+        let mut t = titles.get(c).cloned().unwrap_or_default();
+        if t.chars().count() > 26 {
+            t = t.chars().take(25).collect::<String>() + "…";
+        }
+        root.draw_text(&t, &text(13), (x0 as i32, (top - 20) as i32))
+            .map_err(|e| plot_err(&e))?;
+        for (r, slice) in col.iter().enumerate() {
+            let y0 = top + r * (tile + gap);
+            for y in 0..tile {
+                for x in 0..tile {
+                    let v = slice[(y / zoom) * n + x / zoom];
+                    root.draw_pixel(((x0 + x) as i32, (y0 + y) as i32), &grey(v))
+                        .map_err(|e| plot_err(&e))?;
+                }
+            }
+        }
+    }
+    for (r, name) in ["axial", "coronal", "sagittal"].iter().enumerate() {
+        let y = top + r * (tile + gap) + tile / 2;
+        root.draw_text(name, &text(14), (8, y as i32))
+            .map_err(|e| plot_err(&e))?;
+    }
+    // The grey scale: the HU window from bottom to top (the residual column reads × 4).
+    let bx = (left + cols.len() * (tile + gap) + 10) as i32;
+    let (by0, by1) = (top as i32, (top + 3 * tile + 2 * gap) as i32);
+    for y in by0..by1 {
+        let v = 1.0 - (y - by0) as f32 / (by1 - by0 - 1).max(1) as f32;
+        for x in bx..bx + 16 {
+            root.draw_pixel((x, y), &grey(v))
+                .map_err(|e| plot_err(&e))?;
+        }
+    }
+    let (lo, hi) = window_hu;
+    for k in 0..=4 {
+        let f = k as f32 / 4.0;
+        let y = by1 - 1 - ((by1 - by0 - 1) as f32 * f) as i32;
+        let label = format!("{:.0}", lo + f * (hi - lo));
+        root.draw_text(&label, &text(12), (bx + 20, y - 6))
+            .map_err(|e| plot_err(&e))?;
+    }
+    root.draw_text("HU", &text(13), (bx, by0 - 20))
+        .map_err(|e| plot_err(&e))?;
+    root.present().map_err(|e| plot_err(&e))?;
+    Ok(())
 }
 
 /// Registers the shipped font once (plotters looks fonts up by family name).

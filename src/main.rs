@@ -2,6 +2,7 @@
 
 mod bench;
 mod bench_accel;
+mod bench_model;
 mod bench_physics;
 mod dataset;
 mod demo;

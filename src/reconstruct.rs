@@ -92,9 +92,9 @@ pub fn run_one(
     device: &tomograf_model::Device,
     show: bool,
 ) -> Result<Reconstruction> {
-    let (config, state, field) = checkpoint::load_generator(ck, device)?;
-    let infer = infer.cloned().unwrap_or(config.infer.clone());
-    if state.density_scale != item.scale {
+    let generator = checkpoint::load_generator(ck, device)?;
+    let infer = infer.cloned().unwrap_or(generator.config.infer.clone());
+    if generator.state.density_scale != item.scale {
         bail!(
             "item {} was made with another HU window or energy than the checkpoint's training data",
             item.id
@@ -122,21 +122,10 @@ pub fn run_one(
         .expect("valid template")
         .progress_chars("=> "),
     );
-    let rec = reconstruct(
-        field,
-        &config,
-        state.proj_scale,
-        &state.density_scale,
-        &refs,
-        &grid,
-        &infer,
-        seed,
-        device,
-        |i, loss| {
-            bar.set_position(i as u64);
-            bar.set_message(format!("loss {loss:.4}"));
-        },
-    )?;
+    let rec = reconstruct(generator, &refs, &grid, &infer, seed, device, |i, loss| {
+        bar.set_position(i as u64);
+        bar.set_message(format!("loss {loss:.4}"));
+    })?;
     bar.finish_and_clear();
     Ok(rec)
 }
@@ -158,10 +147,12 @@ pub fn run(args: ReconstructArgs) -> Result<()> {
             .collect::<Result<Vec<_>>>()?,
         None => paper_poses(args.views)?,
     };
-    let (config, _, _) = checkpoint::load_generator(&args.checkpoint, &device)?;
-    let infer = config
-        .infer
-        .overridden(args.tune, args.iterations, args.psnr_threshold)?;
+    let generator = checkpoint::load_generator(&args.checkpoint, &device)?;
+    let infer =
+        generator
+            .config
+            .infer
+            .overridden(args.tune, args.iterations, args.psnr_threshold)?;
     let rec = run_one(
         &args.checkpoint,
         &item,

@@ -39,8 +39,8 @@ pub struct TrainArgs {
     pub backend: Option<String>,
 }
 
-const HEADER: &str =
-    "iteration,seconds,loss_d,loss_g,hinge_v,hinge_p,recon_v,recon_p,l1_volume,l1_patch";
+const HEADER: &str = "iteration,seconds,loss_d,loss_g,loss_volume,loss_projection,loss_code,\
+hinge_v,hinge_p,recon_v,recon_p,l1_volume,l1_patch";
 
 pub fn run(args: TrainArgs) -> Result<()> {
     let device = backend::device(args.backend.as_deref().unwrap_or(backend::default_name()))?;
@@ -48,6 +48,7 @@ pub fn run(args: TrainArgs) -> Result<()> {
         .with_context(|| format!("loading the data set {}", args.data.display()))?;
     let scale = items[0].scale;
     let ck = args.output.join("checkpoint");
+    let ids: Vec<String> = items.iter().map(|i| i.id.clone()).collect();
     let mut trainer = if args.resume {
         let (t, state) = checkpoint::load_trainer(&ck, &device)
             .with_context(|| format!("resuming from {}", ck.display()))?;
@@ -64,12 +65,12 @@ pub fn run(args: TrainArgs) -> Result<()> {
         if let Some(s) = args.seed {
             config.seed = s;
         }
-        Trainer::new(config, projection_scale(&items)?, &device)?
+        let mean = MeanVolume::from_volumes(items.iter().filter_map(|i| i.ct.as_ref()))?;
+        Trainer::new(config, projection_scale(&items)?, mean, ids, &device)?
     };
     if let Some(n) = args.iterations {
         trainer.config.iterations = n;
     }
-    let mean = MeanVolume::from_volumes(items.iter().filter_map(|i| i.ct.as_ref()))?;
     std::fs::create_dir_all(&args.output)?;
     std::fs::write(args.output.join("config.toml"), trainer.config.to_toml())?;
     let csv_path = args.output.join("metrics.csv");
@@ -98,17 +99,17 @@ pub fn run(args: TrainArgs) -> Result<()> {
         if m.iteration % trainer.config.log_every == 0 || m.iteration == total {
             rows.push(row(&m, secs));
             bar.set_message(format!(
-                "D {:.3} G {:.3} L1(V) {:.3}",
-                m.loss_d, m.loss_g, m.l1_volume
+                "G {:.4} L1(V) {:.4} L1(P) {:.4}",
+                m.loss_g, m.l1_volume, m.l1_patch
             ));
         }
         if m.iteration % trainer.config.checkpoint_every == 0 || m.iteration == total {
-            save(&trainer, scale, &mean, &ck, &csv_path, &rows, &args.output)?;
+            save(&trainer, scale, &ck, &csv_path, &rows, &args.output)?;
         }
         bar.inc(1);
     }
     bar.finish_and_clear();
-    save(&trainer, scale, &mean, &ck, &csv_path, &rows, &args.output)?;
+    save(&trainer, scale, &ck, &csv_path, &rows, &args.output)?;
     eprintln!(
         "trained {} iterations: {}, {}",
         trainer.iteration,
@@ -120,10 +121,13 @@ pub fn run(args: TrainArgs) -> Result<()> {
 
 fn row(m: &StepMetrics, secs: f64) -> String {
     format!(
-        "{},{secs:.4},{:.6},{:.6},{:.6},{:.6},{:.6},{:.6},{:.6},{:.6}",
+        "{},{secs:.4},{:.6},{:.6},{:.6},{:.6},{:.6},{:.6},{:.6},{:.6},{:.6},{:.6},{:.6}",
         m.iteration,
         m.loss_d,
         m.loss_g,
+        m.loss_volume,
+        m.loss_projection,
+        m.loss_code,
         m.hinge_v,
         m.hinge_p,
         m.recon_v,
@@ -154,13 +158,12 @@ fn keep_rows(path: &Path, upto: usize) -> Result<Vec<String>> {
 fn save(
     trainer: &Trainer,
     scale: tomograf_model::render::DensityScale,
-    mean: &MeanVolume,
     ck: &Path,
     csv_path: &Path,
     rows: &[String],
     out: &Path,
 ) -> Result<()> {
-    checkpoint::save(trainer, scale, Some(mean), ck)?;
+    checkpoint::save(trainer, scale, ck)?;
     let mut f = std::fs::File::create(csv_path)?;
     writeln!(f, "{HEADER}")?;
     for r in rows {
@@ -182,10 +185,11 @@ fn save(
             y: "loss",
         },
         &[
-            ("loss_d", series(2)),
             ("loss_g", series(3)),
-            ("l1_volume", series(8)),
-            ("l1_patch", series(9)),
+            ("loss_volume", series(4)),
+            ("loss_projection", series(5)),
+            ("l1_volume", series(11)),
+            ("l1_patch", series(12)),
         ],
     )
 }

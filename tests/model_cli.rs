@@ -75,11 +75,12 @@ fn train_resume_reconstruct_evaluate() {
             ck.to_str().unwrap(),
             "--views",
             "1",
-            "--iterations",
-            "3",
             "-o",
             vol.to_str().unwrap(),
         ];
+        if !extra.contains(&"--iterations") {
+            args.extend(["--iterations", "3"]);
+        }
         args.extend_from_slice(extra);
         tomograf(&args)
     };
@@ -87,12 +88,13 @@ fn train_resume_reconstruct_evaluate() {
     ok(&reconstruct(&[]));
     assert!(vol.is_file());
 
-    // A stopping threshold every view reaches at once ends inference after one iteration
-    // (the cap is 3); a threshold that is not a number is refused, naming it.
-    let out = reconstruct(&["--psnr-threshold", "-1000"]);
+    // A stopping threshold every view reaches at once ends inference at the first check
+    // (`tiny` checks every 5 iterations; the cap is raised to 12); a threshold that is not
+    // a number is refused, naming it.
+    let out = reconstruct(&["--psnr-threshold", "-1000", "--iterations", "12"]);
     ok(&out);
     let e = String::from_utf8_lossy(&out.stderr);
-    assert!(e.contains("1 iterations,"), "{e}");
+    assert!(e.contains("5 iterations,"), "{e}");
     let out = reconstruct(&["--psnr-threshold", "NaN"]);
     assert!(!out.status.success());
     let e = String::from_utf8_lossy(&out.stderr);
@@ -117,12 +119,20 @@ fn train_resume_reconstruct_evaluate() {
         ok(&tomograf(&args));
     };
 
-    // Evaluate at 1 and 2 views: every method scored for every item and view count.
+    // Evaluate at 1 and 2 views, with the PCA prior of the training set: every method
+    // scored for every item and view count, inside the body too.
     let eval = tmp.path().join("eval");
-    evaluate("1,2", &[], &eval);
+    evaluate("1,2", &["--train-data", data.to_str().unwrap()], &eval);
     let csv = std::fs::read_to_string(eval.join("results.csv")).unwrap();
     for views in ["1", "2"] {
-        for method in ["TomoGRAF", "mean training volume", "FDK", "SART-TV"] {
+        for method in [
+            "TomoGRAF",
+            "mean training volume",
+            "SART-TV from the mean",
+            "PCA-MAP prior",
+            "FDK",
+            "SART-TV",
+        ] {
             let rows: Vec<&str> = csv
                 .lines()
                 .filter(|l| {
@@ -133,8 +143,10 @@ fn train_resume_reconstruct_evaluate() {
             assert_eq!(rows.len(), 2, "{method} at {views} view(s): {csv}");
             for r in rows {
                 let f: Vec<&str> = r.split(',').collect();
-                let psnr: f64 = f[3].parse().unwrap();
-                assert!(psnr.is_finite(), "{r}");
+                for i in [3, 8, 9] {
+                    let v: f64 = f[i].parse().unwrap();
+                    assert!(v.is_finite(), "{r}");
+                }
             }
         }
     }
@@ -151,7 +163,7 @@ fn train_resume_reconstruct_evaluate() {
         .collect();
     assert_eq!(
         methods,
-        ["TomoGRAF", "mean training volume"].into(),
+        ["TomoGRAF", "mean training volume", "SART-TV from the mean"].into(),
         "{csv}"
     );
     // Without a checkpoint there is nothing left to score: clap names the missing flag.
@@ -236,29 +248,48 @@ fn wrong_inputs_are_named() {
     assert!(e.contains("view"), "{e}");
     assert!(!tmp.path().join("r.nii.gz").exists(), "no output on error");
 
-    // The shipped checkpoint is for 64³ volumes and 64² projections: a 16³ item with 16²
-    // projections does not fit it.
+    // The shipped checkpoint's mean volume is 64³: the mean-volume baseline cannot score a
+    // 16³ item, and says so with both sizes.
     let out = tomograf(&[
-        "reconstruct",
-        data.join("00000").to_str().unwrap(),
+        "evaluate",
+        data.to_str().unwrap(),
         "--checkpoint",
         crate_checkpoint().to_str().unwrap(),
         "--views",
         "1",
+        "--items",
+        "1",
+        "--iterations",
+        "2",
         "-o",
-        tmp.path().join("r.nii.gz").to_str().unwrap(),
+        tmp.path().join("ev16").to_str().unwrap(),
     ]);
     assert!(
         !out.status.success(),
-        "a 16³ item through a 64³ checkpoint must fail"
+        "a 16³ item against a 64³ mean volume must fail"
     );
     let e = String::from_utf8_lossy(&out.stderr);
     assert!(
-        e.contains("16"),
-        "the error names the size that does not fit: {e}"
+        e.contains("[64, 64, 64]") && e.contains("[16, 16, 16]"),
+        "the error names the sizes that do not fit: {e}"
     );
 }
 
 fn crate_checkpoint() -> std::path::PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("model/checkpoints/demo")
+}
+
+#[test]
+fn model_bench_prints_ratios_against_its_baselines() {
+    let out = tomograf(&["bench", "--model", "--quick", "--repeats", "1"]);
+    ok(&out);
+    let md = String::from_utf8_lossy(&out.stdout);
+    for needle in [
+        "training step, `tiny`",
+        "1-view inference",
+        "SART-TV",
+        "| ratio |",
+    ] {
+        assert!(md.contains(needle), "no '{needle}' in: {md}");
+    }
 }

@@ -2,9 +2,10 @@
 //! (here) and analytic reconstructions such as FDK (plugged in through [`Baseline`]).
 
 use crate::error::{ModelError, Result, ensure};
+pub use crate::prior::MeanVolume;
 use crate::reconstruct::Reference;
 use crate::render::DensityScale;
-use tomograf_sim::recon::{FdkOptions, SartOptions, fdk, sart_tv};
+use tomograf_sim::recon::{FdkOptions, SartOptions, fdk, sart_tv_from};
 use tomograf_sim::{Beam, Detector, Geometry, Pose, Projection, View, ViewBeam, Volume};
 
 /// A reconstruction method to compare with.
@@ -19,46 +20,6 @@ pub trait Baseline {
         grid: &Volume,
         scale: &DensityScale,
     ) -> Result<Volume>;
-}
-
-/// The voxel-wise mean of the training CTs (normalised, on their common `n³` grid): it
-/// ignores the views.
-#[derive(Debug, Clone)]
-pub struct MeanVolume {
-    /// Voxel values, `i` fastest.
-    pub data: Vec<f32>,
-    /// Grid size.
-    pub dims: [usize; 3],
-}
-
-impl MeanVolume {
-    /// The mean of `volumes`; errors unless they share one grid size.
-    pub fn from_volumes<'a>(volumes: impl IntoIterator<Item = &'a Volume>) -> Result<Self> {
-        let mut sum: Vec<f64> = Vec::new();
-        let mut dims = [0; 3];
-        let mut n = 0usize;
-        for v in volumes {
-            if n == 0 {
-                dims = v.dims();
-                sum = vec![0.0; v.len()];
-            }
-            ensure!(
-                v.dims() == dims,
-                "training volumes differ in size ({:?} and {:?}); the mean needs one grid",
-                dims,
-                v.dims()
-            );
-            for (s, &x) in sum.iter_mut().zip(v.data()) {
-                *s += f64::from(x);
-            }
-            n += 1;
-        }
-        ensure!(n > 0, "no training volumes for the mean");
-        Ok(Self {
-            data: sum.iter().map(|s| (s / n as f64) as f32).collect(),
-            dims,
-        })
-    }
 }
 
 impl Baseline for MeanVolume {
@@ -172,14 +133,32 @@ impl Baseline for Fdk {
     }
 }
 
-/// SART with TV regularisation (`tomograf_sim::recon::sart_tv`, its defaults: 20
-/// iterations, ASD-POCS TV steps, non-negative) from the reference views.
-#[derive(Debug, Clone, Copy, Default)]
-pub struct SartTv;
+/// SART with TV regularisation (`tomograf_sim::recon::sart_tv_from`, its defaults: 20
+/// iterations, ASD-POCS TV steps, non-negative) from the reference views, started from
+/// zero, or from the mean training volume when `start` holds it (a fair classical
+/// baseline for a learned prior: the same population knowledge, then data consistency).
+#[derive(Debug, Clone, Default)]
+pub struct SartTv {
+    /// The volume to start from (normalised density); `None` starts from zero.
+    pub start: Option<MeanVolume>,
+}
+
+impl SartTv {
+    /// SART-TV from zero.
+    pub const FROM_ZERO: Self = Self { start: None };
+
+    /// SART-TV started from `mean`.
+    pub fn from_mean(mean: MeanVolume) -> Self {
+        Self { start: Some(mean) }
+    }
+}
 
 impl Baseline for SartTv {
     fn name(&self) -> &str {
-        "SART-TV"
+        match self.start {
+            None => "SART-TV",
+            Some(_) => "SART-TV from the mean",
+        }
     }
 
     fn reconstruct(
@@ -193,7 +172,31 @@ impl Baseline for SartTv {
             subsets: refs.len().min(10),
             ..SartOptions::default()
         };
-        let r = sart_tv(&projections(refs), &views, &options, grid)?;
+        let start: Option<Vec<f32>> = match &self.start {
+            None => None,
+            Some(m) => {
+                ensure!(
+                    m.dims == grid.dims(),
+                    "mean volume is {:?} but the test grid is {:?}",
+                    m.dims,
+                    grid.dims()
+                );
+                Some(
+                    m.data
+                        .iter()
+                        .map(|&d| scale.mu_scalar(f64::from(d)) as f32)
+                        .collect(),
+                )
+            }
+        };
+        let r = sart_tv_from(
+            &projections(refs),
+            &views,
+            &options,
+            grid,
+            start.as_deref(),
+            |_| {},
+        )?;
         density_of(&r.volume, scale)
     }
 }

@@ -1,15 +1,17 @@
 //! Checkpoints: a folder with `config.toml`, `state.json` (iteration, projection scale,
-//! density scale), the networks as burnpack files (`generator.bpk`, `d1.bpk`, `d2.bpk`)
-//! and the optimizers' state (`opt_g.bpk`, `opt_d1.bpk`, `opt_d2.bpk`).
+//! density scale), the mean training volume (`mean_volume.npy`, the field's prior),
+//! `codes.json` (the training items' ids, their learned codes and the codes' statistics),
+//! the networks as burnpack files (`generator.bpk`, `codes.bpk`, `d1.bpk`, `d2.bpk`) and
+//! the optimizers' state (`opt_g.bpk`, `opt_codes.bpk`, `opt_d1.bpk`, `opt_d2.bpk`).
 //!
 //! A checkpoint is written into `<name>.tmp` and renamed over `<name>`, so an interrupted
-//! save leaves the previous checkpoint intact. Inference needs only the first three files
-//! plus `generator.bpk`.
+//! save leaves the previous checkpoint intact. Inference needs `config.toml`, `state.json`,
+//! `mean_volume.npy`, `codes.json` and `generator.bpk`.
 
-use crate::baseline::MeanVolume;
 use crate::config::TrainConfig;
-use crate::error::{ModelError, Result};
+use crate::error::{ModelError, Result, ensure};
 use crate::field::RadianceField;
+use crate::prior::{CodeStats, MeanVolume};
 use crate::render::DensityScale;
 use crate::train::Trainer;
 use burn::module::Module;
@@ -26,6 +28,42 @@ pub struct State {
     pub proj_scale: f64,
     /// Density → mu map of the training data.
     pub density_scale: DensityScale,
+}
+
+/// What `codes.json` holds.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct CodeTable {
+    /// Training item ids, one per row.
+    pub items: Vec<String>,
+    /// Shape codes, one row per item (empty for random codes).
+    pub shape: Vec<Vec<f32>>,
+    /// Appearance codes, one row per item (empty for random codes).
+    pub app: Vec<Vec<f32>>,
+    /// Per-dimension mean and spread of the codes (inference's prior).
+    pub stats: CodeStats,
+}
+
+impl CodeTable {
+    /// The learned code of training item `id`, `(z_sh, z_a)`, if it has one.
+    pub fn code_of(&self, id: &str) -> Option<(&[f32], &[f32])> {
+        let i = self.items.iter().position(|x| x == id)?;
+        Some((self.shape.get(i)?.as_slice(), self.app.get(i)?.as_slice()))
+    }
+}
+
+/// Everything inference needs from a checkpoint.
+#[derive(Debug)]
+pub struct Generator {
+    /// The training configuration (network sizes, inference defaults).
+    pub config: TrainConfig,
+    /// Projection and density scales.
+    pub state: State,
+    /// The radiance field.
+    pub field: RadianceField,
+    /// The mean training volume (the field's prior).
+    pub prior: MeanVolume,
+    /// The training codes and their statistics.
+    pub codes: CodeTable,
 }
 
 fn err(path: &Path, e: impl std::fmt::Display) -> ModelError {
@@ -53,14 +91,8 @@ fn save_optimizer(
     Ok(())
 }
 
-/// Saves `trainer` (with the training data's density scale and, when given, the mean
-/// training volume as `mean_volume.npy`) to the folder `dir`.
-pub fn save(
-    trainer: &Trainer,
-    density_scale: DensityScale,
-    mean: Option<&MeanVolume>,
-    dir: &Path,
-) -> Result<()> {
+/// Saves `trainer` (with the training data's density scale) to the folder `dir`.
+pub fn save(trainer: &Trainer, density_scale: DensityScale, dir: &Path) -> Result<()> {
     let name = dir
         .file_name()
         .ok_or_else(|| err(dir, "checkpoint path has no folder name"))?;
@@ -86,23 +118,47 @@ pub fn save(
         .clone()
         .save_file(&p)
         .map_err(|e| err(&p, e))?;
+    let (shape, app) = match &trainer.codes {
+        Some(t) => {
+            let p = tmp.join("codes.bpk");
+            t.clone().save_file(&p).map_err(|e| err(&p, e))?;
+            let (s, a, rows) = t.values();
+            let split = |v: Vec<f32>| -> Vec<Vec<f32>> {
+                let m = v.len() / rows.max(1);
+                v.chunks(m.max(1)).map(<[f32]>::to_vec).collect()
+            };
+            (split(s), split(a))
+        }
+        None => (Vec::new(), Vec::new()),
+    };
+    let table = CodeTable {
+        items: trainer.item_ids.clone(),
+        shape,
+        app,
+        stats: trainer.code_stats(),
+    };
+    std::fs::write(
+        tmp.join("codes.json"),
+        serde_json::to_string(&table).expect("codes serialise"),
+    )
+    .map_err(|e| err(&tmp, e))?;
     let p = tmp.join("d1.bpk");
     trainer.d1.clone().save_file(&p).map_err(|e| err(&p, e))?;
     let p = tmp.join("d2.bpk");
     trainer.d2.clone().save_file(&p).map_err(|e| err(&p, e))?;
     for (n, o) in [
         ("opt_g.bpk", &trainer.opt_g),
+        ("opt_codes.bpk", &trainer.opt_codes),
         ("opt_d1.bpk", &trainer.opt_d1),
         ("opt_d2.bpk", &trainer.opt_d2),
     ] {
         let p = tmp.join(n);
         save_optimizer(o, &p).map_err(|e| err(&p, e))?;
     }
-    if let Some(m) = mean {
-        let p = tmp.join("mean_volume.npy");
-        tomograf_datasets::image::write_npy(&p, &m.data, &[m.dims[2], m.dims[1], m.dims[0]])
-            .map_err(|e| err(&p, e))?;
-    }
+    let m = &trainer.prior;
+    let p = tmp.join("mean_volume.npy");
+    tomograf_datasets::image::write_npy(&p, &m.data, &[m.dims[2], m.dims[1], m.dims[0]])
+        .map_err(|e| err(&p, e))?;
     if dir.exists() {
         std::fs::remove_dir_all(dir).map_err(|e| err(dir, e))?;
     }
@@ -118,19 +174,51 @@ fn read_meta(dir: &Path) -> Result<(TrainConfig, State)> {
             format!("{e} (is {} a checkpoint folder?)", dir.display()),
         )
     })?;
-    let config = TrainConfig::parse(&text).map_err(|e| err(&cp, e))?;
+    let config = TrainConfig::parse(&text).map_err(|e| {
+        let hint = if e.to_string().contains("missing field") {
+            " (a checkpoint from before per-item codes and the mean-volume prior: retrain it \
+             with this version)"
+        } else {
+            ""
+        };
+        err(&cp, format!("{e}{hint}"))
+    })?;
     let sp = dir.join("state.json");
     let bytes = std::fs::read(&sp).map_err(|e| err(&sp, e))?;
     let state: State = serde_json::from_slice(&bytes).map_err(|e| err(&sp, e))?;
     Ok((config, state))
 }
 
+fn read_codes(dir: &Path) -> Result<CodeTable> {
+    let p = dir.join("codes.json");
+    let bytes = std::fs::read(&p).map_err(|e| err(&p, e))?;
+    serde_json::from_slice(&bytes).map_err(|e| err(&p, e))
+}
+
+fn require_mean(dir: &Path) -> Result<MeanVolume> {
+    load_mean(dir)?.ok_or_else(|| {
+        err(
+            &dir.join("mean_volume.npy"),
+            "missing: the field is a residual on the mean training volume, which every \
+             checkpoint holds (written by `tomograf train`)",
+        )
+    })
+}
+
 /// Loads a whole trainer (to resume training).
 pub fn load_trainer(dir: &Path, device: &Device) -> Result<(Trainer, State)> {
     let (config, state) = read_meta(dir)?;
-    let mut t = Trainer::new(config, state.proj_scale, device)?;
+    let mean = require_mean(dir)?;
+    let codes = read_codes(dir)?;
+    let mut t = Trainer::new(config, state.proj_scale, mean, codes.items, device)?;
     let p = dir.join("generator.bpk");
     t.field = t.field.try_load_file(&p).map_err(|e| err(&p, e))?;
+    if let Some(table) = t.codes.take() {
+        let p = dir.join("codes.bpk");
+        t.codes = Some(table.try_load_file(&p).map_err(|e| err(&p, e))?);
+        let p = dir.join("opt_codes.bpk");
+        t.opt_codes = t.opt_codes.load(&p).map_err(|e| err(&p, e))?;
+    }
     let p = dir.join("d1.bpk");
     t.d1 = t.d1.try_load_file(&p).map_err(|e| err(&p, e))?;
     let p = dir.join("d2.bpk");
@@ -145,13 +233,31 @@ pub fn load_trainer(dir: &Path, device: &Device) -> Result<(Trainer, State)> {
     Ok((t, state))
 }
 
-/// Loads the generator only (for inference).
-pub fn load_generator(dir: &Path, device: &Device) -> Result<(TrainConfig, State, RadianceField)> {
+/// Loads what inference needs: the generator, its prior and the training codes.
+pub fn load_generator(dir: &Path, device: &Device) -> Result<Generator> {
     let (config, state) = read_meta(dir)?;
-    let field = RadianceField::new(&config.model, device);
+    let prior = require_mean(dir)?;
+    let codes = read_codes(dir)?;
+    let m = &config.model;
+    ensure!(
+        codes.stats.shape_mean.len() == m.z_shape && codes.stats.app_mean.len() == m.z_app,
+        "{}: code statistics of sizes {} + {} but the config's codes are {} + {}",
+        dir.display(),
+        codes.stats.shape_mean.len(),
+        codes.stats.app_mean.len(),
+        m.z_shape,
+        m.z_app
+    );
+    let field = RadianceField::new(m, device);
     let p = dir.join("generator.bpk");
     let field = field.try_load_file(&p).map_err(|e| err(&p, e))?;
-    Ok((config, state, field))
+    Ok(Generator {
+        config,
+        state,
+        field,
+        prior,
+        codes,
+    })
 }
 
 /// The mean training volume stored with a checkpoint, if any.
@@ -170,6 +276,9 @@ pub fn load_mean(dir: &Path) -> Result<Option<MeanVolume>> {
             format!("expected a 3D array, found shape {shape:?}"),
         ));
     };
+    if data.len() as u64 != nz * ny * nx || data.is_empty() {
+        return Err(err(&p, "data does not match its shape"));
+    }
     Ok(Some(MeanVolume {
         data,
         dims: [nx as usize, ny as usize, nz as usize],

@@ -26,6 +26,42 @@ pub struct ModelConfig {
     pub freq_pose: usize,
     /// Channels of the first discriminator layer.
     pub disc_channels: usize,
+    /// Density depends on the view direction ξ, as eqs. 5–6 are written (the paper's form).
+    /// Off by default: X-ray attenuation has no view dependence, and a ξ-dependent density
+    /// lets every view be explained by a different volume.
+    #[serde(default)]
+    pub view_dependent: bool,
+    /// Density = the mean training volume + a residual whose last layer starts at zero, so
+    /// an untrained field renders the mean volume exactly (default). Off: δ = softplus(·), the
+    /// paper's form, with no prior.
+    #[serde(default = "yes")]
+    pub mean_anchor: bool,
+}
+
+fn yes() -> bool {
+    true
+}
+
+/// How training codes are chosen.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum CodeMode {
+    /// An auto-decoder: each training item has its own shape and appearance codes, learned
+    /// with the generator (an embedding table), so V′ is paired with the item's real V.
+    PerItem,
+    /// Codes redrawn from N(0, I) at every step (the paper's GAN): nothing pairs a generated
+    /// volume with a real one; only the discriminators' hinge terms train the generator.
+    Random,
+}
+
+/// The optimiser of the generator and the codes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Optimiser {
+    /// Adam (β 0.9, 0.999, ε 1e-8).
+    Adam,
+    /// RMSprop with PyTorch's defaults (α 0.99, momentum 0, ε 1e-8), as GRAF and the paper.
+    Rmsprop,
 }
 
 /// What inference fine-tunes.
@@ -51,21 +87,52 @@ impl std::str::FromStr for Tune {
     }
 }
 
-/// Inference (eq. 13): fine-tuning until a PSNR threshold or an iteration cap.
+/// Inference (eq. 13), code first: the codes start at the mean of the training codes and
+/// are fitted alone with the generator frozen (`code_iterations`), then — with
+/// `tune = codes-and-generator` — codes and generator together at the lower rate `lr`,
+/// until every reference view's full-image PSNR reaches the threshold or the iteration cap.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct InferConfig {
-    /// Iteration cap.
+    /// Iteration cap (both phases).
     pub iterations: usize,
-    /// Stop when every reference view's PSNR (dB, projections scaled to [0, 1]) reaches this.
+    /// Stop when every reference view's full-image PSNR (dB, projections scaled to
+    /// [0, 1]) reaches this; checked every `check_every` iterations.
     pub psnr_threshold: f64,
-    /// RMSprop learning rate.
+    /// Learning rate of the generator in the second phase (Adam).
     pub lr: f64,
-    /// Rays per iteration: a `patch`×`patch` patch at a random scale; 0 = the full image
-    /// (the paper's choice; costly on a CPU).
+    /// Rays per iteration in the second phase: a `patch`×`patch` patch at a random scale;
+    /// 0 = the full image (the paper's choice; costly on a CPU).
     pub patch: usize,
-    /// Codes only, or codes and generator.
+    /// Codes only, or codes and then the generator.
     pub tune: Tune,
+    /// Iterations of the first phase: codes only, generator frozen.
+    #[serde(default)]
+    pub code_iterations: usize,
+    /// Learning rate of the codes (Adam, on codes whitened by the training codes' spread).
+    #[serde(default = "default_lr_codes")]
+    pub lr_codes: f64,
+    /// Rays per side in the first phase: one patch spanning the whole image (coarse rays,
+    /// every part of the image in every step); 0 = the full image.
+    #[serde(default)]
+    pub code_patch: usize,
+    /// Weight of the codes' negative log-likelihood under the training codes' Gaussian
+    /// (eq. 13's λ3 is 0.3).
+    #[serde(default = "default_w_nll")]
+    pub w_nll: f64,
+    /// Check the full-image PSNR of every reference view every this many iterations.
+    #[serde(default = "default_check_every")]
+    pub check_every: usize,
+}
+
+fn default_lr_codes() -> f64 {
+    0.05
+}
+fn default_w_nll() -> f64 {
+    0.3
+}
+fn default_check_every() -> usize {
+    10
 }
 
 impl InferConfig {
@@ -121,20 +188,37 @@ pub struct TrainConfig {
     pub log_every: usize,
     /// Seed of everything random.
     pub seed: u64,
+    /// Training codes: per item (auto-decoder, paired supervision) or random (the paper).
+    pub codes: CodeMode,
+    /// Optimiser of the generator and the codes (the discriminators use RMSprop).
+    pub optimiser: Optimiser,
+    /// Learning rate of the per-item codes.
+    pub lr_codes: f64,
+    /// Weight of the reconstruction loss between V′ and V at the sampled points (L1 plus
+    /// the SSIM term); needs per-item codes.
+    pub w_volume: f64,
+    /// Weight of the reconstruction loss between P′ and P; needs per-item codes.
+    pub w_projection: f64,
+    /// Weight of the code penalty mean(z²)/2 (keeps codes near N(0, I)).
+    pub w_code: f64,
+    /// Weight of the generator's hinge terms against D1 and D2 (eqs. 9–12); 0 skips the
+    /// discriminators entirely.
+    pub w_adversarial: f64,
     /// Network and sampling sizes.
     pub model: ModelConfig,
     /// Inference settings stored with the checkpoint.
     pub infer: InferConfig,
 }
 
-const PRESETS: [(&str, &str); 3] = [
+const PRESETS: [(&str, &str); 4] = [
     ("tiny", include_str!("../presets/tiny.toml")),
     ("small", include_str!("../presets/small.toml")),
+    ("small-gan", include_str!("../presets/small-gan.toml")),
     ("paper", include_str!("../presets/paper.toml")),
 ];
 
 impl TrainConfig {
-    /// A named preset (`tiny`, `small`, `paper`) or a TOML file path.
+    /// A named preset (`tiny`, `small`, `small-gan`, `paper`) or a TOML file path.
     pub fn load(name_or_path: &str) -> Result<Self> {
         if let Some((_, text)) = PRESETS.iter().find(|(n, _)| *n == name_or_path) {
             return Self::parse(text);
@@ -143,7 +227,7 @@ impl TrainConfig {
         let text = std::fs::read_to_string(path).map_err(|e| {
             ModelError::file(
                 path,
-                format!("{e} (not a preset either: tiny, small, paper)"),
+                format!("{e} (not a preset either: tiny, small, small-gan, paper)"),
             )
         })?;
         Self::parse(&text).map_err(|e| ModelError::file(path, e))
@@ -193,8 +277,59 @@ impl TrainConfig {
             self.infer.psnr_threshold
         );
         ensure!(
+            self.lr_codes.is_finite() && self.lr_codes > 0.0,
+            "lr_codes = {} must be > 0",
+            self.lr_codes
+        );
+        for (n, v) in [
+            ("w_volume", self.w_volume),
+            ("w_projection", self.w_projection),
+            ("w_code", self.w_code),
+            ("w_adversarial", self.w_adversarial),
+            ("infer.w_nll", self.infer.w_nll),
+        ] {
+            ensure!(v.is_finite() && v >= 0.0, "{n} = {v} must be ≥ 0");
+        }
+        let paired = self.w_volume + self.w_projection;
+        match self.codes {
+            CodeMode::PerItem => ensure!(
+                paired > 0.0 || self.w_adversarial > 0.0,
+                "every loss weight is 0: nothing trains the generator"
+            ),
+            CodeMode::Random => ensure!(
+                paired == 0.0 && self.w_adversarial > 0.0,
+                "codes = \"random\" pairs no generated volume with a real one: set w_volume = \
+                 w_projection = 0 and w_adversarial > 0, or use codes = \"per-item\""
+            ),
+        }
+        ensure!(
+            self.infer.lr_codes.is_finite() && self.infer.lr_codes > 0.0,
+            "infer.lr_codes = {} must be > 0",
+            self.infer.lr_codes
+        );
+        ensure!(self.infer.check_every > 0, "infer.check_every must be > 0");
+        ensure!(
             self.checkpoint_every > 0 && self.log_every > 0,
             "checkpoint_every and log_every must be > 0"
+        );
+        Ok(())
+    }
+
+    /// Checks the positional encoding against a training grid of `voxels` along its
+    /// shortest axis: the finest period, 2/2^(freq_x−1) in normalised units, must span at
+    /// least 2 voxels (the grid's Nyquist limit), or the field learns a pattern the grid cannot
+    /// hold (the grid artefact of earlier models).
+    pub fn check_grid(&self, voxels: usize) -> Result<()> {
+        let f = self.model.freq_x;
+        if f == 0 {
+            return Ok(());
+        }
+        let finest = voxels as f64 / 2f64.powi(f.min(1000) as i32 - 1);
+        ensure!(
+            f < 64 && voxels >= 1usize << f,
+            "freq_x = {f} puts the finest encoding period at {finest} voxel(s) of this {voxels}-voxel \
+             grid, above its Nyquist limit (2 voxels); use freq_x ≤ {}",
+            (voxels as f64 / 2.0).log2().floor() as usize + 1
         );
         Ok(())
     }
@@ -211,12 +346,31 @@ mod tests {
 
     #[test]
     fn presets_parse_and_bad_values_are_named() {
-        for n in ["tiny", "small", "paper"] {
+        for n in ["tiny", "small", "small-gan", "paper"] {
             let c = TrainConfig::load(n).unwrap();
             assert_eq!(c.name, n);
             assert_eq!(c.lr_g, 5e-4);
             assert_eq!(c.lr_d, 1e-4);
         }
+        // The paper's training stays selectable; `small` is the paired, anchored model.
+        let gan = TrainConfig::load("small-gan").unwrap();
+        assert_eq!(gan.codes, CodeMode::Random);
+        assert!(gan.model.view_dependent && !gan.model.mean_anchor);
+        let small = TrainConfig::load("small").unwrap();
+        assert_eq!(small.codes, CodeMode::PerItem);
+        assert!(!small.model.view_dependent && small.model.mean_anchor);
+        // Encoding frequencies against the grid's Nyquist limit: small's 6 fit 64 voxels,
+        // 8 (the old preset) do not.
+        small.check_grid(64).unwrap();
+        let mut c8 = small.clone();
+        c8.model.freq_x = 8;
+        let e = c8.check_grid(64).unwrap_err().to_string();
+        assert!(e.contains("freq_x = 8") && e.contains("≤ 6"), "{e}");
+        // Random codes cannot take reconstruction losses.
+        let mut bad = gan.clone();
+        bad.w_volume = 1.0;
+        let e = bad.validate().unwrap_err().to_string();
+        assert!(e.contains("pairs no generated volume"), "{e}");
         let mut c = TrainConfig::load("tiny").unwrap();
         c.model.patch = 6;
         let e = c.validate().unwrap_err().to_string();

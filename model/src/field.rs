@@ -1,9 +1,15 @@
 //! Positional encoding γ and the conditional radiance field
-//! g = d(h(γ(x), z_sh), γ(ξ), z_a) → δ ≥ 0 (Methods 1.2.1, eqs. 1–6).
+//! g = d(h(γ(x), z_sh), [γ(ξ),] z_a) (Methods 1.2.1, eqs. 1–6).
+//!
+//! By default the field is a **residual on a prior**: δ(x) = m(x) + g(…), where m is the mean
+//! training volume sampled with sim's trilinear field (given with the points, see
+//! [`crate::prior`]) and g's last layer starts at zero, so an untrained field renders the mean
+//! volume exactly; density does not depend on the view. The paper's form — δ = softplus(g),
+//! with γ(ξ) in the head — is selected by `mean_anchor = false`, `view_dependent = true`.
 
 use crate::config::ModelConfig;
 use burn::module::{Module, Param};
-use burn::nn::{Linear, LinearConfig};
+use burn::nn::{Initializer, Linear, LinearConfig};
 use burn::tensor::activation::{relu, softplus};
 use burn::tensor::{Device, Tensor, TensorData};
 
@@ -34,15 +40,18 @@ pub fn encoded_dims(d: usize, freqs: usize) -> usize {
 pub struct RadianceField {
     /// Shape encoder h: hidden layers on (γ(x), z_sh).
     shape: Vec<Linear>,
-    /// Density head d: (h, γ(ξ), z_a) → hidden/2 → 1.
+    /// Density head d: (h, [γ(ξ),] z_a) → hidden/2 → 1.
     head: Linear,
     out: Linear,
     freq_x: usize,
     freq_pose: usize,
+    view_dependent: bool,
+    mean_anchor: bool,
 }
 
 impl RadianceField {
-    /// A freshly initialised field for `config` on `device` (seed the device first).
+    /// A freshly initialised field for `config` on `device` (seed the device first). With
+    /// `mean_anchor` the last layer starts at zero (weights and bias).
     pub fn new(config: &ModelConfig, device: &Device) -> Self {
         let w = config.hidden;
         let mut shape = Vec::with_capacity(config.depth);
@@ -51,23 +60,44 @@ impl RadianceField {
             shape.push(LinearConfig::new(inp, w).init(device));
             inp = w;
         }
-        let head_in = w + encoded_dims(3, config.freq_pose) + config.z_app;
+        let pose_dims = if config.view_dependent {
+            encoded_dims(3, config.freq_pose)
+        } else {
+            0
+        };
+        let head_in = w + pose_dims + config.z_app;
         let half = (w / 2).max(1);
+        let out = LinearConfig::new(half, 1);
+        let out = if config.mean_anchor {
+            out.with_initializer(Initializer::Zeros)
+        } else {
+            out
+        };
         Self {
             shape,
             head: LinearConfig::new(head_in, half).init(device),
-            out: LinearConfig::new(half, 1).init(device),
+            out: out.init(device),
             freq_x: config.freq_x,
             freq_pose: config.freq_pose,
+            view_dependent: config.view_dependent,
+            mean_anchor: config.mean_anchor,
         }
     }
 
-    /// Density δ ≥ 0 (softplus) at `points` `[B, N, 3]` (grid coordinates normalised to
-    /// [−1, 1]) for poses `pose` `[B, 3]` (unit isocentre-to-source vectors) and codes
-    /// `z_sh` `[B, M_sh]`, `z_a` `[B, M_a]`. Returns `[B, N]`.
+    /// Whether density is the prior plus a residual (else softplus, the paper's form).
+    pub fn mean_anchor(&self) -> bool {
+        self.mean_anchor
+    }
+
+    /// Normalised density at `points` `[B, N, 3]` (grid coordinates normalised to [−1, 1])
+    /// for poses `pose` `[B, 3]` (unit isocentre-to-source vectors; used only by a
+    /// view-dependent field) and codes `z_sh` `[B, M_sh]`, `z_a` `[B, M_a]`. `prior` `[B, N]`
+    /// holds the mean training volume at the points; with the mean anchor δ = prior + g,
+    /// otherwise δ = softplus(g) ≥ 0 and `prior` is ignored. Returns `[B, N]`.
     pub fn density(
         &self,
         points: Tensor<3>,
+        prior: Tensor<2>,
         pose: Tensor<2>,
         z_sh: Tensor<2>,
         z_a: Tensor<2>,
@@ -84,14 +114,23 @@ impl RadianceField {
         for layer in &self.shape {
             h = relu(layer.forward(h));
         }
-        let xi = encode(pose, self.freq_pose);
-        let h = Tensor::cat(vec![h, expand(xi), expand(z_a)], 1);
-        let h = relu(self.head.forward(h));
-        softplus(self.out.forward(h), 1.0).reshape([b, n])
+        let h = if self.view_dependent {
+            let xi = encode(pose, self.freq_pose);
+            Tensor::cat(vec![h, expand(xi), expand(z_a)], 1)
+        } else {
+            Tensor::cat(vec![h, expand(z_a)], 1)
+        };
+        let g = self.out.forward(relu(self.head.forward(h))).reshape([b, n]);
+        if self.mean_anchor {
+            prior + g
+        } else {
+            softplus(g, 1.0)
+        }
     }
 }
 
-/// Shape and appearance codes of a batch, as parameters so inference can tune them.
+/// Shape and appearance codes, as parameters so training (one row per item) and inference
+/// (one row) can tune them.
 #[derive(Module, Debug)]
 pub struct Codes {
     /// z_sh, `[B, M_sh]`.
@@ -115,11 +154,35 @@ impl Codes {
     }
 }
 
-/// The generator and the codes it is tuned with at inference.
+impl Codes {
+    /// Rows `rows` of the table: `(z_sh, z_a)`, `[rows.len(), M]` each; gradients flow back
+    /// to the selected rows.
+    pub fn rows(&self, rows: &[usize]) -> (Tensor<2>, Tensor<2>) {
+        let device = self.shape.val().device();
+        let idx: Vec<i64> = rows.iter().map(|&r| r as i64).collect();
+        let idx =
+            Tensor::<1, burn::tensor::Int>::from_data(TensorData::new(idx, [rows.len()]), &device);
+        (
+            self.shape.val().select(0, idx.clone()),
+            self.app.val().select(0, idx),
+        )
+    }
+
+    /// The table's values, row-major: `(z_sh, z_a, rows)`.
+    pub fn values(&self) -> (Vec<f32>, Vec<f32>, usize) {
+        let read = |t: Tensor<2>| t.into_data().try_to_vec::<f32>().expect("f32 codes");
+        let rows = self.shape.val().dims()[0];
+        (read(self.shape.val()), read(self.app.val()), rows)
+    }
+}
+
+/// The generator and the codes it is tuned with at inference. The codes are whitened:
+/// z = μ + σ ⊙ u with μ, σ the training codes' per-dimension mean and spread
+/// ([`crate::prior::CodeStats`]), so u ~ N(0, I) under the prior and u = 0 is the mean code.
 #[derive(Module, Debug)]
 pub struct Tuned {
     /// The radiance field.
     pub field: RadianceField,
-    /// The codes.
+    /// The whitened codes u (one row).
     pub codes: Codes,
 }

@@ -12,7 +12,9 @@
 //! effective energy), so rendered patches are comparable with the data set's projections.
 //!
 //! * [`rays`] — ray sampling: patches at continuous pixel coordinates, Q stratified samples.
-//! * [`field`] — positional encoding and the conditional radiance field g(γ(x), γ(ξ), z_sh, z_a).
+//! * [`field`] — positional encoding and the conditional radiance field: a residual
+//!   g(γ(x), z_sh, z_a) on the mean training volume (or the paper's ξ-dependent softplus form).
+//! * [`prior`] — the mean training volume and the training codes' statistics.
 //! * [`render`] — the differentiable line integral.
 //! * [`trilinear`] — trilinear sampling of a volume tensor (built from `gather`).
 //! * [`discriminator`], [`losses`], [`augment`] — D1 (3D) and D2 (2D), eqs. 7–12, DAG.
@@ -29,6 +31,8 @@ pub mod error;
 pub mod field;
 pub mod losses;
 pub mod metrics;
+pub mod pca;
+pub mod prior;
 pub mod rays;
 pub mod reconstruct;
 pub mod render;

@@ -40,7 +40,25 @@ pub const SSIM_WINDOW: usize = 7;
 /// `structural_similarity(win_size=7, data_range=L)` without its padded border windows.
 /// Volumes are `dims` with `i` fastest.
 pub fn ssim3d(a: &[f32], b: &[f32], dims: [usize; 3], range: f64) -> Result<f64> {
+    ssim3d_in(a, b, dims, range, None)
+}
+
+/// [`ssim3d`] averaged over the windows whose centre voxel is in `mask` (every window
+/// when `None`); errors if no window's centre is.
+pub fn ssim3d_in(
+    a: &[f32],
+    b: &[f32],
+    dims: [usize; 3],
+    range: f64,
+    mask: Option<&[bool]>,
+) -> Result<f64> {
     check(a, b)?;
+    ensure!(
+        mask.is_none_or(|m| m.len() == a.len()),
+        "mask of {} voxels for volumes of {}",
+        mask.map_or(0, <[bool]>::len),
+        a.len()
+    );
     let w = SSIM_WINDOW;
     ensure!(
         dims.iter().all(|&d| d >= w) && dims.iter().product::<usize>() == a.len(),
@@ -84,6 +102,10 @@ pub fn ssim3d(a: &[f32], b: &[f32], dims: [usize; 3], range: f64) -> Result<f64>
     for k in 0..=nz - w {
         for j in 0..=ny - w {
             for i in 0..=nx - w {
+                let centre = (i + w / 2) + nx * ((j + w / 2) + ny * (k + w / 2));
+                if mask.is_some_and(|m| !m[centre]) {
+                    continue;
+                }
                 let s: Vec<f64> = tables.iter().map(|t| boxsum(t, i, j, k)).collect();
                 let (mx, my) = (s[0] / np, s[1] / np);
                 let cov_norm = np / (np - 1.0);
@@ -96,7 +118,26 @@ pub fn ssim3d(a: &[f32], b: &[f32], dims: [usize; 3], range: f64) -> Result<f64>
             }
         }
     }
+    ensure!(count > 0, "no SSIM window is centred inside the mask");
     Ok(total / count as f64)
+}
+
+/// Root-mean-square difference over the voxels in `mask`; errors if the mask is empty.
+pub fn rmse_in(a: &[f32], b: &[f32], mask: &[bool]) -> Result<f64> {
+    check(a, b)?;
+    ensure!(
+        mask.len() == a.len(),
+        "mask of {} voxels for volumes of {}",
+        mask.len(),
+        a.len()
+    );
+    let (mut s, mut n) = (0.0f64, 0usize);
+    for ((&x, &y), _) in a.iter().zip(b).zip(mask).filter(|(_, m)| **m) {
+        s += (f64::from(x) - f64::from(y)).powi(2);
+        n += 1;
+    }
+    ensure!(n > 0, "the mask holds no voxel");
+    Ok((s / n as f64).sqrt())
 }
 
 /// Mean and sample standard deviation (0 for a single value).
@@ -169,5 +210,24 @@ mod tests {
         assert!((psnr(&a, &c, 1.0).unwrap() - 20.0).abs() < 1e-4);
         assert!(rmse(&a, &b[..10]).is_err());
         assert_eq!(mean_std(&[1.0, 3.0]), (2.0, 2f64.sqrt()));
+        // Masks: all-true is the unmasked metric; one window's centre gives that window.
+        let all = vec![true; n];
+        assert_eq!(ssim3d_in(&a, &b, dims, 1.0, Some(&all)).unwrap(), fast);
+        assert_eq!(rmse_in(&a, &b, &all).unwrap(), rmse(&a, &b).unwrap());
+        let mut one = vec![false; n];
+        one[(2 + 3) + 9 * ((1 + 3) + 8 * 3)] = true;
+        let w = ssim3d_in(&a, &b, dims, 1.0, Some(&one)).unwrap();
+        assert!(
+            (w - window_ssim(&a, &b, dims, [2, 1, 0])).abs() < 1e-9,
+            "{w}"
+        );
+        assert!(
+            (rmse_in(&a, &b, &one).unwrap()
+                - (f64::from(a[(5) + 9 * (4 + 8 * 3)]) - f64::from(b[(5) + 9 * (4 + 8 * 3)]))
+                    .abs())
+            .abs()
+                < 1e-12
+        );
+        assert!(ssim3d_in(&a, &b, dims, 1.0, Some(&vec![false; n])).is_err());
     }
 }

@@ -52,6 +52,24 @@ impl Patch {
         })
     }
 
+    /// A patch of `size`×`size` rays spanning the whole detector (s = min(H, W)/M, one ray
+    /// per s×s block of pixels), its centre jittered by up to ±s/2 so that successive draws
+    /// cover every pixel; coarse rays over the whole image, for fitting global codes.
+    pub fn spanning(rng: &mut impl Rng, rows: usize, cols: usize, size: usize) -> Result<Self> {
+        ensure!(
+            rows >= size && cols >= size && size > 0,
+            "patch of {size}×{size} rays does not fit a {rows}×{cols} detector"
+        );
+        let scale = rows.min(cols) as f64 / size as f64;
+        let mut jitter = || scale * (rng.random::<f64>() - 0.5);
+        Ok(Self {
+            row: 0.5 * (rows as f64 - 1.0) + jitter(),
+            col: 0.5 * (cols as f64 - 1.0) + jitter(),
+            scale,
+            size,
+        })
+    }
+
     /// Continuous `(row, col)` of the patch's rays, row-major.
     pub fn pixels(&self) -> Vec<(f64, f64)> {
         let h = 0.5 * (self.size as f64 - 1.0);

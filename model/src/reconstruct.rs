@@ -1,27 +1,38 @@
-//! Inference (Methods 1.2.3, eq. 13): fine-tune the codes — and by default the generator,
-//! as the paper does — to the reference projections with
-//! λ1·L_r + λ2·L_PSNR + λ3·L_NLL (0.3, 0.1, 0.3), until every reference view reaches the PSNR
-//! threshold or the iteration cap; then render the full volume.
+//! Inference (Methods 1.2.3, eq. 13), code first.
+//!
+//! 1. The codes start at the mean of the training codes (whitened codes u = 0, see
+//!    [`crate::prior::CodeStats`]) and are fitted alone, the generator frozen, for
+//!    `code_iterations` iterations of Adam at `lr_codes`, on coarse rays spanning the whole
+//!    image (`code_patch`).
+//! 2. With `tune = codes-and-generator`, the generator is then tuned with the codes, at the
+//!    lower rate `lr`, on `patch`×`patch` patches at random scales.
+//!
+//! Each iteration fits one randomly drawn reference view with eq. 13's loss,
+//! λ1·L_r + λ2·L_PSNR + λ3·NLL (0.3, 0.1, `w_nll`), the NLL taken under the training codes'
+//! Gaussian. Every `check_every` iterations the current volume is rendered on the grid and
+//! projected with sim's trilinear projector into every reference view; inference stops when
+//! each view's full-image PSNR reaches the threshold, or at the iteration cap.
 
-use crate::config::{InferConfig, TrainConfig, Tune};
+use crate::checkpoint::Generator;
+use crate::config::{InferConfig, Tune};
 use crate::error::{Result, ensure};
-use crate::field::{Codes, RadianceField, Tuned};
+use crate::field::{Codes, Tuned};
 use crate::losses::{self, Perceptual, SsimL1};
+use crate::prior::{CodeStats, MeanVolume};
 use crate::rays::{Patch, bilinear, full_image, sample_rays};
 use crate::render::{DensityScale, RayTensors, render_field};
-use crate::train::{normals, rmsprop};
+use crate::train::adam;
+use burn::module::Module;
 use burn::optim::GradientsParams;
 use burn::tensor::{Device, Tensor, TensorData};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
-use tomograf_sim::{Pose, View, Volume};
+use tomograf_sim::{Pose, Projector, Renderer, View, Volume};
 
-/// Weights of eq. 13.
+/// Weight λ1 of the reconstruction term (eq. 13).
 pub const LAMBDA_R: f64 = 0.3;
-/// Weight of the PSNR term.
+/// Weight λ2 of the PSNR term.
 pub const LAMBDA_PSNR: f64 = 0.1;
-/// Weight of the codes' negative log-likelihood.
-pub const LAMBDA_NLL: f64 = 0.3;
 
 /// One reference projection with its geometry.
 #[derive(Debug, Clone)]
@@ -39,12 +50,15 @@ pub struct Reference {
 pub struct Reconstruction {
     /// Normalised density on the requested grid.
     pub volume: Volume,
-    /// Iterations run.
+    /// Iterations run (both phases).
     pub iterations: usize,
-    /// Last PSNR (dB) of each reference view's rendered rays.
+    /// Full-image PSNR (dB, projections scaled to [0, 1]) of each reference view, from the
+    /// final volume projected with sim's Siddon projector.
     pub psnr: Vec<f64>,
     /// Loss per iteration.
     pub losses: Vec<f64>,
+    /// The fitted codes `(z_sh, z_a)` (not whitened).
+    pub codes: (Vec<f32>, Vec<f32>),
 }
 
 /// Checks references against each other and the grid: at least one, sizes consistent.
@@ -70,14 +84,11 @@ pub fn check_references(refs: &[Reference]) -> Result<()> {
     Ok(())
 }
 
-/// Fine-tunes `field` to `refs` and renders the volume on `grid` (its geometry only).
-/// `progress(iteration, loss)` is called after each iteration.
-#[allow(clippy::too_many_arguments)]
+/// Fits `generator` to `refs` (code first, then — as `infer.tune` says — the generator) and
+/// renders the volume on `grid` (its geometry only). `progress(iteration, loss)` is called
+/// after each iteration.
 pub fn reconstruct(
-    field: RadianceField,
-    config: &TrainConfig,
-    proj_scale: f64,
-    density_scale: &DensityScale,
+    generator: Generator,
     refs: &[Reference],
     grid: &Volume,
     infer: &InferConfig,
@@ -86,98 +97,153 @@ pub fn reconstruct(
     mut progress: impl FnMut(usize, f64),
 ) -> Result<Reconstruction> {
     check_references(refs)?;
+    let Generator {
+        config,
+        state,
+        field,
+        prior,
+        codes: table,
+    } = generator;
+    let (proj_scale, density_scale) = (state.proj_scale, state.density_scale);
+    let stats = table.stats;
     let m = &config.model;
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
-    let codes = Codes::new(
-        normals(&mut rng, m.z_shape),
-        normals(&mut rng, m.z_app),
-        1,
-        device,
-    );
-    let mut tuned = Tuned { field, codes };
-    let mut opt = rmsprop();
+    let mut tuned = Tuned {
+        field,
+        codes: Codes::new(vec![0.0; m.z_shape], vec![0.0; m.z_app], 1, device),
+    };
+    let (mut opt_codes, mut opt_field) = (adam(), adam());
+    // The frozen generator of the first phase: no gradients of its weights are computed.
+    let frozen = tuned.field.clone().no_grad();
     let perceptual = SsimL1;
     let mut psnr = vec![f64::NEG_INFINITY; refs.len()];
     let mut losses_seen = Vec::new();
     let mut iterations = 0;
-    while iterations < infer.iterations && !psnr.iter().all(|&p| p >= infer.psnr_threshold) {
-        let i = rng.random_range(0..refs.len());
-        let r = &refs[i];
-        let pixels = if infer.patch == 0 {
-            full_image(r.view.rows, r.view.cols)
+    let reached = |p: &[f64]| p.iter().all(|&x| x >= infer.psnr_threshold);
+    while iterations < infer.iterations {
+        let codes_only = iterations < infer.code_iterations || infer.tune == Tune::Codes;
+        let r = &refs[rng.random_range(0..refs.len())];
+        let (rows, cols) = (r.view.rows, r.view.cols);
+        let side = if codes_only {
+            infer.code_patch
         } else {
-            Patch::random(&mut rng, r.view.rows, r.view.cols, infer.patch)?.pixels()
+            infer.patch
+        };
+        let pixels = match (side, codes_only) {
+            (0, _) => full_image(rows, cols),
+            (n, true) => Patch::spanning(&mut rng, rows, cols, n.min(rows).min(cols))?.pixels(),
+            (n, false) => Patch::random(&mut rng, rows, cols, n.min(rows).min(cols))?.pixels(),
         };
         let s = sample_rays(&r.view, grid, &pixels, m.samples, Some(&mut rng))?;
         let target: Vec<f32> = pixels
             .iter()
             .map(|&(pr, pc)| {
-                (f64::from(bilinear(&r.image, r.view.rows, r.view.cols, pr, pc)) / proj_scale)
-                    as f32
+                (f64::from(bilinear(&r.image, rows, cols, pr, pc)) / proj_scale) as f32
             })
             .collect();
         let n = pixels.len();
-        let rays = RayTensors {
-            points: Tensor::from_data(
-                TensorData::new(s.normalised(grid.dims()), [1, n * m.samples, 3]),
-                device,
-            ),
-            step_mm: Tensor::from_data(TensorData::new(s.step_mm.clone(), [1, n]), device),
-            pose: Tensor::from_data(
-                TensorData::new(
-                    r.pose.frame().to_source.as_vec3().to_array().to_vec(),
-                    [1, 3],
-                ),
-                device,
-            ),
-            rays: n,
-            samples: m.samples,
-        };
+        let pose = r.pose.frame().to_source.as_vec3().to_array().to_vec();
+        let rays = RayTensors::new(
+            s.normalised(grid.dims()),
+            s.step_mm.clone(),
+            pose,
+            n,
+            m.samples,
+            &prior,
+            device,
+        );
         let target = Tensor::<2>::from_data(TensorData::new(target, [1, n]), device);
-        let (_, integral) = render_field(&tuned.field, &tuned.codes, &rays, density_scale);
+        let (u_sh, u_a) = (tuned.codes.shape.val(), tuned.codes.app.val());
+        let (z_sh, z_a) = stats.codes(u_sh.clone(), u_a.clone());
+        let field = if codes_only { &frozen } else { &tuned.field };
+        let (_, integral) = render_field(field, z_sh, z_a, &rays, &density_scale);
         let pred = integral.div_scalar(proj_scale);
-        let neg_psnr = losses::neg_psnr(pred.clone(), target.clone());
-        psnr[i] = -(neg_psnr.clone().into_scalar::<f32>() as f64);
-        let loss = perceptual.distance(pred, target).mul_scalar(LAMBDA_R)
-            + neg_psnr.mul_scalar(LAMBDA_PSNR)
-            + (losses::code_nll(tuned.codes.shape.val()) + losses::code_nll(tuned.codes.app.val()))
-                .mul_scalar(LAMBDA_NLL);
+        let loss = perceptual
+            .distance(pred.clone(), target.clone())
+            .mul_scalar(LAMBDA_R)
+            + losses::neg_psnr(pred, target).mul_scalar(LAMBDA_PSNR)
+            + (losses::code_nll(u_sh) + losses::code_nll(u_a)).mul_scalar(infer.w_nll);
         let value = loss.clone().into_scalar::<f32>() as f64;
         ensure!(
             value.is_finite(),
             "inference iteration {iterations}: loss is not finite; lower the learning rate"
         );
         let mut grads = loss.backward();
-        match infer.tune {
-            Tune::CodesAndGenerator => {
-                let g = GradientsParams::from_module(&mut grads, &tuned);
-                tuned = opt.step(infer.lr, tuned, g);
-            }
-            Tune::Codes => {
-                let g = GradientsParams::from_module(&mut grads, &tuned.codes);
-                tuned.codes = opt.step(infer.lr, tuned.codes, g);
-            }
+        let gc = GradientsParams::from_module(&mut grads, &tuned.codes);
+        if !codes_only {
+            let gf = GradientsParams::from_module(&mut grads, &tuned.field);
+            tuned.field = opt_field.step(infer.lr, tuned.field, gf);
         }
+        tuned.codes = opt_codes.step(infer.lr_codes, tuned.codes, gc);
         losses_seen.push(value);
         iterations += 1;
         progress(iterations, value);
+        if iterations % infer.check_every == 0 && iterations < infer.iterations {
+            let v = render_volume(&tuned, &stats, &prior, grid, refs[0].pose, device)?;
+            psnr = projection_psnr(&v, &density_scale, refs, proj_scale)?;
+            if reached(&psnr) {
+                break;
+            }
+        }
     }
-    let volume = render_volume(&tuned, grid, refs[0].pose, device)?;
+    let volume = render_volume(&tuned, &stats, &prior, grid, refs[0].pose, device)?;
+    psnr = projection_psnr(&volume, &density_scale, refs, proj_scale)?;
+    let (z_sh, z_a) = stats.codes(tuned.codes.shape.val(), tuned.codes.app.val());
+    let read = |t: Tensor<2>| t.into_data().try_to_vec::<f32>().expect("f32 codes");
     Ok(Reconstruction {
         volume,
         iterations,
         psnr,
         losses: losses_seen,
+        codes: (read(z_sh), read(z_a)),
     })
 }
 
+/// Full-image PSNR (dB, MAX 1 after dividing by `proj_scale`) of each reference view
+/// against the projection of `volume` (normalised density, mapped to mu by `scale`) with
+/// sim's exact Siddon projector.
+pub fn projection_psnr(
+    volume: &Volume,
+    scale: &DensityScale,
+    refs: &[Reference],
+    proj_scale: f64,
+) -> Result<Vec<f64>> {
+    let mu = volume.map(|d| scale.mu_scalar(f64::from(d)) as f32)?;
+    let renderer = Renderer::new(&mu, Projector::Siddon)?;
+    refs.iter()
+        .map(|r| {
+            let p = renderer.render(&r.view)?;
+            let mse = p
+                .data
+                .iter()
+                .zip(&r.image)
+                .map(|(&a, &b)| ((f64::from(a) - f64::from(b)) / proj_scale).powi(2))
+                .sum::<f64>()
+                / p.data.len().max(1) as f64;
+            Ok(-10.0 * (mse + 1e-20).log10())
+        })
+        .collect()
+}
+
 /// The field's density at every voxel centre of `grid` (as a volume with the grid's
-/// geometry), for pose `pose`.
-pub fn render_volume(tuned: &Tuned, grid: &Volume, pose: Pose, device: &Device) -> Result<Volume> {
+/// geometry) for the whitened codes of `tuned` (decoded with `stats`), prior `prior`, and
+/// pose `pose` (used only by a view-dependent field).
+pub fn render_volume(
+    tuned: &Tuned,
+    stats: &CodeStats,
+    prior: &MeanVolume,
+    grid: &Volume,
+    pose: Pose,
+    device: &Device,
+) -> Result<Volume> {
     let dims = grid.dims();
     let total = dims[0] * dims[1] * dims[2];
     let mut out = Vec::with_capacity(total);
     let xi = pose.frame().to_source.as_vec3().to_array().to_vec();
+    let (z_sh, z_a) = stats.codes(tuned.codes.shape.val(), tuned.codes.app.val());
+    let (z_sh, z_a) = (z_sh.detach(), z_a.detach());
+    // No autodiff graph: a forward pass only, so no activations are kept for a backward.
+    let field = tuned.field.clone().no_grad();
     const CHUNK: usize = 32768;
     let coord = |i: usize, a: usize| (2.0 * (i as f64 + 0.5) / dims[a] as f64 - 1.0) as f32;
     let mut start = 0;
@@ -192,11 +258,11 @@ pub fn render_volume(tuned: &Tuned, grid: &Volume, pose: Pose, device: &Device) 
             );
             pts.extend([coord(i, 0), coord(j, 1), coord(k, 2)]);
         }
+        let prior_t = prior.tensor_at(&pts, 1, device);
         let p = Tensor::<3>::from_data(TensorData::new(pts, [1, end - start, 3]), device);
         let pose_t = Tensor::<2>::from_data(TensorData::new(xi.clone(), [1, 3]), device);
-        let d = tuned
-            .field
-            .density(p, pose_t, tuned.codes.shape.val(), tuned.codes.app.val())
+        let d = field
+            .density(p, prior_t, pose_t, z_sh.clone(), z_a.clone())
             .detach();
         out.extend(
             d.into_data().try_to_vec::<f32>().map_err(|e| {

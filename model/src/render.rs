@@ -63,12 +63,15 @@ pub fn line_integral(mu: Tensor<3>, step_mm: Tensor<2>) -> Tensor<2> {
     mu.sum_dim(2).reshape([b, r]) * step_mm
 }
 
-/// Rays of a batch ready for the field: normalised points `[B, R·Q, 3]`, interval lengths
-/// `[B, R]` (mm) and poses `[B, 3]` (unit isocentre-to-source vectors).
+/// Rays of a batch ready for the field: normalised points `[B, R·Q, 3]`, the prior (mean
+/// training volume) at them `[B, R·Q]`, interval lengths `[B, R]` (mm) and poses `[B, 3]`
+/// (unit isocentre-to-source vectors).
 #[derive(Debug, Clone)]
 pub struct RayTensors {
     /// Normalised sample points.
     pub points: Tensor<3>,
+    /// The mean training volume at the points (normalised density).
+    pub prior: Tensor<2>,
     /// Δs per ray, mm.
     pub step_mm: Tensor<2>,
     /// Poses ξ as unit vectors.
@@ -79,10 +82,39 @@ pub struct RayTensors {
     pub samples: usize,
 }
 
-/// The generator's forward pass: densities V' `[B, R, Q]` and line integrals P' `[B, R]`.
+impl RayTensors {
+    /// Tensors of `batch` items' rays from flat row-major buffers: points (normalised,
+    /// `batch·rays·samples·3`), Δs (mm, `batch·rays`), poses (`batch·3`); the prior is
+    /// sampled from `mean` at the points.
+    pub fn new(
+        points: Vec<f32>,
+        step_mm: Vec<f32>,
+        poses: Vec<f32>,
+        rays: usize,
+        samples: usize,
+        mean: &crate::prior::MeanVolume,
+        device: &burn::tensor::Device,
+    ) -> Self {
+        use burn::tensor::TensorData;
+        let b = poses.len() / 3;
+        let prior = mean.tensor_at(&points, b, device);
+        Self {
+            points: Tensor::from_data(TensorData::new(points, [b, rays * samples, 3]), device),
+            prior,
+            step_mm: Tensor::from_data(TensorData::new(step_mm, [b, rays]), device),
+            pose: Tensor::from_data(TensorData::new(poses, [b, 3]), device),
+            rays,
+            samples,
+        }
+    }
+}
+
+/// The generator's forward pass for codes `z_sh` `[B, M_sh]`, `z_a` `[B, M_a]`: densities
+/// V' `[B, R, Q]` and line integrals P' `[B, R]`.
 pub fn render_field(
     field: &crate::field::RadianceField,
-    codes: &crate::field::Codes,
+    z_sh: Tensor<2>,
+    z_a: Tensor<2>,
     rays: &RayTensors,
     scale: &DensityScale,
 ) -> (Tensor<3>, Tensor<2>) {
@@ -90,9 +122,10 @@ pub fn render_field(
     let density = field
         .density(
             rays.points.clone(),
+            rays.prior.clone(),
             rays.pose.clone(),
-            codes.shape.val(),
-            codes.app.val(),
+            z_sh,
+            z_a,
         )
         .reshape([b, rays.rays, rays.samples]);
     let integral = line_integral(scale.mu(density.clone()), rays.step_mm.clone());

@@ -1,22 +1,31 @@
-//! One training iteration (Methods 1.2–1.3): sample patches and sub-volumes from the data
-//! set, render the generator's V' and P', update D1 and D2 (hinge + reconstruction, eqs.
-//! 7–10, with DAG, eqs. 11–12), then update the generator against them.
+//! One training iteration (Methods 1.2–1.3): sample patches P and the sub-volumes V along
+//! their rays from the data set, render the generator's V′ and P′, then update the generator.
+//!
+//! * **Paired supervision** (`codes = "per-item"`, the default): every training item has its
+//!   own shape and appearance codes in an embedding table learned with the generator (an
+//!   auto-decoder), and the generator is trained on the reconstruction loss between V′ and V
+//!   and between P′ and P (L1 plus the SSIM term, [`SsimL1`]) with a penalty keeping the codes
+//!   near N(0, I).
+//! * **Adversarial terms** (`w_adversarial > 0`; the paper's only signal with
+//!   `codes = "random"`): D1 and D2 are updated first (hinge + decoder reconstruction, eqs.
+//!   7–10, with DAG, eqs. 11–12), then the generator's hinge terms against them are added.
 //!
 //! Everything random comes from a ChaCha8 stream seeded by (config seed, iteration), and
 //! burn's parameter initialisation by the config seed, so the same data, config and seed
 //! give the same training run, and a resumed run continues exactly as an unbroken one.
 
 use crate::augment;
-use crate::config::TrainConfig;
+use crate::config::{CodeMode, Optimiser, TrainConfig};
 use crate::data::Item;
 use crate::discriminator::{PatchDiscriminator, VolumeDiscriminator};
 use crate::error::{Result, ensure};
 use crate::field::{Codes, RadianceField};
 use crate::losses::{self, Perceptual, SsimL1};
+use crate::prior::MeanVolume;
 use crate::rays::{Patch, bilinear, sample_rays};
 use crate::render::{RayTensors, render_field};
 use burn::module::Module;
-use burn::optim::{GradientsParams, ModuleOptimizer, RmsPropConfig};
+use burn::optim::{AdamConfig, GradientsParams, ModuleOptimizer, RmsPropConfig};
 use burn::tensor::module::{adaptive_avg_pool2d, adaptive_avg_pool3d};
 use burn::tensor::{Device, Tensor, TensorData};
 use rand::{Rng, SeedableRng};
@@ -31,6 +40,19 @@ pub fn rmsprop() -> ModuleOptimizer {
         .with_momentum(0.0)
         .with_epsilon(1e-8)
         .init()
+}
+
+/// Adam (β 0.9, 0.999, ε 1e-8).
+pub fn adam() -> ModuleOptimizer {
+    AdamConfig::new().with_epsilon(1e-8).init()
+}
+
+/// The optimiser `o`.
+pub fn optimiser(o: Optimiser) -> ModuleOptimizer {
+    match o {
+        Optimiser::Adam => adam(),
+        Optimiser::Rmsprop => rmsprop(),
+    }
 }
 
 /// A stream of standard normal draws (Box–Muller on ChaCha8).
@@ -63,11 +85,17 @@ pub fn projection_scale(items: &[Item]) -> Result<f64> {
 pub struct StepMetrics {
     /// Iteration just completed (1-based).
     pub iteration: usize,
-    /// Discriminator objective (eqs. 7–12, D side).
+    /// Discriminator objective (eqs. 7–12, D side); 0 without adversarial terms.
     pub loss_d: f64,
-    /// Generator objective (hinge, eqs. 11–12, G side).
+    /// Generator objective (weighted sum of every term below that trains it).
     pub loss_g: f64,
-    /// D1 hinge (identity transform).
+    /// Reconstruction loss between V′ and V (L1 + (1 − SSIM)/2, normalised density).
+    pub loss_volume: f64,
+    /// Reconstruction loss between P′ and P (projections scaled to [0, 1]).
+    pub loss_projection: f64,
+    /// Code penalty mean(z²)/2 of the batch's codes.
+    pub loss_code: f64,
+    /// D1 hinge (identity transform); 0 without adversarial terms.
     pub hinge_v: f64,
     /// D2 hinge (identity transform).
     pub hinge_p: f64,
@@ -75,37 +103,45 @@ pub struct StepMetrics {
     pub recon_v: f64,
     /// D2 decoder reconstruction (identity transform).
     pub recon_p: f64,
-    /// L1 between V' and V at the same points (monitoring only; no gradient).
+    /// L1 between V′ and V at the same points (normalised density).
     pub l1_volume: f64,
-    /// L1 between P' and P, projections scaled to [0, 1] (monitoring only).
+    /// L1 between P′ and P, projections scaled to [0, 1].
     pub l1_patch: f64,
 }
 
-/// Generator, discriminators and their optimizers.
+/// Generator, codes, discriminators and their optimizers.
 pub struct Trainer {
     /// The configuration.
     pub config: TrainConfig,
     /// The generator's radiance field.
     pub field: RadianceField,
+    /// The training items' codes, one row per item of [`Self::item_ids`] (per-item codes);
+    /// `None` when codes are drawn at random.
+    pub codes: Option<Codes>,
+    /// The ids of the items the code table's rows belong to, in row order.
+    pub item_ids: Vec<String>,
+    /// The mean training volume the field's density is a residual on.
+    pub prior: MeanVolume,
     /// D1 (sub-volumes).
     pub d1: VolumeDiscriminator,
     /// D2 (patches).
     pub d2: PatchDiscriminator,
     pub(crate) opt_g: ModuleOptimizer,
+    pub(crate) opt_codes: ModuleOptimizer,
     pub(crate) opt_d1: ModuleOptimizer,
     pub(crate) opt_d2: ModuleOptimizer,
     /// Iterations completed.
     pub iteration: usize,
     /// Line integral mapped to 1 (see [`projection_scale`]).
     pub proj_scale: f64,
-    /// The perceptual distance of eqs. 7–8.
+    /// The perceptual distance of eqs. 7–8 and of the reconstruction losses.
     pub perceptual: Box<dyn Perceptual>,
     /// Where tensors live.
     pub device: Device,
 }
 
 /// Gives parameters the ids `n + 1, n + 2, …` in the module's traversal order.
-struct NumberParams(u64);
+pub(crate) struct NumberParams(pub(crate) u64);
 
 impl burn::module::ModuleMapper for NumberParams {
     fn map_float<const D: usize>(
@@ -123,18 +159,47 @@ struct Batch {
     rays: RayTensors,
     real_v: Tensor<5>,
     real_p: Tensor<4>,
-    codes: Codes,
+    /// Rows of the code table (per-item codes) of the batch's items.
+    rows: Vec<usize>,
     scale: crate::render::DensityScale,
 }
 
+/// The initial code table: `rows` draws from N(0, I) of each code, seeded.
+fn initial_codes(config: &TrainConfig, rows: usize, device: &Device) -> Codes {
+    let mut rng = ChaCha8Rng::seed_from_u64(config.seed ^ 0xC0DE_5EED);
+    let m = &config.model;
+    Codes::new(
+        normals(&mut rng, rows * m.z_shape),
+        normals(&mut rng, rows * m.z_app),
+        rows,
+        device,
+    )
+    .map(&mut NumberParams(3 << 32))
+}
+
 impl Trainer {
-    /// Fresh networks for `config` (parameters seeded by `config.seed`).
-    pub fn new(config: TrainConfig, proj_scale: f64, device: &Device) -> Result<Self> {
+    /// Fresh networks for `config` (parameters seeded by `config.seed`), anchored at
+    /// `prior`, with one code per item of `item_ids` when codes are per item.
+    pub fn new(
+        config: TrainConfig,
+        proj_scale: f64,
+        prior: MeanVolume,
+        item_ids: Vec<String>,
+        device: &Device,
+    ) -> Result<Self> {
         config.validate()?;
         ensure!(
             proj_scale.is_finite() && proj_scale > 0.0,
             "projection scale {proj_scale} must be > 0"
         );
+        ensure!(!item_ids.is_empty(), "no training items to give codes to");
+        ensure!(
+            prior.data.len() == prior.dims.iter().product::<usize>() && !prior.data.is_empty(),
+            "the mean volume's data ({} values) does not match its size {:?}",
+            prior.data.len(),
+            prior.dims
+        );
+        config.check_grid(*prior.dims.iter().min().expect("3 dims"))?;
         // burn's RNG is global: hold a lock from seeding to the last initialisation so
         // networks made concurrently (other threads, other tests) cannot interleave draws.
         static INIT: std::sync::Mutex<()> = std::sync::Mutex::new(());
@@ -148,6 +213,7 @@ impl Trainer {
         let (side, q) = (m.patch, m.samples);
         let _ = field.density(
             Tensor::zeros([1, 1, 3], device),
+            Tensor::zeros([1, 1], device),
             Tensor::zeros([1, 3], device),
             Tensor::zeros([1, m.z_shape], device),
             Tensor::zeros([1, m.z_app], device),
@@ -162,11 +228,17 @@ impl Trainer {
         let field = field.map(&mut NumberParams(0));
         let d1 = d1.map(&mut NumberParams(1 << 32));
         let d2 = d2.map(&mut NumberParams(2 << 32));
+        let codes = (config.codes == CodeMode::PerItem)
+            .then(|| initial_codes(&config, item_ids.len(), device));
         Ok(Self {
             field,
+            codes,
+            item_ids,
+            prior,
             d1,
             d2,
-            opt_g: rmsprop(),
+            opt_g: optimiser(config.optimiser),
+            opt_codes: optimiser(config.optimiser),
             opt_d1: rmsprop(),
             opt_d2: rmsprop(),
             iteration: 0,
@@ -186,6 +258,25 @@ impl Trainer {
         )
     }
 
+    /// Checks that `items` are the items the code table was made for, in its order.
+    fn check_items(&self, items: &[Item]) -> Result<()> {
+        ensure!(!items.is_empty(), "no training items");
+        if self.codes.is_some() {
+            let ids: Vec<&str> = items.iter().map(|i| i.id.as_str()).collect();
+            let mine: Vec<&str> = self.item_ids.iter().map(String::as_str).collect();
+            ensure!(
+                ids == mine,
+                "the training items ({} of them, first {:?}) are not the {} items this model's \
+                 codes were learned for (first {:?}): train and resume on the same data set",
+                ids.len(),
+                ids.first(),
+                mine.len(),
+                mine.first()
+            );
+        }
+        Ok(())
+    }
+
     fn batch(&self, items: &[Item], rng: &mut ChaCha8Rng) -> Result<Batch> {
         let m = &self.config.model;
         let (bsz, side, q) = (self.config.batch, m.patch, m.samples);
@@ -195,9 +286,12 @@ impl Trainer {
         let mut poses: Vec<f32> = Vec::new();
         let mut rv: Vec<f32> = Vec::new();
         let mut rp: Vec<f32> = Vec::new();
+        let mut rows = Vec::with_capacity(bsz);
         let mut scale = None;
         for _ in 0..bsz {
-            let item = &items[rng.random_range(0..items.len())];
+            let row = rng.random_range(0..items.len());
+            rows.push(row);
+            let item = &items[row];
             let ct = item.ct.as_ref().ok_or_else(|| {
                 crate::ModelError::Invalid(format!(
                     "item {}: training needs the ground-truth CT (ct.nii.gz)",
@@ -230,23 +324,11 @@ impl Trainer {
             rv.extend(sub);
         }
         let dev = &self.device;
-        let codes = Codes::new(
-            normals(rng, bsz * m.z_shape),
-            normals(rng, bsz * m.z_app),
-            bsz,
-            dev,
-        );
         Ok(Batch {
-            rays: RayTensors {
-                points: Tensor::from_data(TensorData::new(pts, [bsz, r * q, 3]), dev),
-                step_mm: Tensor::from_data(TensorData::new(steps, [bsz, r]), dev),
-                pose: Tensor::from_data(TensorData::new(poses, [bsz, 3]), dev),
-                rays: r,
-                samples: q,
-            },
+            rays: RayTensors::new(pts, steps, poses, r, q, &self.prior, dev),
             real_v: Tensor::from_data(TensorData::new(rv, [bsz, 1, q, side, side]), dev),
             real_p: Tensor::from_data(TensorData::new(rp, [bsz, 1, side, side]), dev),
-            codes,
+            rows,
             scale: scale.expect("batch > 0"),
         })
     }
@@ -259,15 +341,35 @@ impl Trainer {
         }
     }
 
-    /// One iteration on `items` (sampled with replacement); returns its losses.
+    /// One iteration on `items` (sampled with replacement; with per-item codes, the items
+    /// the model was made for, in the same order); returns its losses.
     pub fn step(&mut self, items: &[Item]) -> Result<StepMetrics> {
-        ensure!(!items.is_empty(), "no training items");
+        self.check_items(items)?;
         let mut rng = self.rng();
         let batch = self.batch(items, &mut rng)?;
         let m = &self.config.model;
         let (bsz, side, q) = (self.config.batch, m.patch, m.samples);
-        let (density, integral) =
-            render_field(&self.field, &batch.codes, &batch.rays, &batch.scale);
+        let dev = self.device.clone();
+        let (z_sh, z_a) = match &self.codes {
+            Some(table) => table.rows(&batch.rows),
+            None => (
+                Tensor::from_data(
+                    TensorData::new(normals(&mut rng, bsz * m.z_shape), [bsz, m.z_shape]),
+                    &dev,
+                ),
+                Tensor::from_data(
+                    TensorData::new(normals(&mut rng, bsz * m.z_app), [bsz, m.z_app]),
+                    &dev,
+                ),
+            ),
+        };
+        let (density, integral) = render_field(
+            &self.field,
+            z_sh.clone(),
+            z_a.clone(),
+            &batch.rays,
+            &batch.scale,
+        );
         // V' [B, 1, Q, M, M] and P' [B, 1, M, M] in the real data's layout and units.
         let fake_v = density
             .reshape([bsz, side, side, q])
@@ -276,18 +378,81 @@ impl Trainer {
         let fake_p = integral
             .div_scalar(self.proj_scale)
             .reshape([bsz, 1, side, side]);
-        let l1 = |a: Tensor<5>, b: Tensor<5>| (a - b).abs().mean().into_scalar::<f32>() as f64;
-        let l1_volume = l1(fake_v.clone().detach(), batch.real_v.clone());
-        let l1_patch = (fake_p.clone().detach() - batch.real_p.clone())
-            .abs()
-            .mean()
-            .into_scalar::<f32>() as f64;
+        let scalar = |t: Tensor<1>| t.into_scalar::<f32>() as f64;
+        let l1_volume = scalar(
+            (fake_v.clone().detach() - batch.real_v.clone())
+                .abs()
+                .mean(),
+        );
+        let l1_patch = scalar(
+            (fake_p.clone().detach() - batch.real_p.clone())
+                .abs()
+                .mean(),
+        );
+        let flat5 = |t: Tensor<5>| t.reshape([bsz as i32, -1]);
+        let flat4 = |t: Tensor<4>| t.reshape([bsz as i32, -1]);
+        let loss_volume = self
+            .perceptual
+            .distance(flat5(fake_v.clone()), flat5(batch.real_v.clone()));
+        let loss_projection = self
+            .perceptual
+            .distance(flat4(fake_p.clone()), flat4(batch.real_p.clone()));
+        let loss_code = losses::code_nll(z_sh) + losses::code_nll(z_a);
+        let c = &self.config;
+        let paired = c.codes == CodeMode::PerItem;
+        let mut metrics = StepMetrics {
+            loss_volume: scalar(loss_volume.clone()),
+            loss_projection: scalar(loss_projection.clone()),
+            loss_code: scalar(loss_code.clone()),
+            l1_volume,
+            l1_patch,
+            ..StepMetrics::default()
+        };
+        let mut loss_g: Tensor<1> = if paired {
+            loss_volume.mul_scalar(c.w_volume)
+                + loss_projection.mul_scalar(c.w_projection)
+                + loss_code.mul_scalar(c.w_code)
+        } else {
+            Tensor::zeros([1], &dev)
+        };
+        if c.w_adversarial > 0.0 {
+            let hinge = self.adversarial(&batch, fake_v, fake_p, &mut metrics)?;
+            loss_g = loss_g + hinge.mul_scalar(self.config.w_adversarial);
+        }
+        metrics.loss_g = scalar(loss_g.clone());
+        let mut grads = loss_g.backward();
+        let gg = GradientsParams::from_module(&mut grads, &self.field);
+        self.field = self.opt_g.step(self.config.lr_g, self.field.clone(), gg);
+        if let Some(table) = self.codes.take() {
+            let gc = GradientsParams::from_module(&mut grads, &table);
+            self.codes = Some(self.opt_codes.step(self.config.lr_codes, table, gc));
+        }
+        self.iteration += 1;
+        metrics.iteration = self.iteration;
+        ensure!(
+            metrics.loss_d.is_finite() && metrics.loss_g.is_finite(),
+            "iteration {}: loss is not finite (D {}, G {}); lower the learning rates",
+            self.iteration,
+            metrics.loss_d,
+            metrics.loss_g
+        );
+        Ok(metrics)
+    }
 
-        // Discriminators.
+    /// Updates D1 and D2 on this batch (eqs. 7–12) and returns the generator's hinge terms
+    /// against the updated discriminators (with DAG weights).
+    fn adversarial(
+        &mut self,
+        batch: &Batch,
+        fake_v: Tensor<5>,
+        fake_p: Tensor<4>,
+        metrics: &mut StepMetrics,
+    ) -> Result<Tensor<1>> {
+        let m = &self.config.model;
+        let (bsz, side, q) = (self.config.batch, m.patch, m.samples);
         let (fv, fp) = (fake_v.clone().detach(), fake_p.clone().detach());
         let lam2 = self.config.lambda2;
         let mut loss_d: Option<Tensor<1>> = None;
-        let mut parts = [0.0f64; 4];
         for k in 0..self.config.n_aug {
             let w = self.weight(k);
             let real_v = augment::volume(batch.real_v.clone(), k);
@@ -309,7 +474,12 @@ impl Trainer {
                 tp.reshape([bsz as i32, -1]),
             );
             if k == 0 {
-                parts = [h_v.clone(), h_p.clone(), r_v.clone(), r_p.clone()]
+                [
+                    metrics.hinge_v,
+                    metrics.hinge_p,
+                    metrics.recon_v,
+                    metrics.recon_p,
+                ] = [h_v.clone(), h_p.clone(), r_v.clone(), r_p.clone()]
                     .map(|t| t.into_scalar::<f32>() as f64);
             }
             let term = (h_v + r_v + (h_p + r_p).mul_scalar(lam2)).mul_scalar(w);
@@ -319,14 +489,14 @@ impl Trainer {
             });
         }
         let loss_d = loss_d.expect("n_aug ≥ 1");
-        let loss_d_value = loss_d.clone().into_scalar::<f32>() as f64;
+        metrics.loss_d = loss_d.clone().into_scalar::<f32>() as f64;
         let mut grads = loss_d.backward();
         let g1 = GradientsParams::from_module(&mut grads, &self.d1);
         let g2 = GradientsParams::from_module(&mut grads, &self.d2);
         self.d1 = self.opt_d1.step(self.config.lr_d, self.d1.clone(), g1);
         self.d2 = self.opt_d2.step(self.config.lr_d, self.d2.clone(), g2);
 
-        // Generator, against the updated discriminators.
+        // The generator's terms, against the updated discriminators.
         let mut loss_g: Option<Tensor<1>> = None;
         for k in 0..self.config.n_aug {
             let (lv, _) = self.d1.forward(augment::volume(fake_v.clone(), k), k);
@@ -338,40 +508,27 @@ impl Trainer {
                 Some(l) => l + term,
             });
         }
-        let loss_g = loss_g.expect("n_aug ≥ 1");
-        let loss_g_value = loss_g.clone().into_scalar::<f32>() as f64;
-        let mut grads = loss_g.backward();
-        let gg = GradientsParams::from_module(&mut grads, &self.field);
-        self.field = self.opt_g.step(self.config.lr_g, self.field.clone(), gg);
-        self.iteration += 1;
-        let metrics = StepMetrics {
-            iteration: self.iteration,
-            loss_d: loss_d_value,
-            loss_g: loss_g_value,
-            hinge_v: parts[0],
-            hinge_p: parts[1],
-            recon_v: parts[2],
-            recon_p: parts[3],
-            l1_volume,
-            l1_patch,
-        };
-        let finite = [metrics.loss_d, metrics.loss_g]
-            .iter()
-            .all(|v| v.is_finite());
-        ensure!(
-            finite,
-            "iteration {}: loss is not finite (D {}, G {}); lower the learning rates",
-            self.iteration,
-            metrics.loss_d,
-            metrics.loss_g
-        );
-        Ok(metrics)
+        Ok(loss_g.expect("n_aug ≥ 1"))
     }
 
-    /// Parameter count of the generator and of both discriminators.
+    /// The statistics of the learned codes (the standard normal for random codes).
+    pub fn code_stats(&self) -> crate::prior::CodeStats {
+        match &self.codes {
+            Some(t) => {
+                let (s, a, rows) = t.values();
+                crate::prior::CodeStats::from_table(&s, &a, rows)
+            }
+            None => crate::prior::CodeStats::standard(
+                self.config.model.z_shape,
+                self.config.model.z_app,
+            ),
+        }
+    }
+
+    /// Parameter count of the generator (codes included) and of both discriminators.
     pub fn parameter_counts(&self) -> (usize, usize) {
         (
-            self.field.num_params(),
+            self.field.num_params() + self.codes.as_ref().map_or(0, |c| c.num_params()),
             self.d1.num_params() + self.d2.num_params(),
         )
     }

@@ -5,7 +5,9 @@ mod common;
 use tomograf_model::baseline::MeanVolume;
 use tomograf_model::checkpoint;
 use tomograf_model::config::{TrainConfig, Tune};
+use tomograf_model::data::Item;
 use tomograf_model::field::{Codes, Tuned};
+use tomograf_model::prior::CodeStats;
 use tomograf_model::reconstruct::{Reference, reconstruct, render_volume};
 use tomograf_model::train::{Trainer, projection_scale};
 use tomograf_sim::Pose;
@@ -14,14 +16,45 @@ fn device() -> burn::tensor::Device {
     tomograf_model::backend::device("flex").unwrap()
 }
 
-#[test]
-fn same_seed_same_run_and_resume_continues_exactly() {
-    let items = vec![common::item(16, 4, 16, 0.0), common::item(16, 4, 16, -0.2)];
+fn mean_of(items: &[Item]) -> MeanVolume {
+    MeanVolume::from_volumes(items.iter().filter_map(|i| i.ct.as_ref())).unwrap()
+}
+
+fn ids(items: &[Item]) -> Vec<String> {
+    items.iter().map(|i| i.id.clone()).collect()
+}
+
+fn trainer(config: &TrainConfig, items: &[Item], scale: f64) -> Trainer {
+    Trainer::new(config.clone(), scale, mean_of(items), ids(items), &device()).unwrap()
+}
+
+fn refs_of(item: &Item, views: &[usize]) -> Vec<Reference> {
+    views
+        .iter()
+        .map(|&i| Reference {
+            view: item.views[i],
+            pose: item.poses[i],
+            image: item.projection(i).to_vec(),
+        })
+        .collect()
+}
+
+/// Two distinct items (the dense sphere moved), the `tiny` config.
+fn two_items() -> (Vec<Item>, TrainConfig, f64) {
+    let items = vec![common::item(16, 4, 16, 0.0), common::item(16, 4, 16, -0.5)];
     let config = TrainConfig::load("tiny").unwrap();
     let scale = projection_scale(&items).unwrap();
+    (items, config, scale)
+}
+
+#[test]
+fn same_seed_same_run_and_resume_continues_exactly() {
+    // `tiny` has a small adversarial weight, so D1, D2 and their optimisers are exercised.
+    let (items, config, scale) = two_items();
+    assert!(config.w_adversarial > 0.0);
     let dev = device();
     let run = |steps: usize| {
-        let mut t = Trainer::new(config.clone(), scale, &dev).unwrap();
+        let mut t = trainer(&config, &items, scale);
         (0..steps)
             .map(|_| t.step(&items).unwrap())
             .collect::<Vec<_>>()
@@ -31,17 +64,16 @@ fn same_seed_same_run_and_resume_continues_exactly() {
     assert_eq!(a, b, "same seed, same losses");
     assert!(
         a.iter()
-            .all(|m| m.loss_d.is_finite() && m.loss_g.is_finite())
+            .all(|m| m.loss_d.is_finite() && m.loss_g.is_finite() && m.loss_d > 0.0)
     );
 
     // Save after 2 steps, load, take the third: identical to the unbroken run.
     let dir = tempfile::tempdir().unwrap();
     let ck = dir.path().join("checkpoint");
-    let mut t = Trainer::new(config.clone(), scale, &dev).unwrap();
+    let mut t = trainer(&config, &items, scale);
     t.step(&items).unwrap();
     t.step(&items).unwrap();
-    let mean = MeanVolume::from_volumes(items.iter().filter_map(|i| i.ct.as_ref())).unwrap();
-    checkpoint::save(&t, items[0].scale, Some(&mean), &ck).unwrap();
+    checkpoint::save(&t, items[0].scale, &ck).unwrap();
     let (mut r, state) = checkpoint::load_trainer(&ck, &dev).unwrap();
     assert_eq!(state.iteration, 2);
     assert_eq!(
@@ -50,23 +82,26 @@ fn same_seed_same_run_and_resume_continues_exactly() {
         "resumed step equals the unbroken run's"
     );
     let m = checkpoint::load_mean(&ck).unwrap().unwrap();
-    assert_eq!((m.dims, &m.data), (mean.dims, &mean.data));
+    assert_eq!(m, mean_of(&items));
 
     // The same two steps from scratch write the same checkpoint bytes (parameter ids are
     // numbered, optimizer tensors sorted), and saving what was loaded changes nothing.
     let again = dir.path().join("again");
-    let mut t2 = Trainer::new(config.clone(), scale, &dev).unwrap();
+    let mut t2 = trainer(&config, &items, scale);
     t2.step(&items).unwrap();
     t2.step(&items).unwrap();
-    checkpoint::save(&t2, items[0].scale, Some(&mean), &again).unwrap();
+    checkpoint::save(&t2, items[0].scale, &again).unwrap();
     let resaved = dir.path().join("resaved");
     let (loaded, _) = checkpoint::load_trainer(&ck, &dev).unwrap();
-    checkpoint::save(&loaded, items[0].scale, Some(&mean), &resaved).unwrap();
+    checkpoint::save(&loaded, items[0].scale, &resaved).unwrap();
     for name in [
         "generator.bpk",
+        "codes.bpk",
+        "codes.json",
         "d1.bpk",
         "d2.bpk",
         "opt_g.bpk",
+        "opt_codes.bpk",
         "opt_d1.bpk",
         "opt_d2.bpk",
         "mean_volume.npy",
@@ -83,7 +118,8 @@ fn same_seed_same_run_and_resume_continues_exactly() {
     }
 
     // Generator round trip: identical rendered volumes, bit for bit.
-    let (_, _, g) = checkpoint::load_generator(&ck, &dev).unwrap();
+    let g = checkpoint::load_generator(&ck, &dev).unwrap();
+    assert_eq!(g.codes.stats, t.code_stats());
     let ct = items[0].ct.as_ref().unwrap();
     let codes = || {
         Codes::new(
@@ -93,11 +129,14 @@ fn same_seed_same_run_and_resume_continues_exactly() {
             &dev,
         )
     };
+    let stats = t.code_stats();
     let v1 = render_volume(
         &Tuned {
             field: t.field.clone(),
             codes: codes(),
         },
+        &stats,
+        &t.prior,
         ct,
         Pose::AP,
         &dev,
@@ -105,9 +144,11 @@ fn same_seed_same_run_and_resume_continues_exactly() {
     .unwrap();
     let v2 = render_volume(
         &Tuned {
-            field: g,
+            field: g.field,
             codes: codes(),
         },
+        &g.codes.stats,
+        &g.prior,
         ct,
         Pose::AP,
         &dev,
@@ -117,32 +158,161 @@ fn same_seed_same_run_and_resume_continues_exactly() {
 }
 
 #[test]
+fn untrained_model_renders_the_mean_volume() {
+    // The last layer starts at zero: density = the mean training volume, whatever the codes.
+    let (items, config, scale) = two_items();
+    let t = trainer(&config, &items, scale);
+    let dev = device();
+    let mean = mean_of(&items);
+    let ct = items[0].ct.as_ref().unwrap();
+    for fill in [0.0f32, 1.7] {
+        let codes = Codes::new(
+            vec![fill; config.model.z_shape],
+            vec![-fill; config.model.z_app],
+            1,
+            &dev,
+        );
+        let v = render_volume(
+            &Tuned {
+                field: t.field.clone(),
+                codes,
+            },
+            &CodeStats::standard(config.model.z_shape, config.model.z_app),
+            &t.prior,
+            ct,
+            Pose::AP,
+            &dev,
+        )
+        .unwrap();
+        let worst = v
+            .data()
+            .iter()
+            .zip(&mean.data)
+            .map(|(a, b)| (a - b).abs())
+            .fold(0.0f32, f32::max);
+        assert!(
+            worst <= 1e-5,
+            "untrained field differs from the mean by {worst}"
+        );
+    }
+    // And the mean differs from each item, so the check above is not trivially true.
+    let d: f32 = ct
+        .data()
+        .iter()
+        .zip(&mean.data)
+        .map(|(a, b)| (a - b).abs())
+        .sum();
+    assert!(d > 1.0, "{d}");
+}
+
+/// Trains `tiny` (no adversarial terms, or with them when `adversarial`) on `items` for
+/// `steps`; returns the trainer and the first and last 10 steps' mean volume L1.
+fn overfit(items: &[Item], steps: usize, w_volume: f64) -> (Trainer, f64, f64) {
+    let mut config = TrainConfig::load("tiny").unwrap();
+    config.w_adversarial = 0.0;
+    config.w_volume = w_volume;
+    config.lr_g = 2e-3;
+    config.lr_codes = 2e-2;
+    let scale = projection_scale(items).unwrap();
+    let mut t = trainer(&config, items, scale);
+    let l1: Vec<f64> = (0..steps)
+        .map(|_| t.step(items).unwrap().l1_volume)
+        .collect();
+    let first = l1[..10].iter().sum::<f64>() / 10.0;
+    let last = l1[steps - 10..].iter().sum::<f64>() / 10.0;
+    (t, first, last)
+}
+
+#[test]
+fn auto_decoder_overfits_two_items_and_inference_finds_their_codes() {
+    let (items, _, _) = two_items();
+    let (t, first, last) = overfit(&items, 300, 1.0);
+    // Paired supervision: the volume L1 at the sampled points falls below a third of where
+    // it started (the mean volume's error). Without the volume term and with the projection
+    // term alone it falls far less (checked below), so this can fail.
+    assert!(last < first / 3.0, "volume L1 {first} → {last}");
+    let (_, first_p, last_p) = overfit(&items, 300, 0.0);
+    assert!(
+        last_p > last * 1.5,
+        "projection-only {first_p} → {last_p}, paired {last}"
+    );
+
+    // Inference from item 1's own projections moves its codes from the mean code towards
+    // item 1's trained code, and away from item 0's (the mean code is equidistant from both).
+    let dir = tempfile::tempdir().unwrap();
+    let ck = dir.path().join("ck");
+    checkpoint::save(&t, items[0].scale, &ck).unwrap();
+    let dev = device();
+    let generator = checkpoint::load_generator(&ck, &dev).unwrap();
+    let table = generator.codes.clone();
+    let mut infer = generator.config.infer.clone();
+    infer.tune = Tune::Codes;
+    infer.iterations = 60;
+    infer.code_iterations = 60;
+    infer.psnr_threshold = 99.0;
+    let item = &items[1];
+    let rec = reconstruct(
+        generator,
+        &refs_of(item, &[0, 1]),
+        item.ct.as_ref().unwrap(),
+        &infer,
+        3,
+        &dev,
+        |_, _| {},
+    )
+    .unwrap();
+    let whitened = |z: (&[f32], &[f32])| {
+        let (a, b) = table.stats.whiten(z.0, z.1);
+        a.into_iter().chain(b).collect::<Vec<f32>>()
+    };
+    let dist = |a: &[f32], b: &[f32]| -> f64 {
+        a.iter()
+            .zip(b)
+            .map(|(x, y)| f64::from(x - y).powi(2))
+            .sum::<f64>()
+            .sqrt()
+    };
+    let fitted = whitened((&rec.codes.0, &rec.codes.1));
+    let own = whitened(table.code_of(&item.id).unwrap());
+    let other = whitened(table.code_of(&items[0].id).unwrap());
+    let start = vec![0.0f32; own.len()];
+    let (d_start, d_own, d_other) = (
+        dist(&start, &own),
+        dist(&fitted, &own),
+        dist(&fitted, &other),
+    );
+    // Measured: 2.83 → 2.42 towards its own code, 3.58 from the other's (2.83 at the start).
+    assert!(
+        d_own < 0.9 * d_start && d_other > d_start && d_own < d_other,
+        "whitened distances: start→own {d_start}, fitted→own {d_own}, fitted→other {d_other}"
+    );
+}
+
+#[test]
 fn inference_loss_falls_when_fitting_one_volume() {
     // Gradients flow from the projection loss through the renderer into codes and field.
     let item = common::item(16, 4, 16, 0.0);
-    let mut config = TrainConfig::load("tiny").unwrap();
-    config.infer.iterations = 40;
-    config.infer.psnr_threshold = 99.0;
+    let items = std::slice::from_ref(&item);
+    let config = TrainConfig::load("tiny").unwrap();
+    let scale = projection_scale(items).unwrap();
+    let t = trainer(&config, items, scale);
+    let dir = tempfile::tempdir().unwrap();
+    let ck = dir.path().join("ck");
+    checkpoint::save(&t, item.scale, &ck).unwrap();
     let dev = device();
-    let scale = projection_scale(std::slice::from_ref(&item)).unwrap();
-    let t = Trainer::new(config.clone(), scale, &dev).unwrap();
-    let refs: Vec<Reference> = (0..2)
-        .map(|i| Reference {
-            view: item.views[i],
-            pose: item.poses[i],
-            image: item.projection(i).to_vec(),
-        })
-        .collect();
     let ct = item.ct.as_ref().unwrap();
+    // The mean of one volume is that volume: fit a shifted one instead.
+    let other = common::item(16, 4, 16, -0.5);
     for tune in [Tune::CodesAndGenerator, Tune::Codes] {
         let mut infer = config.infer.clone();
         infer.tune = tune;
+        infer.iterations = 40;
+        infer.code_iterations = 10;
+        infer.psnr_threshold = 99.0;
+        let generator = checkpoint::load_generator(&ck, &dev).unwrap();
         let rec = reconstruct(
-            t.field.clone(),
-            &config,
-            scale,
-            &item.scale,
-            &refs,
+            generator,
+            &refs_of(&other, &[0, 1]),
             ct,
             &infer,
             7,
@@ -151,36 +321,47 @@ fn inference_loss_falls_when_fitting_one_volume() {
         )
         .unwrap();
         assert_eq!(rec.iterations, 40);
+        assert_eq!(rec.psnr.len(), 2);
         let first: f64 = rec.losses[..5].iter().sum::<f64>() / 5.0;
         let last: f64 = rec.losses[35..].iter().sum::<f64>() / 5.0;
-        assert!(last < first - 0.1, "{tune:?}: loss {first} → {last}");
+        assert!(last < first - 0.05, "{tune:?}: loss {first} → {last}");
         assert_eq!(rec.volume.dims(), ct.dims());
-        assert!(rec.volume.data().iter().all(|v| v.is_finite() && *v >= 0.0));
+        assert!(rec.volume.data().iter().all(|v| v.is_finite()));
     }
+    // A threshold reached at the first check stops there.
+    let mut infer = config.infer.clone();
+    infer.psnr_threshold = -100.0;
+    infer.check_every = 3;
+    let generator = checkpoint::load_generator(&ck, &dev).unwrap();
+    let rec = reconstruct(
+        generator,
+        &refs_of(&other, &[0]),
+        ct,
+        &infer,
+        7,
+        &dev,
+        |_, _| {},
+    )
+    .unwrap();
+    assert_eq!(rec.iterations, 3);
 }
 
 #[test]
 fn wrong_inputs_are_named() {
     let item = common::item(16, 2, 16, 0.0);
+    let items = std::slice::from_ref(&item);
     let config = TrainConfig::load("tiny").unwrap();
     let dev = device();
-    let t = Trainer::new(config.clone(), 1.0, &dev).unwrap();
+    let t = trainer(&config, items, 1.0);
+    let dir = tempfile::tempdir().unwrap();
+    let ck = dir.path().join("ck");
+    checkpoint::save(&t, item.scale, &ck).unwrap();
     let ct = item.ct.as_ref().unwrap();
     let run = |refs: &[Reference]| {
-        reconstruct(
-            t.field.clone(),
-            &config,
-            1.0,
-            &item.scale,
-            refs,
-            ct,
-            &config.infer,
-            0,
-            &dev,
-            |_, _| {},
-        )
-        .unwrap_err()
-        .to_string()
+        let generator = checkpoint::load_generator(&ck, &dev).unwrap();
+        reconstruct(generator, refs, ct, &config.infer, 0, &dev, |_, _| {})
+            .unwrap_err()
+            .to_string()
     };
     let e = run(&[]);
     assert!(e.contains("view count 0"), "{e}");
@@ -194,14 +375,56 @@ fn wrong_inputs_are_named() {
         e.contains("image has 10 values but its view's detector is 16×16"),
         "{e}"
     );
-    assert!(Trainer::new(config.clone(), 0.0, &dev).is_err());
+    assert!(Trainer::new(config.clone(), 0.0, mean_of(items), ids(items), &dev).is_err());
+    // Encoding frequencies above the grid's Nyquist limit are refused by name.
+    let mut fine = config.clone();
+    fine.model.freq_x = 6;
+    let e = Trainer::new(fine, 1.0, mean_of(items), ids(items), &dev)
+        .err()
+        .unwrap()
+        .to_string();
+    assert!(e.contains("freq_x = 6") && e.contains("Nyquist"), "{e}");
     let mut no_ct = item.clone();
     no_ct.ct = None;
-    let mut t2 = Trainer::new(config, 1.0, &dev).unwrap();
+    let mut t2 = trainer(&config, items, 1.0);
     let e = t2.step(&[no_ct]).unwrap_err().to_string();
     assert!(e.contains("needs the ground-truth CT"), "{e}");
+    // Resuming per-item codes on another data set is refused.
+    let other = common::item(16, 2, 16, 0.3);
+    let e = t2.step(&[other]).unwrap_err().to_string();
+    assert!(
+        e.contains("not the 1 items this model's codes were learned for"),
+        "{e}"
+    );
     let e = tomograf_model::data::load_item(std::path::Path::new("/nonexistent/item"))
         .unwrap_err()
         .to_string();
     assert!(e.contains("item.json"), "{e}");
+
+    // A checkpoint without its mean volume, and one whose generator is another preset's.
+    let no_mean = dir.path().join("no_mean");
+    checkpoint::save(&t, item.scale, &no_mean).unwrap();
+    std::fs::remove_file(no_mean.join("mean_volume.npy")).unwrap();
+    let e = checkpoint::load_generator(&no_mean, &dev)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("mean_volume.npy") && e.contains("missing"),
+        "{e}"
+    );
+    let other_preset = dir.path().join("other_preset");
+    checkpoint::save(&t, item.scale, &other_preset).unwrap();
+    let small = TrainConfig::load("small").unwrap();
+    std::fs::write(other_preset.join("config.toml"), small.to_toml()).unwrap();
+    let e = checkpoint::load_generator(&other_preset, &dev)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("code statistics of sizes 8 + 8"), "{e}");
+    let mut codes = std::fs::read_to_string(other_preset.join("codes.json")).unwrap();
+    codes = codes.replace("\"stats\"", "\"unused\"");
+    std::fs::write(other_preset.join("codes.json"), codes).unwrap();
+    let e = checkpoint::load_generator(&other_preset, &dev)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("codes.json"), "{e}");
 }

@@ -393,19 +393,21 @@ impl Study {
         let mut scored = 0;
         for test in &self.test {
             let data = self.finish_data("test", test)?;
-            let mut cells: Vec<(Option<PathBuf>, PathBuf)> =
-                vec![(None, self.eval_dir(test.name, None))];
+            let mut cells: Vec<(Option<PathBuf>, PathBuf, Option<PathBuf>)> =
+                vec![(None, self.eval_dir(test.name, None), None)];
             for m in &self.train {
                 cells.push((
                     Some(self.model_dir(m).join("checkpoint")),
                     self.eval_dir(test.name, Some(m.name)),
+                    Some(self.data_dir("train", m)),
                 ));
             }
-            for (checkpoint, output) in &cells {
+            for (checkpoint, output, train_data) in &cells {
                 eprintln!("evaluate: {}", output.display());
                 scored += evaluate(&Evaluation {
                     data: &data,
                     checkpoint: checkpoint.as_deref(),
+                    train_data: train_data.as_deref(),
                     output,
                     views: &VIEWS,
                     split: None,
@@ -416,6 +418,7 @@ impl Study {
                     seed: self.settings.seed,
                     backend: self.backend.as_deref(),
                     shard,
+                    pca_noise: crate::evaluate::DEFAULT_PCA_NOISE,
                     classical: checkpoint.is_none(),
                     show: false,
                 })?;

@@ -281,11 +281,13 @@ fn row_keys(study: &Study) -> Vec<(Option<String>, String, String)> {
         .collect();
     if s.train_sets.len() == 1 {
         let t = &s.train_sets[0];
-        keys.push((
-            Some(t.clone()),
-            "mean training volume".into(),
-            format!("mean volume ← {t}"),
-        ));
+        for (method, label) in [
+            ("mean training volume", "mean volume"),
+            ("PCA-MAP prior", "PCA-MAP prior"),
+            ("SART-TV from the mean", "SART-TV from the mean"),
+        ] {
+            keys.push((Some(t.clone()), method.into(), format!("{label} ← {t}")));
+        }
     }
     keys.push((None, "FDK".into(), "FDK".into()));
     keys.push((None, "SART-TV".into(), "SART-TV".into()));

@@ -22,7 +22,9 @@ pub mod tv;
 
 pub use backproject::{SiddonOperator, backproject, forward_project};
 pub use fdk::{AngularWeighting, FdkOptions, Window, fdk};
-pub use sart::{IterationReport, Reconstruction, SartOptions, sart_tv, sart_tv_with_progress};
+pub use sart::{
+    IterationReport, Reconstruction, SartOptions, sart_tv, sart_tv_from, sart_tv_with_progress,
+};
 pub use tv::TvOptions;
 
 use crate::error::{Result, SimError};

@@ -133,10 +133,39 @@ pub fn sart_tv_with_progress(
     views: &[View],
     options: &SartOptions,
     template: &Volume,
+    progress: impl FnMut(&IterationReport),
+) -> Result<Reconstruction> {
+    sart_tv_from(projections, views, options, template, None, progress)
+}
+
+/// [`sart_tv_with_progress`] starting from `start` (attenuation in mm⁻¹ on the template's
+/// grid, e.g. a prior such as the mean of a training population) instead of zero; `None`
+/// starts from zero. Errors if `start` has another voxel count or non-finite values.
+pub fn sart_tv_from(
+    projections: &[Projection],
+    views: &[View],
+    options: &SartOptions,
+    template: &Volume,
+    start: Option<&[f32]>,
     mut progress: impl FnMut(&IterationReport),
 ) -> Result<Reconstruction> {
     options.validate()?;
     super::check_projections(projections, views)?;
+    if let Some(s) = start
+        && (s.len() != template.len() || !s.iter().all(|v| v.is_finite()))
+    {
+        return Err(SimError::InvalidVolume(format!(
+            "SART start volume: {} finite values needed (the template's voxels), got {} \
+             values{}",
+            template.len(),
+            s.len(),
+            if s.iter().all(|v| v.is_finite()) {
+                ""
+            } else {
+                ", some not finite"
+            }
+        )));
+    }
     let op = SiddonOperator::new(template, views)?;
     let dims = template.dims();
     let n_sub = options.subsets.min(views.len());
@@ -156,7 +185,7 @@ pub fn sart_tv_with_progress(
     // TV smoothing: far below any contrast that matters (mu of water ≈ 0.02 mm⁻¹).
     let eps = 1e-8;
 
-    let mut x = vec![0.0f32; template.len()];
+    let mut x = start.map_or_else(|| vec![0.0f32; template.len()], <[f32]>::to_vec);
     let mut history = Vec::new();
     let mut last_residual = f64::INFINITY;
     for it in 1..=options.iterations {
