@@ -315,6 +315,22 @@ pub fn evaluate(e: &Evaluation) -> Result<usize> {
     } else {
         Vec::new()
     };
+    // Every baseline, in the tables' order: those built from the model's training
+    // population (mean volume, SART-TV from it, PCA-MAP), then the classical ones.
+    let sart_mean = model
+        .as_ref()
+        .map(|(_, _, mean)| SartTv::from_mean(MeanVolume::clone(mean)));
+    let mut baselines: Vec<&dyn Baseline> = Vec::new();
+    if let Some((_, _, mean)) = &model {
+        baselines.push(mean);
+    }
+    if let Some(s) = &sart_mean {
+        baselines.push(s);
+    }
+    if let Some(p) = &pca {
+        baselines.push(p);
+    }
+    baselines.extend(classical.iter().map(|b| b.as_ref()));
     let (shard, shards) = e.shard;
     let mut made = 0;
     for (n, item) in items.iter().enumerate() {
@@ -328,7 +344,7 @@ pub fn evaluate(e: &Evaluation) -> Result<usize> {
             let refs = references(item, &poses)?;
             let grid = item.ct.as_ref().context("item has no ground-truth CT")?;
             let mut volumes: Vec<Volume> = Vec::new();
-            if let Some((ck, infer, mean)) = &model {
+            if let Some((ck, infer, _)) = &model {
                 if e.show {
                     eprintln!(
                         "item {} ({}/{}), {count} view(s)",
@@ -349,28 +365,8 @@ pub fn evaluate(e: &Evaluation) -> Result<usize> {
                     seconds,
                 });
                 volumes.push(rec.volume);
-                // Baselines that use the same training population as the model.
-                let sart = SartTv::from_mean(MeanVolume::clone(mean));
-                let priors: [&dyn Baseline; 2] = [mean, &sart];
-                for b in priors {
-                    let t0 = Instant::now();
-                    let v = b.reconstruct(&refs, grid, &item.scale)?;
-                    rows.push(Row {
-                        item: item.id.clone(),
-                        views: count,
-                        method: b.name().into(),
-                        scores: score(item, &v)?,
-                        iterations: 0,
-                        seconds: t0.elapsed().as_secs_f64(),
-                    });
-                    volumes.push(v);
-                }
             }
-            for b in pca
-                .iter()
-                .map(|p| p as &dyn Baseline)
-                .chain(classical.iter().map(|b| b.as_ref()))
-            {
+            for b in &baselines {
                 let t0 = Instant::now();
                 let v = b.reconstruct(&refs, grid, &item.scale)?;
                 rows.push(Row {

@@ -183,7 +183,12 @@ fn realism_gap_end_to_end_resume_and_same_seed() {
             .unwrap()
             .lines()
             .filter(|l| l.contains(",TomoGRAF,"))
-            .map(|l| l.rsplitn(3, ',').nth(2).unwrap().to_string()) // drop timing
+            .map(|l| {
+                // Every column but the wall-clock seconds (column 7).
+                let mut f: Vec<&str> = l.split(',').collect();
+                f.remove(7);
+                f.join(",")
+            })
             .collect()
     };
     let merged = model_rows(&e.join("results.csv"));
