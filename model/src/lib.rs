@@ -18,7 +18,9 @@
 //! * [`render`] — the differentiable line integral.
 //! * [`trilinear`] — trilinear sampling of a volume tensor (built from `gather`).
 //! * [`discriminator`], [`losses`], [`augment`] — D1 (3D) and D2 (2D), eqs. 7–12, DAG.
-//! * [`train`], [`checkpoint`], [`reconstruct`], [`metrics`], [`baseline`], [`data`].
+//! * [`train`], [`checkpoint`], [`reconstruct`], [`metrics`], [`data`].
+//! * [`baseline`], [`pca`] — what the model is compared with: the mean volume, SART-TV from
+//!   zero or from the mean, FDK, and the PCA-MAP linear prior of the training volumes.
 
 pub mod augment;
 pub mod backend;

@@ -205,8 +205,8 @@ fn untrained_model_renders_the_mean_volume() {
     assert!(d > 1.0, "{d}");
 }
 
-/// Trains `tiny` (no adversarial terms, or with them when `adversarial`) on `items` for
-/// `steps`; returns the trainer and the first and last 10 steps' mean volume L1.
+/// Trains `tiny` without adversarial terms, with volume-loss weight `w_volume`, on `items`
+/// for `steps`; returns the trainer and the first and last 10 steps' mean volume L1.
 fn overfit(items: &[Item], steps: usize, w_volume: f64) -> (Trainer, f64, f64) {
     let mut config = TrainConfig::load("tiny").unwrap();
     config.w_adversarial = 0.0;
