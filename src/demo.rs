@@ -83,22 +83,22 @@ pub fn run(args: DemoArgs) -> Result<()> {
             "1/3 remaking the checkpoint's training set ({} lidc phantoms, {size}³) for the PCA prior",
             args.train_phantoms
         );
-        let ds = DatasetCli::try_parse_from([
-            "dataset".to_string(),
-            "-o".into(),
-            train.display().to_string(),
-            "--phantoms".into(),
-            args.train_phantoms.to_string(),
-            "--size".into(),
-            size.to_string(),
-            "--views".into(),
-            "36".into(),
-            "--profile".into(),
-            "lidc".into(),
-            "--split".into(),
-            "train".into(),
-        ])?;
-        crate::dataset::run(ds.args)?;
+        let phantoms = args.train_phantoms.to_string();
+        let size = size.to_string();
+        crate::dataset::run(dataset_args(&[
+            "-o",
+            &train.display().to_string(),
+            "--phantoms",
+            &phantoms,
+            "--size",
+            &size,
+            "--views",
+            "36",
+            "--profile",
+            "lidc",
+            "--split",
+            "train",
+        ])?)?;
     }
     let pacemaker = args.profile == "full-chest";
     eprintln!(
@@ -108,30 +108,33 @@ pub fn run(args: DemoArgs) -> Result<()> {
         if pacemaker { " with pacemakers" } else { "" },
         args.preset
     );
-    let mut cli = vec![
-        "dataset".to_string(),
-        "-o".into(),
-        test.display().to_string(),
-        "--phantoms".into(),
+    let (phantoms, size, out) = (
         args.phantoms.to_string(),
-        "--seed".into(),
-        "100000".into(),
-        "--profile".into(),
-        args.profile.clone(),
-        "--views".into(),
-        "10".into(),
-        "--size".into(),
         size.to_string(),
-        "--split".into(),
-        "test".into(),
-        "--preset".into(),
-        args.preset.clone(),
+        test.display().to_string(),
+    );
+    let mut cli = vec![
+        "-o",
+        &out,
+        "--phantoms",
+        &phantoms,
+        "--seed",
+        "100000",
+        "--profile",
+        &args.profile,
+        "--views",
+        "10",
+        "--size",
+        &size,
+        "--split",
+        "test",
+        "--preset",
+        &args.preset,
     ];
     if pacemaker {
-        cli.push("--pacemaker".into());
+        cli.push("--pacemaker");
     }
-    let ds = DatasetCli::try_parse_from(cli)?;
-    crate::dataset::run(ds.args)?;
+    crate::dataset::run(dataset_args(&cli)?)?;
     eprintln!("3/3 reconstructing and scoring");
     crate::evaluate::run(crate::evaluate::EvaluateArgs {
         data: test,

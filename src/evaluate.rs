@@ -280,6 +280,7 @@ pub fn evaluate(e: &Evaluation) -> Result<usize> {
     std::fs::create_dir_all(e.output.join("items"))
         .with_context(|| format!("cannot create {}", e.output.display()))?;
     check_job(e.output, &job)?;
+    // The checkpoint's inference settings, mean training volume and projection scale.
     let model = match e.checkpoint {
         Some(ck) => {
             let generator = checkpoint::load_generator(ck, &device)
@@ -289,9 +290,7 @@ pub fn evaluate(e: &Evaluation) -> Result<usize> {
                     .config
                     .infer
                     .overridden(e.tune, e.iterations, e.psnr_threshold)?;
-            let mean = checkpoint::load_mean(ck)?
-                .context("the checkpoint has no mean_volume.npy (written by `tomograf train`)")?;
-            Some((ck, infer, mean))
+            Some((ck, infer, generator.prior, generator.state.proj_scale))
         }
         None => None,
     };
@@ -301,8 +300,8 @@ pub fn evaluate(e: &Evaluation) -> Result<usize> {
                 .with_context(|| format!("the PCA prior's training set {}", dir.display()))?;
             let cts: Vec<&Volume> = train.iter().filter_map(|i| i.ct.as_ref()).collect();
             // The model's projection scale when there is one, so both read noise alike.
-            let scale = match e.checkpoint {
-                Some(ck) => checkpoint::load_generator(ck, &device)?.state.proj_scale,
+            let scale = match &model {
+                Some((_, _, _, proj_scale)) => *proj_scale,
                 None => tomograf_model::train::projection_scale(&train)?,
             };
             eprintln!("PCA prior from {} training volumes", cts.len());
@@ -319,9 +318,9 @@ pub fn evaluate(e: &Evaluation) -> Result<usize> {
     // population (mean volume, SART-TV from it, PCA-MAP), then the classical ones.
     let sart_mean = model
         .as_ref()
-        .map(|(_, _, mean)| SartTv::from_mean(MeanVolume::clone(mean)));
+        .map(|(_, _, mean, _)| SartTv::from_mean(MeanVolume::clone(mean)));
     let mut baselines: Vec<&dyn Baseline> = Vec::new();
-    if let Some((_, _, mean)) = &model {
+    if let Some((_, _, mean, _)) = &model {
         baselines.push(mean);
     }
     if let Some(s) = &sart_mean {
@@ -344,7 +343,7 @@ pub fn evaluate(e: &Evaluation) -> Result<usize> {
             let refs = references(item, &poses)?;
             let grid = item.ct.as_ref().context("item has no ground-truth CT")?;
             let mut volumes: Vec<Volume> = Vec::new();
-            if let Some((ck, infer, _)) = &model {
+            if let Some((ck, infer, _, _)) = &model {
                 if e.show {
                     eprintln!(
                         "item {} ({}/{}), {count} view(s)",
