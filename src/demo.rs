@@ -146,6 +146,7 @@ pub fn run(args: DemoArgs) -> Result<()> {
         iterations: (args.iterations > 0).then_some(args.iterations),
         psnr_threshold: None,
         tune: None,
+        refine: None,
         seed: 0,
         backend: args.backend,
         shard: None,

@@ -18,7 +18,7 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 use tomograf_datasets::atomic::write_atomic;
 use tomograf_model::baseline::{Baseline, Fdk, MeanVolume, SartTv};
-use tomograf_model::config::Tune;
+use tomograf_model::config::{InferOverrides, Tune};
 use tomograf_model::data::Item;
 use tomograf_model::metrics::{mean_std, psnr, rmse, ssim3d};
 use tomograf_model::pca::PcaMap;
@@ -54,6 +54,10 @@ pub struct EvaluateArgs {
     /// What to fine-tune: codes-and-generator (default) or codes.
     #[arg(long)]
     pub tune: Option<Tune>,
+    /// Override the checkpoint's data-consistency sweeps after the network's fit (SART-TV
+    /// started from the network's volume; 0 = the network's volume as it is).
+    #[arg(long)]
+    pub refine: Option<usize>,
     /// Seed of inference.
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
@@ -154,6 +158,9 @@ pub struct Job {
     /// Inference stopping threshold, dB (absent in folders written before it existed).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub psnr_threshold: Option<f64>,
+    /// Data-consistency sweeps override (absent in folders written before it existed).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub refine_iterations: Option<usize>,
     /// The PCA-MAP prior's training set and noise, when it is scored.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub pca: Option<(PathBuf, f64)>,
@@ -169,6 +176,10 @@ pub struct Row {
     pub iterations: usize,
     pub seconds: f64,
 }
+
+/// The method name of TomoGRAF's network volume before its data-consistency sweeps (a row
+/// only when the checkpoint's inference runs them); "TomoGRAF" is the final volume.
+pub const NETWORK_ONLY: &str = "TomoGRAF (network only)";
 
 const ITEM_HEADER: &str =
     "item,views,method,psnr_db,ssim,rmse_hu,iterations,seconds,body_psnr_db,body_ssim,body_rmse_hu";
@@ -190,9 +201,8 @@ pub struct Evaluation<'a> {
     pub views: &'a [usize],
     pub split: Option<&'a str>,
     pub items: Option<usize>,
-    pub iterations: Option<usize>,
-    pub psnr_threshold: Option<f64>,
-    pub tune: Option<Tune>,
+    /// Overrides of the checkpoint's inference settings.
+    pub infer: InferOverrides,
     pub seed: u64,
     pub backend: Option<&'a str>,
     pub shard: (usize, usize),
@@ -224,9 +234,12 @@ pub fn run(args: EvaluateArgs) -> Result<()> {
         views: &args.views,
         split: args.split.as_deref(),
         items: args.items,
-        iterations: args.iterations,
-        psnr_threshold: args.psnr_threshold,
-        tune: args.tune,
+        infer: InferOverrides {
+            tune: args.tune,
+            iterations: args.iterations,
+            psnr_threshold: args.psnr_threshold,
+            refine_iterations: args.refine,
+        },
         seed: args.seed,
         backend: args.backend.as_deref(),
         shard,
@@ -269,9 +282,10 @@ pub fn evaluate(e: &Evaluation) -> Result<usize> {
         model: e.checkpoint.is_some(),
         classical: e.classical,
         seed: e.seed,
-        iterations: e.iterations,
-        tune: e.tune,
-        psnr_threshold: e.psnr_threshold,
+        iterations: e.infer.iterations,
+        tune: e.infer.tune,
+        psnr_threshold: e.infer.psnr_threshold,
+        refine_iterations: e.infer.refine_iterations,
         pca: e.train_data.map(|p| (p.to_path_buf(), e.pca_noise)),
     };
     if !job.model && !job.classical {
@@ -285,11 +299,7 @@ pub fn evaluate(e: &Evaluation) -> Result<usize> {
         Some(ck) => {
             let generator = checkpoint::load_generator(ck, &device)
                 .with_context(|| format!("checkpoint {}", ck.display()))?;
-            let infer =
-                generator
-                    .config
-                    .infer
-                    .overridden(e.tune, e.iterations, e.psnr_threshold)?;
+            let infer = generator.config.infer.overridden(&e.infer)?;
             Some((ck, infer, generator.prior, generator.state.proj_scale))
         }
         None => None,
@@ -364,6 +374,24 @@ pub fn evaluate(e: &Evaluation) -> Result<usize> {
                     seconds,
                 });
                 volumes.push(rec.volume);
+                if let Some(net) = rec.network {
+                    if e.show {
+                        eprintln!(
+                            "  projection PSNR (dB) of the network's volume {:.1?}, after \
+                             data consistency {:.1?}",
+                            net.psnr, rec.psnr
+                        );
+                    }
+                    rows.push(Row {
+                        item: item.id.clone(),
+                        views: count,
+                        method: NETWORK_ONLY.into(),
+                        scores: score(item, &net.volume)?,
+                        iterations: rec.iterations,
+                        seconds: seconds - net.refine_seconds,
+                    });
+                    volumes.push(net.volume);
+                }
             }
             for b in &baselines {
                 let t0 = Instant::now();

@@ -5,7 +5,7 @@ use anyhow::{Context, Result, bail};
 use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
 use std::path::{Path, PathBuf};
-use tomograf_model::config::{InferConfig, Tune};
+use tomograf_model::config::{InferConfig, InferOverrides, Tune};
 use tomograf_model::data::Item;
 use tomograf_model::reconstruct::{Reconstruction, Reference, reconstruct};
 use tomograf_model::{backend, checkpoint, data};
@@ -39,6 +39,10 @@ pub struct ReconstructArgs {
     /// view's rendered rays must reach (the paper's 25).
     #[arg(long, allow_negative_numbers = true)]
     pub psnr_threshold: Option<f64>,
+    /// Override the checkpoint's data-consistency sweeps after the network's fit (SART-TV
+    /// started from the network's volume; 0 = the network's volume as it is).
+    #[arg(long)]
+    pub refine: Option<usize>,
     /// Seed of the initial codes and ray jitter.
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
@@ -148,11 +152,12 @@ pub fn run(args: ReconstructArgs) -> Result<()> {
         None => paper_poses(args.views)?,
     };
     let generator = checkpoint::load_generator(&args.checkpoint, &device)?;
-    let infer =
-        generator
-            .config
-            .infer
-            .overridden(args.tune, args.iterations, args.psnr_threshold)?;
+    let infer = generator.config.infer.overridden(&InferOverrides {
+        tune: args.tune,
+        iterations: args.iterations,
+        psnr_threshold: args.psnr_threshold,
+        refine_iterations: args.refine,
+    })?;
     let rec = run_one(
         &args.checkpoint,
         &item,

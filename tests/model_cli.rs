@@ -127,6 +127,7 @@ fn train_resume_reconstruct_evaluate() {
     for views in ["1", "2"] {
         for method in [
             "TomoGRAF",
+            "TomoGRAF (network only)",
             "mean training volume",
             "SART-TV from the mean",
             "PCA-MAP prior",
@@ -163,7 +164,13 @@ fn train_resume_reconstruct_evaluate() {
         .collect();
     assert_eq!(
         methods,
-        ["TomoGRAF", "mean training volume", "SART-TV from the mean"].into(),
+        [
+            "TomoGRAF",
+            "TomoGRAF (network only)",
+            "mean training volume",
+            "SART-TV from the mean"
+        ]
+        .into(),
         "{csv}"
     );
     // Without a checkpoint there is nothing left to score: clap names the missing flag.

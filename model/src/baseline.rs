@@ -167,12 +167,7 @@ impl Baseline for SartTv {
         grid: &Volume,
         scale: &DensityScale,
     ) -> Result<Volume> {
-        let views: Vec<View> = refs.iter().map(|r| r.view).collect();
-        let options = SartOptions {
-            subsets: refs.len().min(10),
-            ..SartOptions::default()
-        };
-        let start: Option<Vec<f32>> = match &self.start {
+        let start = match &self.start {
             None => None,
             Some(m) => {
                 ensure!(
@@ -181,22 +176,41 @@ impl Baseline for SartTv {
                     m.dims,
                     grid.dims()
                 );
-                Some(
-                    m.data
-                        .iter()
-                        .map(|&d| scale.mu_scalar(f64::from(d)) as f32)
-                        .collect(),
-                )
+                Some(m.data.as_slice())
             }
         };
-        let r = sart_tv_from(
-            &projections(refs),
-            &views,
-            &options,
-            grid,
-            start.as_deref(),
-            |_| {},
-        )?;
-        density_of(&r.volume, scale)
+        sart_tv_density(refs, grid, scale, start, SartOptions::default().iterations)
     }
+}
+
+/// SART-TV (`tomograf_sim::recon::sart_tv_from` with its defaults, `iterations` sweeps,
+/// `min(views, 10)` ordered subsets) from the reference views, started from the normalised
+/// density `start` on `grid` (`None`: zero attenuation); returns normalised density.
+pub fn sart_tv_density(
+    refs: &[Reference],
+    grid: &Volume,
+    scale: &DensityScale,
+    start: Option<&[f32]>,
+    iterations: usize,
+) -> Result<Volume> {
+    let views: Vec<View> = refs.iter().map(|r| r.view).collect();
+    let options = SartOptions {
+        iterations,
+        subsets: refs.len().min(10),
+        ..SartOptions::default()
+    };
+    let start: Option<Vec<f32>> = start.map(|d| {
+        d.iter()
+            .map(|&d| scale.mu_scalar(f64::from(d)) as f32)
+            .collect()
+    });
+    let r = sart_tv_from(
+        &projections(refs),
+        &views,
+        &options,
+        grid,
+        start.as_deref(),
+        |_| {},
+    )?;
+    density_of(&r.volume, scale)
 }

@@ -123,6 +123,16 @@ pub struct InferConfig {
     /// Check the full-image PSNR of every reference view every this many iterations.
     #[serde(default = "default_check_every")]
     pub check_every: usize,
+    /// Data-consistency sweeps after the network's fit: SART-TV (sim's defaults) started
+    /// from the network's volume, correcting what the prior could not explain in the
+    /// views; 0 = the network's volume as it is.
+    #[serde(default = "default_refine_iterations")]
+    pub refine_iterations: usize,
+    /// Run the data-consistency sweeps only when some reference view's full-image PSNR
+    /// (dB) against the network volume's projection is below this: views the prior could
+    /// not explain. `inf` = always.
+    #[serde(default = "default_refine_below_db")]
+    pub refine_below_db: f64,
 }
 
 fn default_lr_codes() -> f64 {
@@ -134,29 +144,47 @@ fn default_w_nll() -> f64 {
 fn default_check_every() -> usize {
     10
 }
+fn default_refine_iterations() -> usize {
+    10
+}
+fn default_refine_below_db() -> f64 {
+    30.0
+}
+
+/// Settings that override a checkpoint's [`InferConfig`] (from the command line); `None`
+/// keeps the checkpoint's.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct InferOverrides {
+    /// What is tuned.
+    pub tune: Option<Tune>,
+    /// Iteration cap (both phases).
+    pub iterations: Option<usize>,
+    /// Stopping threshold, dB.
+    pub psnr_threshold: Option<f64>,
+    /// Data-consistency (SART-TV) sweeps after the network's fit.
+    pub refine_iterations: Option<usize>,
+}
 
 impl InferConfig {
-    /// This config with the given settings overridden (`None` keeps the config's); the
-    /// stopping threshold (dB) must be finite.
-    pub fn overridden(
-        &self,
-        tune: Option<Tune>,
-        iterations: Option<usize>,
-        psnr_threshold: Option<f64>,
-    ) -> Result<Self> {
+    /// This config with `o`'s settings overridden; the stopping threshold (dB) must be
+    /// finite.
+    pub fn overridden(&self, o: &InferOverrides) -> Result<Self> {
         let mut c = self.clone();
-        if let Some(t) = tune {
+        if let Some(t) = o.tune {
             c.tune = t;
         }
-        if let Some(n) = iterations {
+        if let Some(n) = o.iterations {
             c.iterations = n;
         }
-        if let Some(db) = psnr_threshold {
+        if let Some(db) = o.psnr_threshold {
             ensure!(
                 db.is_finite(),
                 "inference PSNR threshold {db} dB must be a finite number"
             );
             c.psnr_threshold = db;
+        }
+        if let Some(n) = o.refine_iterations {
+            c.refine_iterations = n;
         }
         Ok(c)
     }
@@ -308,6 +336,10 @@ impl TrainConfig {
             self.infer.lr_codes
         );
         ensure!(self.infer.check_every > 0, "infer.check_every must be > 0");
+        ensure!(
+            !self.infer.refine_below_db.is_nan(),
+            "infer.refine_below_db is NaN: give a PSNR in dB (inf: always refine)"
+        );
         ensure!(
             self.checkpoint_every > 0 && self.log_every > 0,
             "checkpoint_every and log_every must be > 0"

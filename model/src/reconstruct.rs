@@ -7,12 +7,19 @@
 //! 2. With `tune = codes-and-generator`, the generator is then tuned with the codes, at the
 //!    lower rate `lr`, on `patch`×`patch` patches at random scales.
 //!
+//! 3. With `refine_iterations` > 0, when some reference view's full-image PSNR against the
+//!    network volume's projection is below `refine_below_db` (the prior could not explain
+//!    the views: anatomy outside the training population), SART-TV (sim's defaults) runs
+//!    that many sweeps from the network's volume. The network's own volume is kept beside
+//!    the result.
+//!
 //! Each iteration fits one randomly drawn reference view with eq. 13's loss,
 //! λ1·L_r + λ2·L_PSNR + λ3·NLL (0.3, 0.1, `w_nll`), the NLL taken under the training codes'
 //! Gaussian. Every `check_every` iterations the current volume is rendered on the grid and
-//! projected with sim's trilinear projector into every reference view; inference stops when
+//! projected with sim's Siddon projector into every reference view; inference stops when
 //! each view's full-image PSNR reaches the threshold, or at the iteration cap.
 
+use crate::baseline::sart_tv_density;
 use crate::checkpoint::Generator;
 use crate::config::{InferConfig, Tune};
 use crate::error::{Result, ensure};
@@ -48,8 +55,12 @@ pub struct Reference {
 /// What inference produced.
 #[derive(Debug, Clone)]
 pub struct Reconstruction {
-    /// Normalised density on the requested grid.
+    /// Normalised density on the requested grid (after the data-consistency sweeps, when
+    /// they ran).
     pub volume: Volume,
+    /// The network's own volume before the data-consistency sweeps (equal to `volume` when
+    /// the gate kept them from running); `None` when `refine_iterations` is 0.
+    pub network: Option<NetworkVolume>,
     /// Iterations run (both phases).
     pub iterations: usize,
     /// Full-image PSNR (dB, projections scaled to [0, 1]) of each reference view, from the
@@ -59,6 +70,20 @@ pub struct Reconstruction {
     pub losses: Vec<f64>,
     /// The fitted codes `(z_sh, z_a)` (not whitened).
     pub codes: (Vec<f32>, Vec<f32>),
+}
+
+/// The network's volume before data-consistency sweeps.
+#[derive(Debug, Clone)]
+pub struct NetworkVolume {
+    /// Normalised density on the requested grid.
+    pub volume: Volume,
+    /// Full-image PSNR (dB) of each reference view against its projection, as
+    /// [`Reconstruction::psnr`].
+    pub psnr: Vec<f64>,
+    /// Whether the sweeps ran (some view's PSNR was below `refine_below_db`).
+    pub refined: bool,
+    /// Seconds the sweeps took.
+    pub refine_seconds: f64,
 }
 
 /// Checks references against each other and the grid: at least one, sizes consistent.
@@ -186,12 +211,41 @@ pub fn reconstruct(
             }
         }
     }
-    let volume = render_volume(&tuned, &stats, &prior, grid, refs[0].pose, device)?;
+    let mut volume = render_volume(&tuned, &stats, &prior, grid, refs[0].pose, device)?;
     psnr = projection_psnr(&volume, &density_scale, refs, proj_scale)?;
+    let mut network = None;
+    if infer.refine_iterations > 0 {
+        let unexplained = psnr.iter().any(|&p| p < infer.refine_below_db);
+        let t0 = std::time::Instant::now();
+        let refined = if unexplained {
+            sart_tv_density(
+                refs,
+                &volume,
+                &density_scale,
+                Some(volume.data()),
+                infer.refine_iterations,
+            )?
+        } else {
+            volume.clone()
+        };
+        let refine_seconds = t0.elapsed().as_secs_f64();
+        let refined_psnr = if unexplained {
+            projection_psnr(&refined, &density_scale, refs, proj_scale)?
+        } else {
+            psnr.clone()
+        };
+        network = Some(NetworkVolume {
+            psnr: std::mem::replace(&mut psnr, refined_psnr),
+            volume: std::mem::replace(&mut volume, refined),
+            refined: unexplained,
+            refine_seconds,
+        });
+    }
     let (z_sh, z_a) = stats.codes(tuned.codes.shape.val(), tuned.codes.app.val());
     let read = |t: Tensor<2>| t.into_data().try_to_vec::<f32>().expect("f32 codes");
     Ok(Reconstruction {
         volume,
+        network,
         iterations,
         psnr,
         losses: losses_seen,

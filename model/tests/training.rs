@@ -347,6 +347,87 @@ fn inference_loss_falls_when_fitting_one_volume() {
 }
 
 #[test]
+fn refinement_brings_the_network_volume_to_the_views() {
+    // An untrained model renders its mean volume (the first item); the views are of another
+    // one. SART-TV started from the network's volume must fit those views better and move
+    // the volume towards the item they show; 0 sweeps, or a gate the network's projections
+    // pass, must leave the network's volume.
+    let item = common::item(16, 4, 16, 0.0);
+    let items = std::slice::from_ref(&item);
+    let config = TrainConfig::load("tiny").unwrap();
+    let scale = projection_scale(items).unwrap();
+    let t = trainer(&config, items, scale);
+    let dir = tempfile::tempdir().unwrap();
+    let ck = dir.path().join("ck");
+    checkpoint::save(&t, item.scale, &ck).unwrap();
+    let dev = device();
+    let other = common::item(16, 4, 16, -0.5);
+    let truth = other.ct.as_ref().unwrap();
+    let run = |refine: usize, below_db: f64| {
+        let mut infer = config.infer.clone();
+        infer.tune = Tune::Codes;
+        infer.iterations = 2;
+        infer.lr_codes = 0.0;
+        infer.psnr_threshold = 99.0;
+        infer.refine_iterations = refine;
+        infer.refine_below_db = below_db;
+        let generator = checkpoint::load_generator(&ck, &dev).unwrap();
+        reconstruct(
+            generator,
+            &refs_of(&other, &[0, 1]),
+            truth,
+            &infer,
+            7,
+            &dev,
+            |_, _| {},
+        )
+        .unwrap()
+    };
+    let rmse = |v: &[f32]| {
+        let s: f64 = v
+            .iter()
+            .zip(truth.data())
+            .map(|(&a, &b)| f64::from(a - b).powi(2))
+            .sum();
+        (s / v.len() as f64).sqrt()
+    };
+    let (plain, refined) = (run(0, f64::INFINITY), run(10, f64::INFINITY));
+    assert!(plain.network.is_none());
+    let net = refined
+        .network
+        .as_ref()
+        .expect("the network's volume is kept");
+    assert!(net.refined);
+    assert_eq!(net.volume.data(), plain.volume.data());
+    assert_eq!(net.psnr, plain.psnr);
+    // Views the network explains (every view's PSNR above the gate) are not refined.
+    let gated = run(10, -100.0);
+    assert!(!gated.network.as_ref().unwrap().refined);
+    assert_eq!(gated.volume.data(), plain.volume.data());
+    // With zero-rate codes and an untrained generator, no refinement = the mean volume.
+    let mean = item.ct.as_ref().unwrap().data();
+    let off = plain
+        .volume
+        .data()
+        .iter()
+        .zip(mean)
+        .map(|(a, b)| (a - b).abs())
+        .fold(0.0f32, f32::max);
+    assert!(
+        off < 1e-5,
+        "unrefined volume differs from the mean by {off}"
+    );
+    for (p, r) in plain.psnr.iter().zip(&refined.psnr) {
+        assert!(
+            *r > p + 3.0,
+            "projection PSNR {p} dB → {r} dB after refinement"
+        );
+    }
+    let (e0, e1) = (rmse(plain.volume.data()), rmse(refined.volume.data()));
+    assert!(e1 < 0.8 * e0, "volume RMSE {e0} → {e1} after refinement");
+}
+
+#[test]
 fn wrong_inputs_are_named() {
     let item = common::item(16, 2, 16, 0.0);
     let items = std::slice::from_ref(&item);

@@ -5,7 +5,7 @@
 
 use super::render::{Block, render};
 use super::{Kind, Study, VIEWS, relative};
-use crate::evaluate::{Row, Scores, merge};
+use crate::evaluate::{NETWORK_ONLY, Row, Scores, merge};
 use crate::figures::{Axes, COLOUR_NAMES, plot_histograms, plot_points};
 use anyhow::{Context, Result};
 use std::collections::BTreeSet;
@@ -271,12 +271,19 @@ fn row_keys(study: &Study) -> Vec<(Option<String>, String, String)> {
     let mut keys: Vec<(Option<String>, String, String)> = s
         .train_sets
         .iter()
-        .map(|t| {
-            (
-                Some(t.clone()),
-                "TomoGRAF".to_string(),
-                format!("TomoGRAF ← {t}"),
-            )
+        .flat_map(|t| {
+            [
+                (
+                    Some(t.clone()),
+                    "TomoGRAF".to_string(),
+                    format!("TomoGRAF ← {t}"),
+                ),
+                (
+                    Some(t.clone()),
+                    NETWORK_ONLY.to_string(),
+                    format!("{NETWORK_ONLY} ← {t}"),
+                ),
+            ]
         })
         .collect();
     if s.train_sets.len() == 1 {
@@ -373,13 +380,21 @@ fn tables(study: &Study, stats: &[Stat]) -> Vec<Block> {
         let mut rows = Vec::new();
         for v in VIEWS {
             for (train, method, label) in row_keys(study) {
-                let mut row = vec![v.to_string(), label];
-                for t in &s.test_sets {
-                    row.push(
+                let cells: Vec<Option<String>> = s
+                    .test_sets
+                    .iter()
+                    .map(|t| {
                         find(stats, train.as_deref(), t, v, &method)
-                            .map_or("—".into(), |st| m.format(st.mean_std(m))),
-                    );
+                            .map(|st| m.format(st.mean_std(m)))
+                    })
+                    .collect();
+                // A method no cell has (the network-only row of a model that runs no
+                // data-consistency sweeps) gets no row.
+                if cells.iter().all(Option::is_none) {
+                    continue;
                 }
+                let mut row = vec![v.to_string(), label];
+                row.extend(cells.into_iter().map(|c| c.unwrap_or_else(|| "—".into())));
                 rows.push(row);
             }
         }
