@@ -148,7 +148,9 @@ fn realism_gap_end_to_end_resume_and_same_seed() {
             .collect()
     };
     let from_b = pairs(rows_for(&b.join("results.csv"), &["scatter"]));
-    assert_eq!(from_b.len(), 4 * 4 + 4 * 2);
+    // 4 view counts × (TomoGRAF, network only, mean, SART-TV from the mean, PCA-MAP) + 4 × (FDK,
+    // SART-TV).
+    assert_eq!(from_b.len(), 4 * 5 + 4 * 2);
     assert_eq!(
         from_b,
         pairs(rows_for(&a.join("results.csv"), &["scatter"]))
