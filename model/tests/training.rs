@@ -288,21 +288,27 @@ fn auto_decoder_overfits_two_items_and_inference_finds_their_codes() {
     );
 }
 
-#[test]
-fn inference_loss_falls_when_fitting_one_volume() {
-    // Gradients flow from the projection loss through the renderer into codes and field.
+/// An untrained `tiny` model of one item (the mean of one volume is that volume, so the
+/// model renders it), saved as `ck` in a temporary folder, and another item to fit (the
+/// dense sphere moved).
+fn one_item_checkpoint() -> (Item, Item, TrainConfig, tempfile::TempDir) {
     let item = common::item(16, 4, 16, 0.0);
     let items = std::slice::from_ref(&item);
     let config = TrainConfig::load("tiny").unwrap();
     let scale = projection_scale(items).unwrap();
     let t = trainer(&config, items, scale);
     let dir = tempfile::tempdir().unwrap();
+    checkpoint::save(&t, item.scale, &dir.path().join("ck")).unwrap();
+    (item, common::item(16, 4, 16, -0.5), config, dir)
+}
+
+#[test]
+fn inference_loss_falls_when_fitting_one_volume() {
+    // Gradients flow from the projection loss through the renderer into codes and field.
+    let (item, other, config, dir) = one_item_checkpoint();
     let ck = dir.path().join("ck");
-    checkpoint::save(&t, item.scale, &ck).unwrap();
     let dev = device();
     let ct = item.ct.as_ref().unwrap();
-    // The mean of one volume is that volume: fit a shifted one instead.
-    let other = common::item(16, 4, 16, -0.5);
     for tune in [Tune::CodesAndGenerator, Tune::Codes] {
         let mut infer = config.infer.clone();
         infer.tune = tune;
@@ -352,16 +358,9 @@ fn refinement_brings_the_network_volume_to_the_views() {
     // one. SART-TV started from the network's volume must fit those views better and move
     // the volume towards the item they show; 0 sweeps, or a gate the network's projections
     // pass, must leave the network's volume.
-    let item = common::item(16, 4, 16, 0.0);
-    let items = std::slice::from_ref(&item);
-    let config = TrainConfig::load("tiny").unwrap();
-    let scale = projection_scale(items).unwrap();
-    let t = trainer(&config, items, scale);
-    let dir = tempfile::tempdir().unwrap();
+    let (item, other, config, dir) = one_item_checkpoint();
     let ck = dir.path().join("ck");
-    checkpoint::save(&t, item.scale, &ck).unwrap();
     let dev = device();
-    let other = common::item(16, 4, 16, -0.5);
     let truth = other.ct.as_ref().unwrap();
     let run = |refine: usize, below_db: f64| {
         let mut infer = config.infer.clone();
