@@ -216,30 +216,25 @@ pub fn reconstruct(
     let mut network = None;
     if infer.refine_iterations > 0 {
         let unexplained = psnr.iter().any(|&p| p < infer.refine_below_db);
-        let t0 = std::time::Instant::now();
-        let refined = if unexplained {
-            sart_tv_density(
-                refs,
-                &volume,
-                &density_scale,
-                Some(volume.data()),
-                infer.refine_iterations,
-            )?
-        } else {
-            volume.clone()
-        };
-        let refine_seconds = t0.elapsed().as_secs_f64();
-        let refined_psnr = if unexplained {
-            projection_psnr(&refined, &density_scale, refs, proj_scale)?
-        } else {
-            psnr.clone()
-        };
-        network = Some(NetworkVolume {
-            psnr: std::mem::replace(&mut psnr, refined_psnr),
-            volume: std::mem::replace(&mut volume, refined),
+        let mut net = NetworkVolume {
+            volume: volume.clone(),
+            psnr: psnr.clone(),
             refined: unexplained,
-            refine_seconds,
-        });
+            refine_seconds: 0.0,
+        };
+        if unexplained {
+            let t0 = std::time::Instant::now();
+            volume = sart_tv_density(
+                refs,
+                &net.volume,
+                &density_scale,
+                Some(net.volume.data()),
+                infer.refine_iterations,
+            )?;
+            net.refine_seconds = t0.elapsed().as_secs_f64();
+            psnr = projection_psnr(&volume, &density_scale, refs, proj_scale)?;
+        }
+        network = Some(net);
     }
     let (z_sh, z_a) = stats.codes(tuned.codes.shape.val(), tuned.codes.app.val());
     let read = |t: Tensor<2>| t.into_data().try_to_vec::<f32>().expect("f32 codes");
