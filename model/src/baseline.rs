@@ -176,7 +176,7 @@ impl Baseline for SartTv {
                     m.dims,
                     grid.dims()
                 );
-                Some(m.data.as_slice())
+                Some((m.data.as_slice(), 1.0))
             }
         };
         sart_tv_density(refs, grid, scale, start, SartOptions::default().iterations)
@@ -184,13 +184,14 @@ impl Baseline for SartTv {
 }
 
 /// SART-TV (`tomograf_sim::recon::sart_tv_from` with its defaults, `iterations` sweeps,
-/// `min(views, 10)` ordered subsets) from the reference views, started from the normalised
-/// density `start` on `grid` (`None`: zero attenuation); returns normalised density.
+/// `min(views, 10)` ordered subsets) from the reference views, started from `start = (density,
+/// weight)`: weight times the attenuation of the normalised density `start` on `grid` (`None`: zero
+/// attenuation; weight 1: `start` itself); returns normalised density.
 pub fn sart_tv_density(
     refs: &[Reference],
     grid: &Volume,
     scale: &DensityScale,
-    start: Option<&[f32]>,
+    start: Option<(&[f32], f64)>,
     iterations: usize,
 ) -> Result<Volume> {
     let views: Vec<View> = refs.iter().map(|r| r.view).collect();
@@ -199,9 +200,9 @@ pub fn sart_tv_density(
         subsets: refs.len().min(10),
         ..SartOptions::default()
     };
-    let start: Option<Vec<f32>> = start.map(|d| {
+    let start: Option<Vec<f32>> = start.map(|(d, weight)| {
         d.iter()
-            .map(|&d| scale.mu_scalar(f64::from(d)) as f32)
+            .map(|&d| (weight * scale.mu_scalar(f64::from(d))) as f32)
             .collect()
     });
     let r = sart_tv_from(

@@ -133,6 +133,13 @@ pub struct InferConfig {
     /// not explain. `inf` = always.
     #[serde(default = "default_refine_below_db")]
     pub refine_below_db: f64,
+    /// The data-consistency sweeps start from this fraction of the network volume's
+    /// attenuation (1: the network's volume; 0: zero, plain SART-TV). When the gate opens the
+    /// prior has just failed to explain the views, so trusting it in full carries its wrong
+    /// body shape into the result; halfway was the best of 1, 0.75, 0.5, 0.25, 0 on
+    /// validation phantoms (docs/model.md, "Data consistency").
+    #[serde(default = "default_refine_start_weight")]
+    pub refine_start_weight: f64,
 }
 
 fn default_lr_codes() -> f64 {
@@ -149,6 +156,9 @@ fn default_refine_iterations() -> usize {
 }
 fn default_refine_below_db() -> f64 {
     30.0
+}
+fn default_refine_start_weight() -> f64 {
+    0.5
 }
 
 /// Settings that override a checkpoint's [`InferConfig`] (from the command line); `None`
@@ -336,6 +346,12 @@ impl TrainConfig {
             self.infer.lr_codes
         );
         ensure!(self.infer.check_every > 0, "infer.check_every must be > 0");
+        ensure!(
+            (0.0..=1.0).contains(&self.infer.refine_start_weight),
+            "infer.refine_start_weight = {} must be in [0, 1] (the fraction of the network \
+             volume's attenuation the data-consistency sweeps start from)",
+            self.infer.refine_start_weight
+        );
         ensure!(
             !self.infer.refine_below_db.is_nan(),
             "infer.refine_below_db is NaN: give a PSNR in dB (inf: always refine)"

@@ -10,8 +10,9 @@
 //! 3. With `refine_iterations` > 0, when some reference view's full-image PSNR against the
 //!    network volume's projection is below `refine_below_db` (the prior could not explain
 //!    the views: anatomy outside the training population), SART-TV (sim's defaults) runs
-//!    that many sweeps from the network's volume. The network's own volume is kept beside
-//!    the result.
+//!    that many sweeps from `refine_start_weight` (default ½) times the network volume's
+//!    attenuation: the prior has just been shown wrong for these views, so it is only half
+//!    trusted. The network's own volume is kept beside the result.
 //!
 //! Each iteration fits one randomly drawn reference view with eq. 13's loss,
 //! λ1·L_r + λ2·L_PSNR + λ3·NLL (0.3, 0.1, `w_nll`), the NLL taken under the training codes'
@@ -228,7 +229,7 @@ pub fn reconstruct(
                 refs,
                 &net.volume,
                 &density_scale,
-                Some(net.volume.data()),
+                Some((net.volume.data(), infer.refine_start_weight)),
                 infer.refine_iterations,
             )?;
             net.refine_seconds = t0.elapsed().as_secs_f64();

@@ -362,8 +362,9 @@ fn refinement_brings_the_network_volume_to_the_views() {
     let ck = dir.path().join("ck");
     let dev = device();
     let truth = other.ct.as_ref().unwrap();
-    let run = |refine: usize, below_db: f64| {
+    let run_from = |refine: usize, below_db: f64, weight: f64| {
         let mut infer = config.infer.clone();
+        infer.refine_start_weight = weight;
         infer.tune = Tune::Codes;
         infer.iterations = 2;
         infer.lr_codes = 0.0;
@@ -382,6 +383,7 @@ fn refinement_brings_the_network_volume_to_the_views() {
         )
         .unwrap()
     };
+    let run = |refine: usize, below_db: f64| run_from(refine, below_db, 0.5);
     let rmse = |v: &[f32]| {
         let s: f64 = v
             .iter()
@@ -399,6 +401,9 @@ fn refinement_brings_the_network_volume_to_the_views() {
     assert!(net.refined);
     assert_eq!(net.volume.data(), plain.volume.data());
     assert_eq!(net.psnr, plain.psnr);
+    // The start weight is used: from the network's full volume the sweeps end elsewhere.
+    let full = run_from(10, f64::INFINITY, 1.0);
+    assert_ne!(full.volume.data(), refined.volume.data());
     // Views the network explains (every view's PSNR above the gate) are not refined.
     let gated = run(10, -100.0);
     assert!(!gated.network.as_ref().unwrap().refined);
