@@ -227,11 +227,17 @@ def acquire(
     signal: Optional[str] = None,
     seed: int = 0,
     projector: Projector = "siddon",
+    detector: Optional[str] = None,
 ) -> npt.NDArray[np.float32]:
     """Real detector physics on a CT in HU (polychromatic beam, tissues, detector noise,
     blur, flat-field, −log): (rows, cols) for one view, (n, rows, cols) for a list; a
-    photon-counting detector adds a channel axis. GIL released; seeded, thread-count
+    photon-counting detector adds a channel axis. ``detector`` replaces the preset's
+    detector by name (`detector_models`). GIL released; seeded, thread-count
     independent."""
+
+def detector_models() -> List[str]:
+    """Detector model names: "perfect-absorber" (alias "ideal"), "noiseless-csi",
+    "kv-flat-panel", "cbct", "photon-counting"."""
 
 def scatter_matched(
     source: Sequence[float],

@@ -6,6 +6,8 @@ mod bench_model;
 mod bench_physics;
 mod dataset;
 mod demo;
+#[cfg(test)]
+mod doc_examples;
 mod evaluate;
 mod figures;
 mod output;

@@ -35,9 +35,11 @@ pub struct PhysicsArgs {
     /// [default: log-line-integral].
     #[arg(long)]
     pub signal: Option<String>,
-    /// Detector model: ideal (no noise, no blur), kv-flat-panel, cbct or photon-counting;
-    /// replaces the preset's detector (e.g. `--preset kv-flat-panel-120kvp
-    /// --detector-model ideal`: the polychromatic beam without detector noise or blur).
+    /// Detector model: perfect-absorber (alias ideal: η = 1, no noise, no blur),
+    /// noiseless-csi (the flat panel's 0.6 mm CsI energy response, no noise, no blur),
+    /// kv-flat-panel, cbct or photon-counting; replaces the preset's detector (e.g.
+    /// `--preset kv-flat-panel-120kvp --detector-model noiseless-csi`: the polychromatic
+    /// beam and the panel's energy response without noise or blur). See docs/detector.md.
     #[arg(long)]
     pub detector_model: Option<String>,
     /// Scattered radiation: none (default), estimate (fast: coarse Monte Carlo, smoothed)
@@ -79,7 +81,9 @@ impl PhysicsArgs {
             s.spectrum = Some(SpectrumSpec {
                 kvp: Some(kvp),
                 energy_kev: None,
+                photons_per_mas_mm2: None,
                 file: None,
+                fluence_unit: None,
                 ..old.unwrap_or_else(|| SpectrumSpec::tungsten(kvp, &[], 1.0))
             });
         }
@@ -202,20 +206,8 @@ pub fn acquisition(scene: &Scene) -> Result<Option<(Acquisition, u64)>> {
         }
         acq.detector = r.clone();
     } else if let Some(m) = &d.model {
-        acq.detector = match m.as_str() {
-            "ideal" => DetectorModel::ideal(),
-            "kv-flat-panel" => DetectorModel::kv_flat_panel(),
-            "cbct" => DetectorModel::cbct(),
-            "photon-counting" => DetectorModel::photon_counting(
-                d.thresholds_kev.clone().unwrap_or_else(|| vec![20.0]),
-            ),
-            other => bail!(
-                "unknown detector model '{other}': use ideal, kv-flat-panel, cbct or \
-                 photon-counting"
-            ),
-        };
-    }
-    if d.thresholds_kev.is_some() && d.model.as_deref() != Some("photon-counting") {
+        acq.detector = DetectorModel::by_name(m, d.thresholds_kev.clone())?;
+    } else if d.thresholds_kev.is_some() {
         bail!("thresholds_kev applies to the photon-counting detector model only");
     }
     if let Some(s) = &a.signal {

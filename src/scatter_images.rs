@@ -111,6 +111,19 @@ impl<'de> Deserialize<'de> for ScatterSection {
             .map(AntiScatterGrid::deserialize)
             .transpose()
             .map_err(|e| D::Error::custom(format!("[scatter.anti_scatter_grid]: {e}")))?;
+        // `model = "none"` is a unit variant: serde would drop any other key silently.
+        if t.get("model").and_then(|m| m.as_str()) == Some("none") && t.len() > 1 {
+            let extra: Vec<&str> = t
+                .keys()
+                .filter(|k| *k != "model")
+                .map(|k| k.as_str())
+                .collect();
+            return Err(D::Error::custom(format!(
+                "[scatter]: model = \"none\" takes no settings, found `{}` (choose model = \
+                 \"estimate\" or \"monte-carlo\", or remove them)",
+                extra.join("`, `")
+            )));
+        }
         let model = if t.is_empty() {
             ScatterModel::None
         } else {

@@ -1,7 +1,8 @@
 //! The TOML scene file of `tomograf project`, and how command-line flags override it.
 //!
 //! Every field is optional; anything left out takes the default documented on the flag
-//! of the same name (`tomograf project --help`). Example:
+//! of the same name (`tomograf project --help`). docs/scene.md is the reference of every
+//! section and key (tested against these types by `src/doc_examples.rs`). Example:
 //!
 //! ```toml
 //! [volume]
@@ -48,7 +49,8 @@
 //! signal = "log-line-integral"      # or "raw", "flat-field"
 //!
 //! [spectrum]                        # replaces the preset's beam
-//! kvp = 120                         # or energy_kev = 60, or file = "spectrum.csv"
+//! kvp = 120                         # or energy_kev = 60 (photons_per_mas_mm2 = 1e6), or
+//!                                   # file = "spectrum.csv" (fluence_unit = "per-mm2")
 //! filtration = [{ material = "al", thickness_mm = 2.5 }, { material = "cu", thickness_mm = 0.1 }]
 //! bins = 20                         # rebin (default: 1 keV)
 //! mas = 2.0
@@ -71,8 +73,9 @@
 //! calibration_kev = 70.0
 //!
 //! [detector]                        # besides rows/cols/pitch_mm/offset_mm
-//! model = "kv-flat-panel"           # or "ideal", "cbct", "photon-counting"
-//! thresholds_kev = [20.0, 50.0]     # photon-counting only
+//! model = "kv-flat-panel"           # or "perfect-absorber" (alias "ideal"), "noiseless-csi",
+//!                                   # "cbct", "photon-counting"
+//! # thresholds_kev = [20.0, 50.0]   # with model = "photon-counting" only
 //! ```
 //!
 //! Mesh objects (closed triangle meshes; inside one its material replaces the voxels'), one

@@ -135,3 +135,161 @@ fn dataset_with_a_preset_writes_detector_signals() {
             .unwrap();
     assert_eq!(item["acquisition"]["settings"]["spectrum"]["kvp"], 100.0);
 }
+
+#[test]
+fn explicit_views_need_no_detector_table_and_match_the_pose_view() {
+    // The AP pose (θ = 0): source at −1000 mm along y, panel 500 mm past the isocentre,
+    // 32 × 32 pixels of 8 mm, pixel (0, 0) top-left: the same view written out.
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let flags = [
+        "--phantom-dims",
+        "64,64,40",
+        "--phantom-spacing",
+        "5.6,5.6,8.3",
+        "--isocentre",
+        "0,0,0",
+    ];
+    let pose = d.join("pose");
+    let mut args = vec!["project", "-o", pose.to_str().unwrap(), "--format", "npy"];
+    args.extend(flags);
+    args.extend([
+        "--rows", "32", "--cols", "32", "--pitch", "8", "--view", "ap",
+    ]);
+    ok(&tomograf(&args));
+    let scene = d.join("explicit.toml");
+    let half = 31.0 * 8.0 / 2.0;
+    std::fs::write(
+        &scene,
+        format!(
+            "[[views.explicit]]\nsource_mm = [0.0, -1000.0, 0.0]\n\
+             detector_origin_mm = [{}, 500.0, {half}]\nu_mm = [8.0, 0.0, 0.0]\n\
+             v_mm = [0.0, 0.0, -8.0]\nrows = 32\ncols = 32\n",
+            -half
+        ),
+    )
+    .unwrap();
+    let expl = d.join("explicit");
+    let mut args = vec![
+        "project",
+        "--scene",
+        scene.to_str().unwrap(),
+        "-o",
+        expl.to_str().unwrap(),
+        "--format",
+        "npy",
+    ];
+    args.extend(flags);
+    ok(&tomograf(&args));
+    let (sa, a) = read_npy(&pose.join("drr.npy"));
+    let (sb, b) = read_npy(&expl.join("drr.npy"));
+    assert_eq!(sa, sb);
+    assert!(
+        a.iter().cloned().fold(0.0f32, f32::max) > 1.0,
+        "the view crosses the body"
+    );
+    for (x, y) in a.iter().zip(&b) {
+        assert!((x - y).abs() <= 1e-5 * x.abs().max(1.0), "{x} vs {y}");
+    }
+}
+
+#[test]
+fn a_mu_volume_runs_with_detector_physics_at_its_stated_energy() {
+    use tomograf_sim::attenuation::mu_water_per_mm;
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    // The phantom in HU, and the same volume in mu at 60 keV (written here, from the HU
+    // definition μ = μ_water(E)·(1 + HU/1000)).
+    let hu_path = d.join("hu.nii.gz");
+    ok(&tomograf(&[
+        "phantom",
+        "-o",
+        hu_path.to_str().unwrap(),
+        "--dims",
+        "48,48,24",
+        "--spacing",
+        "7,7,12",
+    ]));
+    let hu = tomograf_datasets::nifti::read_nifti(&hu_path).unwrap();
+    let mu_w = mu_water_per_mm(60.0).unwrap();
+    let mu = hu
+        .clone()
+        .map_in_place(|h| (mu_w * (1.0 + f64::from(h.max(-1000.0)) / 1000.0)) as f32)
+        .unwrap();
+    let mu_path = d.join("mu.nii.gz");
+    tomograf_datasets::nifti::write_nifti(&mu_path, &mu).unwrap();
+    let physics = [
+        "--preset",
+        "kv-flat-panel-120kvp",
+        "--detector-model",
+        "noiseless-csi",
+        "--rows",
+        "32",
+        "--cols",
+        "32",
+    ];
+    let run = |input: &Path, name: &str, extra: &[&str]| {
+        let out = d.join(name);
+        let mut args = vec![
+            "project",
+            input.to_str().unwrap(),
+            "-o",
+            out.to_str().unwrap(),
+            "--format",
+            "npy",
+        ];
+        args.extend(physics);
+        args.extend(extra);
+        tomograf(&args)
+    };
+    ok(&run(&hu_path, "hu", &[]));
+    ok(&run(
+        &mu_path,
+        "mu",
+        &["--units", "mu", "--energy-kev", "60"],
+    ));
+    let (_, a) = read_npy(&d.join("hu/drr.npy"));
+    let (_, b) = read_npy(&d.join("mu/drr.npy"));
+    assert!(a.iter().cloned().fold(0.0f32, f32::max) > 1.0);
+    for (x, y) in a.iter().zip(&b) {
+        assert!((x - y).abs() <= 1e-4 * x.abs().max(1.0), "{x} vs {y}");
+    }
+    // Without the energy, the error says what to pass.
+    let e = err(&run(&mu_path, "no-energy", &["--units", "mu"]));
+    assert!(e.contains("energy_kev or --energy-kev"), "{e}");
+}
+
+#[test]
+fn photon_starvation_is_reported_with_the_mas_to_raise() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("o");
+    let mut args = vec![
+        "project",
+        "-o",
+        out.to_str().unwrap(),
+        "--format",
+        "npy",
+        "--preset",
+        "kv-flat-panel-120kvp",
+    ];
+    args.extend(SMALL);
+    let starved = [args.clone(), vec!["--mas", "1e-4"]].concat();
+    let o = tomograf(&starved);
+    ok(&o);
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        e.contains("photon starvation") && e.contains("mas = 0.0001"),
+        "{e}"
+    );
+    let side: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("drr.json")).unwrap()).unwrap();
+    assert!(side["clipped_pixels"].as_u64().unwrap() > 100, "{side}");
+    // At the preset's 1 mAs nothing is clipped and nothing is said.
+    let o = tomograf(&args);
+    ok(&o);
+    assert!(!String::from_utf8_lossy(&o.stderr).contains("warning"));
+    let side: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("drr.json")).unwrap()).unwrap();
+    assert_eq!(side["clipped_pixels"], 0);
+    assert_eq!(side["saturated_pixels"], 0);
+}

@@ -58,6 +58,7 @@ fn tomograf_py(m: &Bound<'_, PyModule>) -> PyResult<()> {
     // Real detector physics (spectrum, tissues, detector).
     m.add_function(wrap_pyfunction!(physics::acquire, m)?)?;
     m.add_function(wrap_pyfunction!(physics::presets, m)?)?;
+    m.add_function(wrap_pyfunction!(physics::detector_models, m)?)?;
     // Scatter.
     m.add_function(wrap_pyfunction!(scatter::scatter_matched, m)?)?;
     // Meshes, reconstruction: register here.

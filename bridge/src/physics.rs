@@ -7,7 +7,7 @@ use numpy::{IntoPyArray, PyArrayDyn};
 use pyo3::prelude::*;
 use tomograf_sim::Projector;
 use tomograf_sim::acquisition::{Acquisition, PRESETS};
-use tomograf_sim::detector::Output;
+use tomograf_sim::detector::{DetectorModel, Output};
 
 /// Names of the acquisition presets (``"ideal-drr"`` is :func:`project` itself).
 #[pyfunction]
@@ -15,18 +15,27 @@ pub fn presets() -> Vec<&'static str> {
     PRESETS.to_vec()
 }
 
+/// Names of the detector models (``detector=`` of :func:`acquire`): ``"perfect-absorber"``
+/// (alias ``"ideal"``: η = 1), ``"noiseless-csi"`` (0.6 mm CsI response, no noise),
+/// ``"kv-flat-panel"``, ``"cbct"``, ``"photon-counting"`` (docs/detector.md).
+#[pyfunction]
+pub fn detector_models() -> Vec<&'static str> {
+    DetectorModel::NAMES.to_vec()
+}
+
 /// Acquires one view or a list of views of a CT volume in **HU** with real detector
 /// physics: a preset (``"kv-flat-panel-120kvp"`` or ``"cbct-100kvp"``), optionally with
 /// another tube voltage ``kvp`` (kVp, whole numbers 40–150), exposure ``mas`` (mA·s per
 /// view), ``energy_bins`` (rebinned spectrum; default 1 keV bins) and ``signal``
 /// (``"raw"`` ADU/counts, ``"flat-field"`` transmission, or ``"log-line-integral"``, the
-/// default). Noise is seeded by ``seed``: view ``i`` of the list has its own stream, so the
+/// default); ``detector`` replaces the preset's detector by name (:func:`detector_models`,
+/// e.g. ``"noiseless-csi"``). Noise is seeded by ``seed``: view ``i`` of the list has its own stream, so the
 /// result depends only on the inputs, never on the thread count.
 ///
 /// Returns float32 ``(rows, cols)`` for one view, ``(views, rows, cols)`` for a list; a
 /// photon-counting detector adds a channel axis after the views axis.
 #[pyfunction]
-#[pyo3(signature = (hu, views, preset="kv-flat-panel-120kvp", kvp=None, mas=None, energy_bins=None, signal=None, seed=0, projector="siddon"))]
+#[pyo3(signature = (hu, views, preset="kv-flat-panel-120kvp", kvp=None, mas=None, energy_bins=None, signal=None, seed=0, projector="siddon", detector=None))]
 #[allow(clippy::too_many_arguments)]
 pub fn acquire<'py>(
     py: Python<'py>,
@@ -39,6 +48,7 @@ pub fn acquire<'py>(
     signal: Option<&str>,
     seed: u64,
     projector: &str,
+    detector: Option<&str>,
 ) -> PyResult<Bound<'py, PyArrayDyn<f32>>> {
     let proj = match projector {
         "siddon" => Projector::Siddon,
@@ -58,6 +68,9 @@ pub fn acquire<'py>(
     }
     if energy_bins.is_some() {
         acq.spectrum.bins = energy_bins;
+    }
+    if let Some(d) = detector {
+        acq.detector = DetectorModel::by_name(d, None).map_err(errors::sim)?;
     }
     if let Some(s) = signal {
         acq.output = match s {

@@ -21,7 +21,7 @@ use crate::render::{MassThickness, Projection, Projector, Renderer};
 use crate::scatter::{
     AntiScatterGrid, ScatterEngine, ScatterImages, ScatterModel, estimator, transport,
 };
-use crate::spectrum::{Filter, Spectrum};
+use crate::spectrum::{Filter, FluenceUnit, Spectrum};
 use crate::tissue::TissueModel;
 use crate::volume::Volume;
 use serde::{Deserialize, Serialize};
@@ -38,10 +38,19 @@ pub struct SpectrumSpec {
     /// A monoenergetic beam at this energy (keV).
     #[serde(default)]
     pub energy_kev: Option<f64>,
-    /// A user spectrum file (keV, photons per mAs per mm² at 1 m; see
-    /// [`Spectrum::from_file`]).
+    /// The monoenergetic beam's fluence, photons per mAs per mm² at 1 m (default
+    /// [`MONOENERGETIC_FLUENCE`], a clinical tube's order of magnitude, so that a 1 mAs view
+    /// does not run out of photons behind bone).
+    #[serde(default)]
+    pub photons_per_mas_mm2: Option<f64>,
+    /// A user spectrum file (keV and the fluence of each bin; see
+    /// [`Spectrum::from_file_in`] for the formats read).
     #[serde(default)]
     pub file: Option<std::path::PathBuf>,
+    /// The unit of the file's fluence column: per-mm2 (photons per mAs per mm² at 1 m per
+    /// bin, the default), per-cm2, per-mm2-per-kev or per-cm2-per-kev.
+    #[serde(default)]
+    pub fluence_unit: Option<FluenceUnit>,
     /// Added filtration, applied in order.
     #[serde(default)]
     pub filtration: Vec<FilterSpec>,
@@ -57,6 +66,12 @@ pub struct SpectrumSpec {
 fn default_mas() -> f64 {
     1.0
 }
+
+/// The default fluence of a monoenergetic `[spectrum]` beam: 10⁶ photons per mAs per mm² at
+/// 1 m — the order of the 120 kVp tungsten beam of the `kv-flat-panel-120kvp` preset (a test
+/// keeps it within a factor of 3 of that beam's photon count), where the old default of 1
+/// left a few photons per pixel and clipped −log behind bone.
+pub const MONOENERGETIC_FLUENCE: f64 = 1e6;
 
 /// One added filter: a material name and its thickness (mm).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -74,7 +89,9 @@ impl SpectrumSpec {
         Self {
             kvp: Some(kvp),
             energy_kev: None,
+            photons_per_mas_mm2: None,
             file: None,
+            fluence_unit: None,
             filtration: filtration
                 .iter()
                 .map(|(m, t)| FilterSpec {
@@ -89,13 +106,35 @@ impl SpectrumSpec {
 
     /// The spectrum this describes (photons per bin per mAs per mm² at 1 m).
     pub fn spectrum(&self) -> Result<Spectrum> {
+        if self.photons_per_mas_mm2.is_some() && self.energy_kev.is_none() {
+            return Err(SimError::OutOfRange(
+                "[spectrum] photons_per_mas_mm2 is the fluence of a monoenergetic beam \
+                 (energy_kev); a tube or file spectrum carries its own (scale it with mas)"
+                    .into(),
+            ));
+        }
+        if self.fluence_unit.is_some() && self.file.is_none() {
+            return Err(SimError::OutOfRange(
+                "[spectrum] fluence_unit is the unit of a spectrum file's column; give file".into(),
+            ));
+        }
         let base = match (self.kvp, self.energy_kev, &self.file) {
             (Some(kvp), None, None) => Spectrum::tungsten(kvp, &[])?,
-            (None, Some(e), None) => Spectrum::monoenergetic(e, 1.0)?,
-            (None, None, Some(path)) => Spectrum::from_file(path)?,
+            (None, Some(e), None) => {
+                let fluence = self.photons_per_mas_mm2.unwrap_or(MONOENERGETIC_FLUENCE);
+                if !(fluence.is_finite() && fluence > 0.0) {
+                    return Err(SimError::OutOfRange(format!(
+                        "[spectrum] photons_per_mas_mm2 = {fluence}; it must be finite and > 0"
+                    )));
+                }
+                Spectrum::monoenergetic(e, fluence)?
+            }
+            (None, None, Some(path)) => {
+                Spectrum::from_file_in(path, self.fluence_unit.unwrap_or_default())?
+            }
             _ => {
                 return Err(SimError::OutOfRange(
-                    "[spectrum] needs exactly one of kvp, energy-kev or file".into(),
+                    "[spectrum] needs exactly one of kvp, energy_kev or file".into(),
                 ));
             }
         };
@@ -433,6 +472,10 @@ impl Prepared {
         let raw = self
             .detector
             .record(&object, frame_seed(self.seed, index as u64 + 1))?;
+        let saturated = self
+            .detector
+            .saturated(&raw, object.pitch_u_mm, object.pitch_v_mm);
+        let mut clipped = 0;
         let images = if self.output == Output::Raw {
             raw
         } else {
@@ -444,12 +487,17 @@ impl Prepared {
                 *cache = Some((open.mean, flat));
             }
             let (_, flat) = cache.as_ref().expect("calibrated above");
+            if self.output == Output::LogLineIntegral {
+                clipped = flat.clipped(&raw);
+            }
             flat.apply(&raw, self.output)?
         };
         Ok(Acquired {
             images,
             primary,
             scatter,
+            clipped,
+            saturated,
         })
     }
 }
@@ -463,6 +511,11 @@ pub struct Acquired {
     pub primary: ExpectedImage,
     /// The scatter images (`None` when scatter is not modelled).
     pub scatter: Option<ScatterImages>,
+    /// Pixels (all channels) whose −log hit the floor for lack of signal (photon
+    /// starvation: raise the mAs), 0 for other outputs ([`crate::detector::FlatField::clipped`]).
+    pub clipped: usize,
+    /// Pixels (all channels) at the readout's ceiling: saturation or the ADC's top code.
+    pub saturated: usize,
 }
 
 /// Adds `b`'s mean and second moment to `a`'s (same layout).

@@ -113,6 +113,63 @@ fn user_file_round_trip_and_formats() {
     assert!((s.mean_energy_kev() - (2000.0 + 7500.0 + 2000.0) / 400.0).abs() < 1e-12);
 }
 
+/// Spectrum files as other tools write them: the same beam (20, 30, 40 keV at 100, 250, 50
+/// photons/mAs/mm² at 1 m per 1 keV bin... written at 0.5 keV spacing here) in four styles.
+#[test]
+fn user_files_from_other_tools_load_to_the_same_beam() {
+    use tomograf_sim::spectrum::FluenceUnit;
+    // Reference: 0.5 keV bins, per bin, tomograf's unit; the 0 and 0.5 keV rows are empty.
+    let bins = [(20.0, 100.0), (20.5, 0.0), (21.0, 250.0), (21.5, 50.0)];
+    let per_bin = |scale: f64| -> String {
+        bins.iter()
+            .map(|(e, f)| format!("{e} {}\n", f * scale))
+            .collect()
+    };
+    // XCIST style: a bin-count line, space separated, leading empty rows below 1 keV.
+    let xcist = format!("6\n0.0 0\n0.5 0\n{}", per_bin(1.0));
+    // SpekPy style: several header lines, semicolons, photons per keV per cm² (×100/0.5).
+    let spekpy = format!(
+        "Spectrum exported by a tool\nEnergy [keV]; Fluence [cm^-2 keV^-1 mAs^-1]\n{}",
+        bins.iter()
+            .map(|(e, f)| format!("{e};{}\n", f * 100.0 / 0.5))
+            .collect::<String>()
+    );
+    // TASMIP-style table: per keV per mm², tab separated, a % comment.
+    let tasmip = format!(
+        "% kV=21.5\n{}",
+        bins.iter()
+            .map(|(e, f)| format!("{e}\t{}\n", f / 0.5))
+            .collect::<String>()
+    );
+    // Per bin per cm², CSV with one header line.
+    let csv = format!(
+        "keV,photons\n{}",
+        bins.iter()
+            .map(|(e, f)| format!("{e},{}\n", f * 100.0))
+            .collect::<String>()
+    );
+    let cases = [
+        (xcist, FluenceUnit::PerMm2),
+        (spekpy, FluenceUnit::PerCm2PerKev),
+        (tasmip, FluenceUnit::PerMm2PerKev),
+        (csv, FluenceUnit::PerCm2),
+    ];
+    for (text, unit) in cases {
+        let f = write_tmp(&text);
+        let s = Spectrum::from_file_in(f.path(), unit).unwrap();
+        assert_eq!(s.energies_kev(), &[20.0, 20.5, 21.0, 21.5], "{unit:?}");
+        for (got, (_, want)) in s.fluence().iter().zip(bins) {
+            assert!(
+                (got - want).abs() <= 1e-9 * want.max(1.0),
+                "{unit:?}: {got} vs {want}"
+            );
+        }
+    }
+    // The default unit is tomograf's own.
+    let f = write_tmp("20 4\n");
+    assert_eq!(Spectrum::from_file(f.path()).unwrap().fluence(), &[4.0]);
+}
+
 #[test]
 fn user_file_errors_name_the_problem_and_line() {
     let cases = [
@@ -125,7 +182,14 @@ fn user_file_errors_name_the_problem_and_line() {
         ("20,inf\n", "line 1", "finite"),
         ("# nothing\n", "", "no data rows"),
         ("20,0\n30,0\n", "", "total fluence is zero"),
-        ("keV,n\nfoo,1\n", "line 2", "not a number"),
+        ("keV,n\n20,1\nfoo,1\n", "line 3", "not a number"),
+        (
+            "3\n20,1\n30,1\n",
+            "line 1",
+            "the bin count says 3 rows but 2 follow",
+        ),
+        ("2.5\n20,1\n", "line 1", "bin count (an integer)"),
+        ("0.5,0\n1.5,2\n1.0,0\n", "line 3", "does not increase"),
     ];
     for (text, line, msg) in cases {
         let f = write_tmp(text);

@@ -67,8 +67,10 @@ pub fn resolve(scene: &Scene, mu: &Volume) -> Result<Job> {
             .map(DVec3::from)
             .unwrap_or_else(|| mu.centre()),
     };
+    // Explicit views carry their own pixel vectors: the pitch only matters for pose views.
     let pitch = match d.pitch_mm {
         Some(p) => p,
+        None if poses.is_empty() => [1.0, 1.0],
         None => {
             let p = geometry.fit_pitch(&poses, mu)?;
             [p, p]

@@ -284,6 +284,7 @@ pub fn run(args: ProjectArgs) -> Result<()> {
         bar.set_draw_target(indicatif::ProgressDrawTarget::hidden());
     }
     let mut render_time = std::time::Duration::ZERO;
+    let mut clipping = Clipping::default();
     let mut channels: Vec<Vec<Projection>> = Vec::new();
     let mut channel_outputs: Vec<Outputs> = Vec::new();
     for (i, view) in job.views.iter().enumerate() {
@@ -292,6 +293,7 @@ pub fn run(args: ProjectArgs) -> Result<()> {
         render_time += t.elapsed();
         if let Some(parts) = &parts {
             separate.write_view(i, parts)?;
+            clipping.add(parts, images.iter().map(|p| p.data.len()).sum());
         }
         if channel_outputs.is_empty() {
             channel_outputs = (0..images.len())
@@ -314,6 +316,11 @@ pub fn run(args: ProjectArgs) -> Result<()> {
         sidecar["acquisition"]["frame_seeds"] = serde_json::json!(
             "view i: SplitMix64(seed ^ (i+1)·0x9E3779B97F4A7C15); calibration: frame 0"
         );
+        sidecar["clipped_pixels"] = serde_json::json!(clipping.clipped);
+        sidecar["saturated_pixels"] = serde_json::json!(clipping.saturated);
+        if let Some(w) = clipping.warning(acq.spectrum.mas) {
+            eprintln!("{w}");
+        }
     }
     let mut files = 0;
     for (c, (out, images)) in channel_outputs.iter().zip(&channels).enumerate() {
@@ -343,4 +350,47 @@ pub fn run(args: ProjectArgs) -> Result<()> {
 /// Formats named on the command line.
 pub fn parse_formats(names: &[String]) -> Result<Vec<Format>> {
     names.iter().map(|n| Format::parse(n)).collect()
+}
+
+/// Pixels whose signal was clipped, summed over the views of a run with detector physics.
+#[derive(Debug, Default)]
+struct Clipping {
+    clipped: usize,
+    saturated: usize,
+    pixels: usize,
+    views_clipped: usize,
+    views_saturated: usize,
+}
+
+impl Clipping {
+    fn add(&mut self, parts: &tomograf_sim::acquisition::Acquired, pixels: usize) {
+        self.clipped += parts.clipped;
+        self.saturated += parts.saturated;
+        self.pixels += pixels;
+        self.views_clipped += usize::from(parts.clipped > 0);
+        self.views_saturated += usize::from(parts.saturated > 0);
+    }
+
+    /// What to tell the user when a line integral was clipped; `None` when none was.
+    fn warning(&self, mas: f64) -> Option<String> {
+        let mut lines = Vec::new();
+        if self.clipped > 0 {
+            lines.push(format!(
+                "warning: {} of {} pixels ({} view(s)) recorded at most half a signal unit \
+                 (ADU or count) above the dark: photon starvation. Their −log reads \
+                 ln(2·(flat − dark)), less than the object's line integral. Raise the exposure \
+                 (mas = {mas} now: [spectrum] mas or --mas).",
+                self.clipped, self.pixels, self.views_clipped
+            ));
+        }
+        if self.saturated > 0 {
+            lines.push(format!(
+                "warning: {} of {} pixels ({} view(s)) are at the detector's ceiling \
+                 (saturation or the ADC's top code): their signal is clipped. Lower the \
+                 exposure (mas = {mas} now) or raise the readout's range.",
+                self.saturated, self.pixels, self.views_saturated
+            ));
+        }
+        (!lines.is_empty()).then(|| lines.join("\n"))
+    }
 }

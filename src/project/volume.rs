@@ -64,6 +64,7 @@ fn load(scene: &Scene, keep_hu: Option<f64>) -> Result<(Volume, VolumeSource)> {
             Some("thorax"),
         ),
     };
+    let mut hu_from_mu = None;
     let attenuation = match (units.as_str(), keep_hu) {
         ("hu", Some(e)) => {
             if v.energy_kev.is_some() {
@@ -74,10 +75,25 @@ fn load(scene: &Scene, keep_hu: Option<f64>) -> Result<(Volume, VolumeSource)> {
             }
             Attenuation::hounsfield_at_kev(e)?
         }
-        (_, Some(_)) => bail!(
-            "real detector physics classifies tissues by CT number: the input must be in HU \
-             (--units hu)"
-        ),
+        ("mu", Some(e)) => {
+            // Tissues are classified by CT number: a mu volume is read as HU at the energy
+            // its values hold at, HU = 1000·(μ/μ_water(E) − 1).
+            let Some(at) = v.energy_kev else {
+                bail!(
+                    "real detector physics classifies tissues by CT number, and a volume in mu \
+                     (mm⁻¹) has none: give the effective energy its values hold at ([volume] \
+                     energy_kev or --energy-kev, keV), and it is read as HU = 1000·(μ/μ_water(E) \
+                     − 1); or give the CT in HU (--units hu)"
+                );
+            };
+            let mu_w = tomograf_sim::attenuation::mu_water_per_mm(at)?;
+            if !vol.data().iter().all(|m| m.is_finite() && *m >= 0.0) {
+                bail!("a volume in mu (mm⁻¹) must hold finite values ≥ 0");
+            }
+            hu_from_mu = Some(mu_w);
+            Attenuation::hounsfield_at_kev(e)?
+        }
+        (other, Some(_)) => bail!("unknown units '{other}': use hu (Hounsfield) or mu (mm⁻¹)"),
         ("hu", None) => Attenuation::hounsfield_at_kev(v.energy_kev.unwrap_or(DEFAULT_ENERGY_KEV))?,
         ("mu", None) => {
             if v.energy_kev.is_some() {
@@ -87,9 +103,12 @@ fn load(scene: &Scene, keep_hu: Option<f64>) -> Result<(Volume, VolumeSource)> {
         }
         (other, None) => bail!("unknown units '{other}': use hu (Hounsfield) or mu (mm⁻¹)"),
     };
-    let mu = match keep_hu {
-        Some(_) => vol,
-        None => attenuation.to_mu(vol)?,
+    let mu = match (keep_hu, hu_from_mu) {
+        (Some(_), Some(mu_w)) => {
+            vol.map_in_place(|m| (1000.0 * (f64::from(m) / mu_w - 1.0)) as f32)?
+        }
+        (Some(_), None) => vol,
+        (None, _) => attenuation.to_mu(vol)?,
     };
     let d = mu.direction();
     let source = VolumeSource {

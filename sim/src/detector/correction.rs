@@ -2,10 +2,14 @@
 //!
 //! * transmission T = (raw − dark)/(flat − dark), per pixel and channel; it may be ≤ 0 or
 //!   > 1 where noise says so and is returned as it is;
-//! * line integral L = −ln(max(T, ε)). The clamp ε = 0.5/(flat − dark) is half a signal
-//!   unit (half an ADC step, half a count) of the dark-corrected signal: a pixel whose
-//!   dark-corrected signal is ≤ 0.5 ADU reads as 0.5 ADU. L is therefore always finite:
-//!   never NaN or +∞, at most ln(2·(flat − dark)).
+//! * line integral L = −ln(max(T, ε)), ε = floor/(flat − dark). For a detector whose signal
+//!   comes in units (quantum noise, electronic noise or an ADC: [`FlatField::HALF_UNIT`]) the
+//!   floor is half a signal unit (half an ADC step, half a count): a pixel whose
+//!   dark-corrected signal is ≤ 0.5 ADU reads as 0.5 ADU, so L ≤ ln(2·(flat − dark)). A
+//!   noiseless detector without an ADC has no such unit: its floor is the smallest positive
+//!   f64 ([`FlatField::NOISELESS`]), so L is the exact −ln T of the expected signal. Either
+//!   way L is finite: never NaN or +∞. [`FlatField::clipped`] counts the pixels the floor
+//!   changed, so a caller can say when photon starvation clipped a line integral.
 //!
 //! The flat and dark fields come from [`super::DetectorModel::calibrate`]: either the
 //! noiseless expectation, or the average of N recorded frames ([`Calibration`]).
@@ -46,6 +50,7 @@ pub enum Output {
 pub struct FlatField {
     flat: Vec<Projection>,
     dark: Vec<Projection>,
+    floor: f64,
 }
 
 impl FlatField {
@@ -64,14 +69,56 @@ impl FlatField {
                 if !(fv.is_finite() && dv.is_finite() && fv > dv) {
                     return Err(bad(format!(
                         "channel {ch}, pixel (row {}, col {}): flat field {fv} is not above \
-                         dark field {dv}; the open beam gives no usable signal there",
+                         dark field {dv}; the open beam gives no usable signal there (too few \
+                         photons for the detector's noise: raise the exposure, mas)",
                         i / f.cols,
                         i % f.cols
                     )));
                 }
             }
         }
-        Ok(Self { flat, dark })
+        Ok(Self {
+            flat,
+            dark,
+            floor: Self::HALF_UNIT,
+        })
+    }
+
+    /// The −log floor of a detector with a signal unit: half an ADU or half a count.
+    pub const HALF_UNIT: f64 = 0.5;
+    /// The −log floor of a noiseless detector without an ADC: no unit, only L < ∞.
+    pub const NOISELESS: f64 = f64::MIN_POSITIVE;
+
+    /// The same fields with the −log floor `floor` (dark-corrected signal units, > 0): see
+    /// the module docs.
+    pub fn with_floor(mut self, floor: f64) -> Result<Self> {
+        if !(floor.is_finite() && floor > 0.0) {
+            return Err(bad(format!(
+                "−log floor is {floor}; it must be finite and > 0"
+            )));
+        }
+        self.floor = floor;
+        Ok(self)
+    }
+
+    /// The −log floor, in dark-corrected signal units (ADU or counts).
+    pub fn floor(&self) -> f64 {
+        self.floor
+    }
+
+    /// Pixels of `raw` (all channels) whose dark-corrected signal is at or below the −log
+    /// floor: their line integrals read ln((flat − dark)/floor), not the object's.
+    pub fn clipped(&self, raw: &[Projection]) -> usize {
+        raw.iter()
+            .zip(self.dark.iter())
+            .map(|(r, d)| {
+                r.data
+                    .iter()
+                    .zip(&d.data)
+                    .filter(|&(&r, &d)| f64::from(r) - f64::from(d) <= self.floor)
+                    .count()
+            })
+            .sum()
     }
 
     /// Flat fields, one per channel.
@@ -98,7 +145,7 @@ impl FlatField {
             .map(|(r, (f, d))| match output {
                 Output::Raw => Ok(r.clone()),
                 Output::FlatField => flat_field_correct(r, f, d),
-                Output::LogLineIntegral => log_line_integral_clamped(r, f, d),
+                Output::LogLineIntegral => log_line_integral_floored(r, f, d, self.floor),
             })
             .collect()
     }
@@ -139,15 +186,25 @@ pub fn log_line_integral(transmission: &Projection, floor: f64) -> Result<Projec
     })
 }
 
-/// −ln(max(T, 0.5/(flat − dark))) straight from raw, flat and dark.
+/// −ln(max(T, 0.5/(flat − dark))) straight from raw, flat and dark (the floor of a detector
+/// with a signal unit, [`FlatField::HALF_UNIT`]).
 pub fn log_line_integral_clamped(
     raw: &Projection,
     flat: &Projection,
     dark: &Projection,
 ) -> Result<Projection> {
+    log_line_integral_floored(raw, flat, dark, FlatField::HALF_UNIT)
+}
+
+fn log_line_integral_floored(
+    raw: &Projection,
+    flat: &Projection,
+    dark: &Projection,
+    floor: f64,
+) -> Result<Projection> {
     map3(raw, flat, dark, |r, f, d| {
         let open = f - d;
-        -((r - d) / open).max(0.5 / open).ln()
+        -((r - d) / open).max(floor / open).ln()
     })
 }
 
@@ -233,6 +290,27 @@ mod tests {
             log_line_integral(&img(&[0.0]), 0.25).unwrap().data[0],
             4f32.ln()
         );
+    }
+
+    #[test]
+    fn the_floor_is_half_a_unit_or_none_and_clipping_is_counted() {
+        let (flat, dark) = (img(&[110.0; 3]), img(&[10.0; 3]));
+        // 0.2 ADU of signal: below half a unit, above the noiseless floor.
+        let raw = vec![img(&[10.2, 60.0, 10.0])];
+        let unit = FlatField::new(vec![flat.clone()], vec![dark.clone()]).unwrap();
+        let l = unit.apply(&raw, Output::LogLineIntegral).unwrap();
+        assert_eq!(l[0].data[0], (200.0f64).ln() as f32);
+        assert_eq!(unit.clipped(&raw), 2);
+        let exact = unit.with_floor(FlatField::NOISELESS).unwrap();
+        let l = exact.apply(&raw, Output::LogLineIntegral).unwrap();
+        assert!(
+            (l[0].data[0] - (500.0f32).ln()).abs() < 1e-4,
+            "{}",
+            l[0].data[0]
+        );
+        assert!(l[0].data[2].is_finite() && l[0].data[2] > 700.0);
+        assert_eq!(exact.clipped(&raw), 1); // only the pixel with no signal at all
+        assert!(exact.with_floor(0.0).is_err());
     }
 
     #[test]

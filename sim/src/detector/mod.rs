@@ -209,6 +209,82 @@ impl DetectorModel {
         }
     }
 
+    /// Every detector name [`Self::by_name`] knows, as scenes and `--detector-model` write
+    /// them.
+    pub const NAMES: &[&str] = &[
+        "perfect-absorber",
+        "ideal",
+        "noiseless-csi",
+        "kv-flat-panel",
+        "cbct",
+        "photon-counting",
+    ];
+
+    /// The detector called `name` (one of [`Self::NAMES`]); `thresholds_kev` are the
+    /// photon-counting thresholds (default `[20]`) and an error for any other model.
+    /// * `perfect-absorber` (alias `ideal`): η = 1, every photon absorbed and its energy
+    ///   counted; no noise, blur or readout ([`Self::ideal`]);
+    /// * `noiseless-csi`: the `kv-flat-panel`'s 0.6 mm CsI energy response without noise,
+    ///   blur or readout ([`Self::noiseless_csi`]);
+    /// * `kv-flat-panel`, `cbct`, `photon-counting`: the presets below.
+    pub fn by_name(name: &str, thresholds_kev: Option<Vec<f64>>) -> Result<Self> {
+        if thresholds_kev.is_some() && name != "photon-counting" {
+            return Err(bad(format!(
+                "thresholds_kev applies to the photon-counting detector model only, not '{name}'"
+            )));
+        }
+        Ok(match name {
+            "perfect-absorber" | "ideal" => Self::ideal(),
+            "noiseless-csi" => Self::noiseless_csi(),
+            "kv-flat-panel" => Self::kv_flat_panel(),
+            "cbct" => Self::cbct(),
+            "photon-counting" => {
+                Self::photon_counting(thresholds_kev.unwrap_or_else(|| vec![20.0]))
+            }
+            other => {
+                return Err(bad(format!(
+                    "unknown detector model '{other}': use one of {}",
+                    Self::NAMES.join(", ")
+                )));
+            }
+        })
+    }
+
+    /// The `kv-flat-panel`'s converter (0.6 mm CsI: η(E) = 1 − exp(−μ_CsI(E)·0.6 mm), energy
+    /// weighted, Swank factor irrelevant without noise) with no quantum or electronic noise,
+    /// no blur, no gain or offset maps and no ADC: the line integral a real scintillator
+    /// reports, free of noise. It differs from the perfect absorber through η(E) alone
+    /// (docs/detector.md gives the size of the difference).
+    pub fn noiseless_csi() -> Self {
+        let panel = Self::kv_flat_panel();
+        Self {
+            mode: panel.mode,
+            scintillator: panel.scintillator,
+            ..Self::ideal()
+        }
+    }
+
+    /// Whether the signal comes in units (quantum noise, electronic noise or an ADC): then
+    /// the −log floor is half a unit; otherwise the expected signal is exact.
+    pub fn has_signal_unit(&self) -> bool {
+        self.quantum_noise || self.readout.electronic_noise_adu > 0.0 || self.readout.bits.is_some()
+    }
+
+    /// Pixels of the recorded `raw` channels at the readout's ceiling (analogue saturation
+    /// or the ADC's largest code; none without either) for simulated pixels of `pitch_u_mm`
+    /// × `pitch_v_mm`: their signal, and any line integral from it, is clipped.
+    pub fn saturated(&self, raw: &[Projection], pitch_u_mm: f64, pitch_v_mm: f64) -> usize {
+        let ceiling = self
+            .readout
+            .ceiling(self.readout.binning(pitch_u_mm, pitch_v_mm));
+        if !ceiling.is_finite() {
+            return 0;
+        }
+        raw.iter()
+            .map(|p| p.data.iter().filter(|&&v| f64::from(v) >= ceiling).count())
+            .sum()
+    }
+
     /// An indirect kV flat panel for radiography (CsI:Tl 0.6 mm on a-Si:H, ~0.14–0.15 mm
     /// pixels, 16-bit ADC). Numbers are typical, not one product's: see docs/detector.md
     /// for their sources.
@@ -346,7 +422,12 @@ impl DetectorModel {
         let c = self.calibration;
         let flat = self.average(open, c.flat_frames, noise::frame_seed(seed, 1 << 32))?;
         let dark = self.average(&dark_scene, c.dark_frames, noise::frame_seed(seed, 2 << 32))?;
-        FlatField::new(flat, dark)
+        let floor = if self.has_signal_unit() {
+            FlatField::HALF_UNIT
+        } else {
+            FlatField::NOISELESS
+        };
+        FlatField::new(flat, dark)?.with_floor(floor)
     }
 
     /// The full chain: records `object`, calibrates with `open` (the same exposure without

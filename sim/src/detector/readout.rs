@@ -109,6 +109,13 @@ impl Readout {
         self.bits.map(|b| ((1u64 << b) - 1) as f64)
     }
 
+    /// The largest signal a simulated pixel of `binning` native pixels can record (ADU):
+    /// the lower of the analogue saturation and the ADC's largest code; ∞ without either.
+    pub fn ceiling(&self, binning: f64) -> f64 {
+        let sat = self.saturation_adu.map_or(f64::INFINITY, |s| s * binning);
+        self.max_code().map_or(sat, |m| sat.min(m * binning))
+    }
+
     /// Native pixels summed into one simulated pixel of `pitch_u_mm` × `pitch_v_mm`
     /// (≥ 1; 1 without a native pitch). See [`Readout::native_pitch_mm`].
     pub fn binning(&self, pitch_u_mm: f64, pitch_v_mm: f64) -> f64 {

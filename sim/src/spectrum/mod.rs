@@ -11,6 +11,7 @@ mod file;
 mod tungsten;
 
 pub use air_kerma::{air_kerma_ugy, air_mu_en_cm2_g};
+pub use file::FluenceUnit;
 pub use tungsten::{ANODE_ANGLE_DEG, INHERENT_AL_MM, KVP_MAX, KVP_MIN};
 
 use crate::error::{Result, SimError};
@@ -110,15 +111,24 @@ impl Spectrum {
         })
     }
 
-    /// Reads a user spectrum: two columns, keV and photons per mAs per mm² at 1 m (comma, tab
-    /// or space separated; `#` comments; one optional header line). Errors name the file and
-    /// line of a bad row, a negative or non-finite value, or unsorted energies.
+    /// Reads a user spectrum in tomograf's unit (photons per mAs per mm² at 1 m, per bin):
+    /// [`Spectrum::from_file_in`] with [`FluenceUnit::PerMm2`].
     pub fn from_file(path: impl AsRef<Path>) -> Result<Self> {
+        Self::from_file_in(path, FluenceUnit::PerMm2)
+    }
+
+    /// Reads a user spectrum file as other tools write them: keV and fluence columns
+    /// (comma, tab, semicolon or space separated; `#`/`%` comments; header lines; an
+    /// optional leading bin-count row; zero rows outside 1–500 keV dropped), the fluence in
+    /// `unit`. Errors name the file and line of a bad row, a negative or non-finite value,
+    /// unsorted energies, or a bin count that does not match.
+    pub fn from_file_in(path: impl AsRef<Path>, unit: FluenceUnit) -> Result<Self> {
         let path = path.as_ref();
         let text = std::fs::read_to_string(path).map_err(|e| {
             SimError::InvalidSpectrum(format!("cannot read spectrum file {}: {e}", path.display()))
         })?;
-        let (energies_kev, fluence) = file::parse(&text, &path.display().to_string())?;
+        let (energies_kev, values) = file::parse(&text, &path.display().to_string())?;
+        let fluence = unit.to_per_mm2_per_bin(&energies_kev, &values);
         let kvp = *energies_kev.last().unwrap_or(&0.0);
         Ok(Self {
             energies_kev,

@@ -1,0 +1,48 @@
+"""Every Python block of README.md and docs/*.md, checked against the installed module.
+
+A block is compiled, then run in a temporary folder, unless it needs what CI does not have
+(a Ray cluster): then it is only compiled and its skip says why. The TOML and shell blocks
+are checked by the Rust test `src/doc_examples.rs`.
+"""
+
+import os
+import re
+
+import pytest
+
+from conftest import ROOT
+
+# Blocks that are compiled but not run, and why (matched against the block's text).
+NOT_RUN = {
+    "import subprocess, ray": "drives a Ray cluster (ray is not a test dependency)",
+}
+
+
+def python_blocks():
+    docs = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
+    for path in docs:
+        text = path.read_text()
+        for m in re.finditer(r"^```python[^\n]*\n(.*?)^```", text, re.S | re.M):
+            line = text[: m.start()].count("\n") + 1
+            yield pytest.param(m.group(1), id=f"{path.relative_to(ROOT)}:{line}")
+
+
+BLOCKS = list(python_blocks())
+
+
+def test_the_documents_have_python_examples():
+    assert len(BLOCKS) >= 2, BLOCKS
+
+
+@pytest.mark.parametrize("code", BLOCKS)
+def test_python_example_runs(code, tmp_path):
+    compiled = compile(code, "<doc example>", "exec")
+    for marker, why in NOT_RUN.items():
+        if code.startswith(marker):
+            pytest.skip(f"compiled, not run: {why}")
+    cwd = os.getcwd()
+    os.chdir(tmp_path)
+    try:
+        exec(compiled, {"__name__": "__doc_example__"})
+    finally:
+        os.chdir(cwd)
