@@ -133,11 +133,13 @@ pub struct InferConfig {
     /// not explain. `inf` = always.
     #[serde(default = "default_refine_below_db")]
     pub refine_below_db: f64,
-    /// The data-consistency sweeps start from this fraction of the network volume's
-    /// attenuation (1: the network's volume; 0: zero, plain SART-TV). When the gate opens the
-    /// prior has just failed to explain the views, so trusting it in full carries its wrong
-    /// body shape into the result; halfway was the best of 1, 0.75, 0.5, 0.25, 0 on
-    /// validation phantoms (docs/model.md, "Data consistency").
+    /// When no reference view is explained (every projection PSNR below
+    /// `refine_below_db`), the data-consistency sweeps start from this fraction of the
+    /// network volume's attenuation (1: the network's volume; 0: zero, plain SART-TV): the
+    /// prior's body is wrong, and trusting it in full carries its outline into the result.
+    /// Half tied with ¾ as the best of 1, ¾, ½, ¼, 0 on validation phantoms (docs/model.md,
+    /// "Where the sweeps start"). When some view is explained the sweeps start from the
+    /// whole volume.
     #[serde(default = "default_refine_start_weight")]
     pub refine_start_weight: f64,
 }

@@ -10,9 +10,11 @@
 //! 3. With `refine_iterations` > 0, when some reference view's full-image PSNR against the
 //!    network volume's projection is below `refine_below_db` (the prior could not explain
 //!    the views: anatomy outside the training population), SART-TV (sim's defaults) runs
-//!    that many sweeps from `refine_start_weight` (default ½) times the network volume's
-//!    attenuation: the prior has just been shown wrong for these views, so it is only half
-//!    trusted. The network's own volume is kept beside the result.
+//!    that many sweeps from the network's volume. When no view is explained, the prior's
+//!    body is wrong and the sweeps start from `refine_start_weight` (default ½) times the
+//!    volume's attenuation; when some view is explained (an object the prior lacks, seen
+//!    only from other angles, e.g. a table from the side) they start from the whole volume.
+//!    The network's own volume is kept beside the result.
 //!
 //! Each iteration fits one randomly drawn reference view with eq. 13's loss,
 //! λ1·L_r + λ2·L_PSNR + λ3·NLL (0.3, 0.1, `w_nll`), the NLL taken under the training codes'
@@ -224,12 +226,20 @@ pub fn reconstruct(
             refine_seconds: 0.0,
         };
         if unexplained {
+            // Some view explained: the prior's body is right and what is missing is seen
+            // only in other views (an object beside it); no view explained: its body is
+            // wrong, and it is only partly trusted.
+            let start_weight = if psnr.iter().any(|&p| p >= infer.refine_below_db) {
+                1.0
+            } else {
+                infer.refine_start_weight
+            };
             let t0 = std::time::Instant::now();
             volume = sart_tv_density(
                 refs,
                 &net.volume,
                 &density_scale,
-                Some((net.volume.data(), infer.refine_start_weight)),
+                Some((net.volume.data(), start_weight)),
                 infer.refine_iterations,
             )?;
             net.refine_seconds = t0.elapsed().as_secs_f64();
