@@ -65,6 +65,13 @@ enum Command {
 }
 
 fn main() {
+    // `tomograf … | head`: a closed stdout ends the process quietly, as it does other Unix
+    // tools, instead of a panic at the next print (Rust ignores SIGPIPE by default).
+    #[cfg(unix)]
+    // SAFETY: sets the default disposition of one signal before any other thread exists.
+    unsafe {
+        libc::signal(libc::SIGPIPE, libc::SIG_DFL);
+    }
     let cli = Cli::parse();
     if let Err(e) = run(cli) {
         // The error and its causes, skipping a cause whose text a message already holds.

@@ -181,6 +181,29 @@ fn realism_gap_end_to_end_resume_and_same_seed() {
     assert!(stderr(&out).contains("00000"), "{}", stderr(&out));
     ok(&eval(&["--shard", "0/2"]));
     ok(&eval(&["--merge"]));
+    // `evaluate --merge | head`: a pipe closed before the table is printed ends the process
+    // by SIGPIPE, quietly, not with a panic.
+    let (reader, writer) = std::io::pipe().unwrap();
+    drop(reader);
+    let closed = std::process::Command::new(env!("CARGO_BIN_EXE_tomograf"))
+        .args(["evaluate", data.to_str().unwrap(), "--checkpoint"])
+        .args([ck.to_str().unwrap(), "-o", e_s, "--seed", "3", "--merge"])
+        .stdout(writer)
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap()
+        .wait_with_output()
+        .unwrap();
+    assert!(!stderr(&closed).contains("panicked"), "{}", stderr(&closed));
+    {
+        use std::os::unix::process::ExitStatusExt;
+        assert_eq!(
+            closed.status.signal(),
+            Some(libc::SIGPIPE),
+            "{:?}",
+            closed.status
+        );
+    }
     let model_rows = |p: &Path| -> Vec<String> {
         std::fs::read_to_string(p)
             .unwrap()
