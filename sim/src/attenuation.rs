@@ -105,6 +105,12 @@ pub fn hu_to_mu(hu: f32, mu_water_per_mm: f64) -> f32 {
     (mu_water_per_mm * (1.0 + f64::from(hu.max(-1000.0)) / 1000.0)) as f32
 }
 
+/// The inverse of [`hu_to_mu`] for mu ≥ 0: `1000 · (mu/mu_water − 1)`, HU.
+#[inline]
+pub fn mu_to_hu(mu_per_mm: f32, mu_water_per_mm: f64) -> f32 {
+    (1000.0 * (f64::from(mu_per_mm) / mu_water_per_mm - 1.0)) as f32
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -54,7 +54,7 @@ fn load(scene: &Scene, keep_hu: Option<f64>) -> Result<(Volume, VolumeSource)> {
         .clone()
         .unwrap_or_else(|| "hu".into())
         .to_ascii_lowercase();
-    let (vol, phantom) = match &v.path {
+    let (mut vol, phantom) = match &v.path {
         Some(p) => (load_volume_file(p, v.allow_non_ct.unwrap_or(false))?, None),
         None => (
             phantom_volume(
@@ -64,7 +64,6 @@ fn load(scene: &Scene, keep_hu: Option<f64>) -> Result<(Volume, VolumeSource)> {
             Some("thorax"),
         ),
     };
-    let mut hu_from_mu = None;
     let attenuation = match (units.as_str(), keep_hu) {
         ("hu", Some(e)) => {
             if v.energy_kev.is_some() {
@@ -90,7 +89,7 @@ fn load(scene: &Scene, keep_hu: Option<f64>) -> Result<(Volume, VolumeSource)> {
             if !vol.data().iter().all(|m| m.is_finite() && *m >= 0.0) {
                 bail!("a volume in mu (mm⁻¹) must hold finite values ≥ 0");
             }
-            hu_from_mu = Some(mu_w);
+            vol = vol.map_in_place(|m| tomograf_sim::attenuation::mu_to_hu(m, mu_w))?;
             Attenuation::hounsfield_at_kev(e)?
         }
         (other, Some(_)) => bail!("unknown units '{other}': use hu (Hounsfield) or mu (mm⁻¹)"),
@@ -103,12 +102,9 @@ fn load(scene: &Scene, keep_hu: Option<f64>) -> Result<(Volume, VolumeSource)> {
         }
         (other, None) => bail!("unknown units '{other}': use hu (Hounsfield) or mu (mm⁻¹)"),
     };
-    let mu = match (keep_hu, hu_from_mu) {
-        (Some(_), Some(mu_w)) => {
-            vol.map_in_place(|m| (1000.0 * (f64::from(m) / mu_w - 1.0)) as f32)?
-        }
-        (Some(_), None) => vol,
-        (None, _) => attenuation.to_mu(vol)?,
+    let mu = match keep_hu {
+        Some(_) => vol,
+        None => attenuation.to_mu(vol)?,
     };
     let d = mu.direction();
     let source = VolumeSource {
