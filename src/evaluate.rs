@@ -273,7 +273,10 @@ pub fn evaluate(e: &Evaluation) -> Result<usize> {
     }
     let mut items = data::load_dataset(e.data, e.split)?;
     if let Some(n) = e.items {
-        items.truncate(n.max(1));
+        if n == 0 {
+            bail!("--items 0 scores nothing: give at least 1 (or leave it out for every item)");
+        }
+        items.truncate(n);
     }
     let device = backend::device(e.backend.unwrap_or(backend::default_name()))?;
     let job = Job {

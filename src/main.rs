@@ -87,12 +87,22 @@ fn main() {
     }
 }
 
+/// Most worker threads `--threads` accepts (thousands of threads exhaust the process
+/// limits; more threads than cores only add switching).
+const MAX_THREADS: usize = 1024;
+
 fn run(cli: Cli) -> Result<()> {
     if let Some(n) = cli.threads {
-        anyhow::ensure!(n > 0, "--threads must be at least 1");
+        anyhow::ensure!(
+            (1..=MAX_THREADS).contains(&n),
+            "--threads {n}: give 1 to {MAX_THREADS} (this machine has {} cores; results do not \
+             depend on the thread count)",
+            std::thread::available_parallelism().map_or(1, |c| c.get())
+        );
         rayon::ThreadPoolBuilder::new()
             .num_threads(n)
-            .build_global()?;
+            .build_global()
+            .map_err(|e| anyhow::anyhow!("cannot start {n} worker threads (--threads): {e}"))?;
     }
     match cli.command {
         Command::Project(args) => project::run(*args),

@@ -197,6 +197,9 @@ pub fn acquisition(scene: &Scene) -> Result<Option<(Acquisition, u64)>> {
         if let Some(e) = m.calibration_kev {
             model.calibration_kev = e;
         }
+        if let Some(w) = m.blend_hu {
+            model.blend_hu = w;
+        }
         model.validate()?;
         acq.materials = model;
     }

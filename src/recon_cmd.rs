@@ -134,13 +134,15 @@ fn load(dir: &Path) -> Result<Input> {
             .ok()
             .map(|g| {
                 let d = g.direction;
-                Volume::new(
+                let count = tomograf_sim::volume::checked_voxel_count(g.dims)
+                    .context("drr.json: the volume grid")?;
+                Ok::<_, anyhow::Error>(Volume::new(
                     g.dims,
                     DVec3::from(g.spacing_mm),
                     DVec3::from(g.origin_mm),
                     DMat3::from_cols_array_2d(&d),
-                    vec![0.0; g.dims.iter().product()],
-                )
+                    vec![0.0; count],
+                )?)
             })
             .transpose()?;
         (j, dir.join("drr.npy"), q, grid)
@@ -280,13 +282,10 @@ pub fn run(args: ReconArgs) -> Result<()> {
         (None, Some(d), _) => {
             ensure!(d.len() == 3, "--dims takes three sizes, e.g. 128,128,128");
             let dims = [d[0], d[1], d[2]];
+            let count = tomograf_sim::volume::checked_voxel_count(dims)
+                .context("--dims: the output grid")?;
             let centre = input.geometry.map_or(DVec3::ZERO, |g| g.isocentre);
-            Volume::centred(
-                dims,
-                DVec3::splat(args.spacing),
-                centre,
-                vec![0.0; dims.iter().product()],
-            )?
+            Volume::centred(dims, DVec3::splat(args.spacing), centre, vec![0.0; count])?
         }
         (None, None, Some(g)) => g,
         (None, None, None) => bail!("no output grid: give --like ct.nii.gz or --dims"),
@@ -354,7 +353,8 @@ pub fn run(args: ReconArgs) -> Result<()> {
         recon::mu_to_hu_at_kev(&volume, args.energy_kev)?
     };
     if let Some(dir) = args.output.parent().filter(|d| !d.as_os_str().is_empty()) {
-        std::fs::create_dir_all(dir)?;
+        std::fs::create_dir_all(dir)
+            .with_context(|| format!("cannot create the output folder {}", dir.display()))?;
     }
     nifti::write_nifti(&args.output, &out)?;
     eprintln!(

@@ -71,6 +71,8 @@
 //! [materials]
 //! model = "schneider"               # or "five-tissue", "water"
 //! calibration_kev = 70.0
+//! blend_hu = 40.0                   # optional partial volume: ±20 HU about each bound
+//!                                   # is the 50/50 mixture of the neighbours (default 0)
 //!
 //! [detector]                        # besides rows/cols/pitch_mm/offset_mm
 //! model = "kv-flat-panel"           # or "perfect-absorber" (alias "ideal"), "noiseless-csi",
@@ -78,14 +80,15 @@
 //! # thresholds_kev = [20.0, 50.0]   # with model = "photon-counting" only
 //! ```
 //!
-//! Mesh objects (closed triangle meshes; inside one its material replaces the voxels'), one
-//! table each; later meshes win where meshes overlap:
+//! Mesh objects (closed triangle meshes, or exact analytic solids; inside one its material
+//! replaces the voxels'), one table each; later meshes win where meshes overlap:
 //!
 //! ```toml
 //! [[mesh]]
 //! name = "screw"
 //! path = "screw.stl"          # .obj, .ply or .stl; or kind = "box" | "sphere" |
-//!                             # "cylinder" | "pacemaker" | "table" (generated in code)
+//!                             # "ellipsoid" | "cylinder" (exact analytic solids) |
+//!                             # "pacemaker" | "table" (triangle meshes generated in code)
 //! material = "titanium"       # a material of the library (tomograf_sim::material::by_name)
 //! density_g_cm3 = 4.5         # optional; default: the material's nominal density
 //! mu_per_mm = 0.08            # ideal DRR only, optional: mu inside (mm⁻¹); default: the
@@ -96,7 +99,9 @@
 //! # matrix = [[1,0,0,0],[0,1,0,0],[0,0,1,0],[0,0,0,1]]   # instead of the three above
 //! repair_epsilon_mm = 1e-6    # optional: merge close vertices, fix orientation
 //! # kind parameters: size_mm = [x, y, z] (box, table: [width, thickness, length]),
-//! # radius_mm, height_mm, resolution (sphere subdivisions / cylinder sides)
+//! # radius_mm, radii_mm = [a, b, c] (ellipsoid), height_mm (cylinder, along local z),
+//! # exact = false or resolution (sphere/ellipsoid subdivisions, cylinder sides): the solid
+//! # as a triangle mesh instead
 //! ```
 //!
 //! Views may also be given in the general form, one table each:
@@ -167,6 +172,9 @@ pub struct MaterialsSection {
     pub calibration_kev: Option<f64>,
     /// Explicit HU intervals (replace the model's).
     pub bins: Option<Vec<TissueBin>>,
+    /// Partial volume: CT numbers within ±blend_hu/2 of each inner bound are the 50/50
+    /// mass mixture of the two neighbouring materials (HU; default 0 = none).
+    pub blend_hu: Option<f64>,
 }
 
 /// One `[[mesh]]` table.
@@ -186,8 +194,10 @@ pub struct MeshEntry {
     pub repair_epsilon_mm: Option<f64>,
     pub size_mm: Option<[f64; 3]>,
     pub radius_mm: Option<f64>,
+    pub radii_mm: Option<[f64; 3]>,
     pub height_mm: Option<f64>,
     pub resolution: Option<u32>,
+    pub exact: Option<bool>,
 }
 
 /// Which quantity a mesh must carry: a linear attenuation (the ideal DRR) or a material
@@ -208,9 +218,23 @@ impl MeshEntry {
         index: usize,
         physics: MeshPhysics,
     ) -> Result<Vec<tomograf_sim::mesh::MeshObject>> {
-        use tomograf_sim::mesh::{MeshObject, Placement, TriMesh, io, shapes, topology};
+        use tomograf_sim::mesh::{MeshObject, TriMesh, io, shapes, topology};
         let name = self.name.clone().unwrap_or_else(|| format!("mesh{index}"));
         let what = || format!("[[mesh]] {name}");
+        if self.path.is_some() == self.kind.is_some() {
+            anyhow::bail!("{}: give exactly one of path and kind", what());
+        }
+        let placement = self.placement().with_context(what)?;
+        let (material, density, mu) = self.resolve(physics).with_context(what)?;
+        let with_density = |object: MeshObject| match density {
+            Some(d) => object.with_density(d).with_context(what),
+            None => Ok(object),
+        };
+        if let Some(primitive) = self.primitive().with_context(what)? {
+            let object = MeshObject::analytic(&name, primitive, &placement, &material, mu)
+                .with_context(what)?;
+            return Ok(vec![with_density(object)?]);
+        }
         let parts: Vec<(String, TriMesh)> = match (&self.path, self.kind.as_deref()) {
             (Some(p), None) => vec![(name.clone(), io::load(p).with_context(what)?)],
             (None, Some(kind)) => {
@@ -223,6 +247,12 @@ impl MeshEntry {
                         shapes::cuboid(glam::DVec3::from(self.size_mm.unwrap_or([20.0; 3])))?,
                     )],
                     "sphere" => vec![(name.clone(), shapes::icosphere(r, n.unwrap_or(4))?)],
+                    "ellipsoid" => {
+                        let radii = glam::DVec3::from(self.ellipsoid_radii());
+                        let mut m = shapes::icosphere(1.0, n.unwrap_or(4))?;
+                        m.vertices.iter_mut().for_each(|v| *v *= radii);
+                        vec![(name.clone(), m)]
+                    }
                     "cylinder" => {
                         vec![(name.clone(), shapes::cylinder(r, h, n.unwrap_or(64))?)]
                     }
@@ -235,23 +265,39 @@ impl MeshEntry {
                         vec![(name.clone(), shapes::table_top(w, l, t)?)]
                     }
                     other => anyhow::bail!(
-                        "{}: unknown kind '{other}'; expected box, sphere, cylinder, pacemaker or table",
+                        "{}: unknown kind '{other}'; expected box, sphere, ellipsoid, cylinder, \
+                         pacemaker or table",
                         what()
                     ),
                 }
             }
             _ => anyhow::bail!("{}: give exactly one of path and kind", what()),
         };
-        let placement = match self.matrix {
+        parts
+            .into_iter()
+            .map(|(part, mesh)| {
+                let mesh = match self.repair_epsilon_mm {
+                    Some(eps) => topology::repair(&mesh, eps).with_context(what)?.0,
+                    None => mesh,
+                };
+                with_density(
+                    MeshObject::new(&part, &mesh, &placement, &material, mu, true)
+                        .with_context(what)?,
+                )
+            })
+            .collect()
+    }
+
+    /// Where the entry's object sits: `matrix`, or translation/rotation/scale.
+    fn placement(&self) -> Result<tomograf_sim::mesh::Placement> {
+        use tomograf_sim::mesh::Placement;
+        Ok(match self.matrix {
             Some(matrix) => {
                 if self.translation_mm.is_some()
                     || self.rotation_deg.is_some()
                     || self.scale.is_some()
                 {
-                    anyhow::bail!(
-                        "{}: give matrix or translation/rotation/scale, not both",
-                        what()
-                    );
+                    anyhow::bail!("give matrix or translation/rotation/scale, not both");
                 }
                 Placement::Matrix { matrix }
             }
@@ -260,23 +306,66 @@ impl MeshEntry {
                 scale: self.scale.unwrap_or([1.0; 3]),
                 translation_mm: self.translation_mm.unwrap_or([0.0; 3]),
             },
-        };
-        let (material, density, mu) = self.resolve(physics).with_context(what)?;
-        parts
-            .into_iter()
-            .map(|(part, mesh)| {
-                let mesh = match self.repair_epsilon_mm {
-                    Some(eps) => topology::repair(&mesh, eps).with_context(what)?.0,
-                    None => mesh,
-                };
-                let object = MeshObject::new(&part, &mesh, &placement, &material, mu, true)
-                    .with_context(what)?;
-                match density {
-                    Some(d) => object.with_density(d).with_context(what),
-                    None => Ok(object),
-                }
-            })
-            .collect()
+        })
+    }
+
+    /// An ellipsoid's semi-axes (mm): `radii_mm`, else `radius_mm` on every axis.
+    fn ellipsoid_radii(&self) -> [f64; 3] {
+        self.radii_mm.unwrap_or([self.radius_mm.unwrap_or(10.0); 3])
+    }
+
+    /// The analytic solid this entry is (`None`: a triangle mesh). Box, sphere, ellipsoid
+    /// and cylinder are exact solids unless `exact = false` or a `resolution` (facets)
+    /// asks for a triangle mesh.
+    fn primitive(&self) -> Result<Option<tomograf_sim::mesh::Primitive>> {
+        use tomograf_sim::mesh::Primitive;
+        let kind = self.kind.as_deref();
+        let solid = matches!(kind, Some("box" | "sphere" | "ellipsoid" | "cylinder"));
+        if !solid {
+            if self.exact == Some(true) {
+                anyhow::bail!(
+                    "exact = true is for kind = \"box\", \"sphere\", \"ellipsoid\" or \
+                     \"cylinder\" (analytic solids); a file or a generated device is triangles"
+                );
+            }
+            if self.radii_mm.is_some() {
+                anyhow::bail!("radii_mm is for kind = \"ellipsoid\"");
+            }
+            return Ok(None);
+        }
+        let exact = self.exact.unwrap_or(self.resolution.is_none());
+        if !exact {
+            return Ok(None);
+        }
+        if let Some(n) = self.resolution {
+            anyhow::bail!(
+                "resolution = {n} tessellates the {} into triangles, but exact = true asks for \
+                 the analytic solid; drop one of them",
+                kind.unwrap_or_default()
+            );
+        }
+        if self.repair_epsilon_mm.is_some() {
+            anyhow::bail!("repair_epsilon_mm is for triangle meshes, not an exact solid");
+        }
+        if self.radii_mm.is_some() && kind != Some("ellipsoid") {
+            anyhow::bail!("radii_mm is for kind = \"ellipsoid\"");
+        }
+        let r = self.radius_mm.unwrap_or(10.0);
+        Ok(Some(match kind {
+            Some("box") => Primitive::Box {
+                size: glam::DVec3::from(self.size_mm.unwrap_or([20.0; 3])),
+            },
+            Some("sphere") => Primitive::Ellipsoid {
+                radii: glam::DVec3::splat(r),
+            },
+            Some("ellipsoid") => Primitive::Ellipsoid {
+                radii: glam::DVec3::from(self.ellipsoid_radii()),
+            },
+            _ => Primitive::Cylinder {
+                radius: r,
+                height: self.height_mm.unwrap_or(2.0 * r),
+            },
+        }))
     }
 
     /// The material name, density (g/cm³, when known) and mu (mm⁻¹, monochromatic only).

@@ -71,7 +71,8 @@ pub fn run(args: TrainArgs) -> Result<()> {
     if let Some(n) = args.iterations {
         trainer.config.iterations = n;
     }
-    std::fs::create_dir_all(&args.output)?;
+    std::fs::create_dir_all(&args.output)
+        .with_context(|| format!("cannot create the output folder {}", args.output.display()))?;
     std::fs::write(args.output.join("config.toml"), trainer.config.to_toml())?;
     let csv_path = args.output.join("metrics.csv");
     let mut rows = keep_rows(&csv_path, trainer.iteration)?;

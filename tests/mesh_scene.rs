@@ -149,3 +149,85 @@ fn meshes_with_real_detector_physics() {
         "{err}"
     );
 }
+
+/// `kind = "cylinder"` is an exact solid (issue 25): a 200 mm water-like cylinder
+/// (mu 0.02 mm⁻¹) in front of the patient, its axis along z, adds exactly mu × 2r = 4 to
+/// the central pixel of an odd detector (whose ray crosses the axis at right angles),
+/// whatever its rotation about the axis; the same cylinder as 64 facets (`resolution`),
+/// turned so the ray crosses two edge midpoints, is short by 1 − cos(π/64) = 0.12 %.
+/// Tolerance 1e-4: the f32 pixels are ~5, so their difference carries ~1e-6 of rounding.
+#[test]
+fn an_exact_cylinder_adds_its_diameter_and_a_faceted_one_falls_short() {
+    let dir = tempfile::tempdir().unwrap();
+    let write = |name: &str, mesh: &str| {
+        let path = dir.path().join(format!("{name}.toml"));
+        std::fs::write(
+            &path,
+            format!(
+                "[volume]\nphantom_dims = [48, 48, 20]\nphantom_spacing_mm = [7.5, 7.5, 16.0]\n[detector]\nrows = 33\ncols = 33\npitch_mm = [2.0, 2.0]\n[views]\nposes = [\"ap\"]\n[output]\ndir = \"{}\"\nformats = [\"npy\"]\n{mesh}",
+                dir.path().join(name).display()
+            ),
+        )
+        .unwrap();
+        let out = tomograf(&["project", "--scene", path.to_str().unwrap()]);
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let bytes = std::fs::read(dir.path().join(name).join("drr.npy")).unwrap();
+        let v = npyz::NpyFile::new(&bytes[..])
+            .unwrap()
+            .into_vec::<f32>()
+            .unwrap();
+        f64::from(v[16 * 33 + 16])
+    };
+    let cylinder = |extra: &str| {
+        format!(
+            "[[mesh]]\nname = \"cyl\"\nkind = \"cylinder\"\nradius_mm = 100.0\nheight_mm = 400.0\nmu_per_mm = 0.02\ntranslation_mm = [0.0, -400.0, 0.0]\n{extra}"
+        )
+    };
+    let base = write("base", "");
+    for (name, rotation) in [("exact0", 0.0), ("exact1", 2.8125), ("exact2", 17.0)] {
+        let got = write(
+            name,
+            &cylinder(&format!("rotation_deg = [0.0, 0.0, {rotation}]\n")),
+        ) - base;
+        assert!((got - 4.0).abs() < 1e-4, "{name}: {got}");
+    }
+    let faceted = write(
+        "facets",
+        &cylinder("resolution = 64\nrotation_deg = [0.0, 0.0, 2.8125]\n"),
+    ) - base;
+    let short = 1.0 - faceted / 4.0;
+    let expect = 1.0 - (std::f64::consts::PI / 64.0).cos();
+    assert!(
+        (short - expect).abs() < 5e-5,
+        "short by {short}, expected {expect}"
+    );
+    // Clear errors for exact-solid keys where they do not apply.
+    for (mesh, words) in [
+        (cylinder("exact = true\nresolution = 64\n"), "drop one of them"),
+        (
+            "[[mesh]]\nname = \"cyl\"\nkind = \"pacemaker\"\nexact = true\nmu_per_mm = 0.1\n"
+                .to_string(),
+            "exact = true is for",
+        ),
+        (
+            "[[mesh]]\nname = \"cyl\"\nkind = \"sphere\"\nradii_mm = [1.0, 2.0, 3.0]\nmu_per_mm = 0.1\n"
+                .to_string(),
+            "radii_mm is for kind = \"ellipsoid\"",
+        ),
+        (
+            "[[mesh]]\nname = \"cyl\"\nkind = \"ellipsoid\"\nradii_mm = [1.0, 0.0, 3.0]\nmu_per_mm = 0.1\n"
+                .to_string(),
+            "ellipsoid radius y is 0",
+        ),
+    ] {
+        let path = dir.path().join("bad.toml");
+        std::fs::write(&path, format!("[views]\nposes = [\"ap\"]\n{mesh}")).unwrap();
+        let out = tomograf(&["project", "--scene", path.to_str().unwrap(), "-o", dir.path().join("bad").to_str().unwrap()]);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success() && err.contains(words) && err.contains("cyl"), "{mesh}: {err}");
+    }
+}

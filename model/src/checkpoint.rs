@@ -70,6 +70,15 @@ fn err(path: &Path, e: impl std::fmt::Display) -> ModelError {
     ModelError::file(path, e)
 }
 
+/// A weights or optimiser file that burn could not read (empty, truncated, or written for
+/// another configuration).
+fn bpk_err(path: &Path, e: impl std::fmt::Display) -> ModelError {
+    ModelError::file(
+        path,
+        format!("cannot read the weights ({e}): the file is empty, truncated or corrupt"),
+    )
+}
+
 /// Writes an optimizer's state with its tensors sorted by name ("{param id}.{field}"):
 /// burn lists them in hash-map order, so the same state would give different bytes.
 fn save_optimizer(
@@ -186,6 +195,15 @@ fn read_meta(dir: &Path) -> Result<(TrainConfig, State)> {
     let sp = dir.join("state.json");
     let bytes = std::fs::read(&sp).map_err(|e| err(&sp, e))?;
     let state: State = serde_json::from_slice(&bytes).map_err(|e| err(&sp, e))?;
+    if !(state.proj_scale.is_finite() && state.proj_scale > 0.0) {
+        return Err(err(
+            &sp,
+            format!(
+                "proj_scale = {}; it must be finite and > 0 (the checkpoint is corrupt)",
+                state.proj_scale
+            ),
+        ));
+    }
     Ok((config, state))
 }
 
@@ -212,23 +230,23 @@ pub fn load_trainer(dir: &Path, device: &Device) -> Result<(Trainer, State)> {
     let codes = read_codes(dir)?;
     let mut t = Trainer::new(config, state.proj_scale, mean, codes.items, device)?;
     let p = dir.join("generator.bpk");
-    t.field = t.field.try_load_file(&p).map_err(|e| err(&p, e))?;
+    t.field = t.field.try_load_file(&p).map_err(|e| bpk_err(&p, e))?;
     if let Some(table) = t.codes.take() {
         let p = dir.join("codes.bpk");
-        t.codes = Some(table.try_load_file(&p).map_err(|e| err(&p, e))?);
+        t.codes = Some(table.try_load_file(&p).map_err(|e| bpk_err(&p, e))?);
         let p = dir.join("opt_codes.bpk");
-        t.opt_codes = t.opt_codes.load(&p).map_err(|e| err(&p, e))?;
+        t.opt_codes = t.opt_codes.load(&p).map_err(|e| bpk_err(&p, e))?;
     }
     let p = dir.join("d1.bpk");
-    t.d1 = t.d1.try_load_file(&p).map_err(|e| err(&p, e))?;
+    t.d1 = t.d1.try_load_file(&p).map_err(|e| bpk_err(&p, e))?;
     let p = dir.join("d2.bpk");
-    t.d2 = t.d2.try_load_file(&p).map_err(|e| err(&p, e))?;
+    t.d2 = t.d2.try_load_file(&p).map_err(|e| bpk_err(&p, e))?;
     let p = dir.join("opt_g.bpk");
-    t.opt_g = t.opt_g.load(&p).map_err(|e| err(&p, e))?;
+    t.opt_g = t.opt_g.load(&p).map_err(|e| bpk_err(&p, e))?;
     let p = dir.join("opt_d1.bpk");
-    t.opt_d1 = t.opt_d1.load(&p).map_err(|e| err(&p, e))?;
+    t.opt_d1 = t.opt_d1.load(&p).map_err(|e| bpk_err(&p, e))?;
     let p = dir.join("opt_d2.bpk");
-    t.opt_d2 = t.opt_d2.load(&p).map_err(|e| err(&p, e))?;
+    t.opt_d2 = t.opt_d2.load(&p).map_err(|e| bpk_err(&p, e))?;
     t.iteration = state.iteration;
     Ok((t, state))
 }
@@ -250,7 +268,7 @@ pub fn load_generator(dir: &Path, device: &Device) -> Result<Generator> {
     );
     let field = RadianceField::new(m, device);
     let p = dir.join("generator.bpk");
-    let field = field.try_load_file(&p).map_err(|e| err(&p, e))?;
+    let field = field.try_load_file(&p).map_err(|e| bpk_err(&p, e))?;
     Ok(Generator {
         config,
         state,
@@ -269,7 +287,15 @@ pub fn load_mean(dir: &Path) -> Result<Option<MeanVolume>> {
     let bytes = std::fs::read(&p).map_err(|e| err(&p, e))?;
     let npy = npyz::NpyFile::new(&bytes[..]).map_err(|e| err(&p, e))?;
     let shape: Vec<u64> = npy.shape().to_vec();
-    let data: Vec<f32> = npy.into_vec().map_err(|e| err(&p, e))?;
+    let data: Vec<f32> = npy
+        .into_vec()
+        .map_err(|e| err(&p, format!("truncated or corrupt NPY data ({e})")))?;
+    if let Some(i) = data.iter().position(|v| !v.is_finite()) {
+        return Err(err(
+            &p,
+            format!("value {i} is {} (the checkpoint is corrupt)", data[i]),
+        ));
+    }
     let [nz, ny, nx] = shape[..] else {
         return Err(err(
             &p,

@@ -186,6 +186,11 @@ impl InferConfig {
             c.tune = t;
         }
         if let Some(n) = o.iterations {
+            ensure!(
+                n >= 1,
+                "inference iterations must be at least 1 (0 would score the untouched \
+                 starting volume)"
+            );
             c.iterations = n;
         }
         if let Some(db) = o.psnr_threshold {

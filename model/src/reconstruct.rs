@@ -194,7 +194,17 @@ pub fn reconstruct(
         let value = loss.clone().into_scalar::<f32>() as f64;
         ensure!(
             value.is_finite(),
-            "inference iteration {iterations}: loss is not finite; lower the learning rate"
+            "{}",
+            if iterations == 0 {
+                "the loss is not finite at the first inference iteration, before any update: \
+                 the checkpoint's weights hold non-finite values (generator.bpk is corrupt)"
+                    .to_string()
+            } else {
+                format!(
+                    "inference iteration {iterations}: loss is not finite; lower the learning \
+                     rate"
+                )
+            }
         );
         let mut grads = loss.backward();
         let gc = GradientsParams::from_module(&mut grads, &tuned.codes);

@@ -17,6 +17,7 @@ pub mod detector;
 pub mod error;
 pub mod geometry;
 pub mod material;
+pub mod memory;
 pub mod mesh;
 pub mod phantom;
 pub mod polychromatic;

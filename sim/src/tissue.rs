@@ -15,6 +15,17 @@
 //!
 //! Materials whose interval no voxel falls in are dropped before tracing, so they cost
 //! nothing.
+//!
+//! **Partial volume at boundaries** (`blend_hu`, off by default). A voxel whose CT number
+//! lies near the bound between two intervals is most likely part one tissue, part the
+//! other. With `blend_hu = W`, CT numbers within ±W/2 of each inner bound are given the
+//! 50/50 mass mixture of the two neighbouring materials (one more material per bound: the
+//! Schneider model's 7 become 13, within the 16 a composition holds), with the density
+//! still calibrated from the HU, so a render at `E_cal` is unchanged and only the energy
+//! dependence near boundaries moves between the two tissues'. One mid-mixture per bound
+//! rather than fractions varying with HU: each distinct mixture is a material, and a
+//! voxel holds one (the tracer's packed format); Schneider's own bone range already steps
+//! soft tissue → bone in the same way (bone-30, bone-60).
 
 use crate::attenuation::mu_water_per_mm;
 use crate::composition::{Composition, MAX_MATERIALS};
@@ -46,6 +57,14 @@ pub struct TissueModel {
     pub calibration_kev: f64,
     /// Intervals in increasing `below_hu`.
     pub bins: Vec<TissueBin>,
+    /// Width (HU) of the band about each inner bound whose voxels are the 50/50 mass
+    /// mixture of the two neighbouring materials (partial volume); 0 = none.
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub blend_hu: f64,
+}
+
+fn is_zero(v: &f64) -> bool {
+    *v == 0.0
 }
 
 fn bin(below_hu: f64, material: &str) -> TissueBin {
@@ -75,6 +94,7 @@ impl TissueModel {
     pub fn schneider() -> Self {
         Self {
             calibration_kev: 70.0,
+            blend_hu: 0.0,
             bins: vec![
                 bin(-950.0, "air"),
                 bin(-120.0, "lung"),
@@ -91,6 +111,7 @@ impl TissueModel {
     pub fn five_tissue() -> Self {
         Self {
             calibration_kev: 70.0,
+            blend_hu: 0.0,
             bins: vec![
                 bin(-950.0, "air"),
                 bin(-120.0, "lung"),
@@ -107,13 +128,24 @@ impl TissueModel {
         Self {
             calibration_kev,
             bins: vec![bin(f64::INFINITY, "water")],
+            blend_hu: 0.0,
         }
     }
 
-    /// The materials of the bins, resolved.
+    /// The materials of the intervals, resolved (with `blend_hu`, the boundary mixtures
+    /// between their neighbours: see [`TissueModel::intervals`]).
     pub fn materials(&self) -> Result<Vec<Material>> {
+        Ok(self.intervals()?.1)
+    }
+
+    /// The upper bounds (HU, the last +∞) and materials of the intervals voxels are
+    /// classified into: the bins, or with `blend_hu = W` the bins narrowed by W/2 at each
+    /// inner bound with the 50/50 mass mixture of the two neighbours between them (named
+    /// `A+B`).
+    pub fn intervals(&self) -> Result<(Vec<f64>, Vec<Material>)> {
         self.validate()?;
-        self.bins
+        let base = self
+            .bins
             .iter()
             .map(|b| {
                 if b.mix.is_empty() {
@@ -127,7 +159,30 @@ impl TissueModel {
                 // The nominal density is irrelevant here (densities come from HU).
                 material::mixture(&b.material, &parts, 1.0)
             })
-            .collect()
+            .collect::<Result<Vec<Material>>>()?;
+        let bounds: Vec<f64> = self.bins.iter().map(|b| b.below_hu).collect();
+        if self.blend_hu == 0.0 || base.len() == 1 {
+            return Ok((bounds, base));
+        }
+        let half = self.blend_hu / 2.0;
+        let (mut out_bounds, mut out) = (Vec::new(), Vec::new());
+        for (i, m) in base.iter().enumerate() {
+            if i + 1 == base.len() {
+                out_bounds.push(f64::INFINITY);
+                out.push(m.clone());
+                break;
+            }
+            let next = &base[i + 1];
+            out_bounds.push(bounds[i] - half);
+            out.push(m.clone());
+            out_bounds.push(bounds[i] + half);
+            out.push(material::mixture(
+                &format!("{}+{}", m.name(), next.name()),
+                &[(m.clone(), 0.5), (next.clone(), 0.5)],
+                1.0,
+            )?);
+        }
+        Ok((out_bounds, out))
     }
 
     /// Checks the bins (1..=16, increasing bounds, finite calibration energy in the
@@ -150,21 +205,44 @@ impl TissueModel {
                 w[0].material, w[0].below_hu, w[1].material, w[1].below_hu
             ));
         }
+        let blend = self.blend_hu;
+        if !(blend.is_finite() && blend >= 0.0) {
+            return bad(format!("blend_hu = {blend}; give a width ≥ 0 HU"));
+        }
+        if blend > 0.0 {
+            let n = 2 * self.bins.len() - 1;
+            if n > MAX_MATERIALS {
+                return bad(format!(
+                    "blend_hu needs {n} materials for {} intervals; at most {MAX_MATERIALS} \
+                     (use fewer intervals)",
+                    self.bins.len()
+                ));
+            }
+            // Each finite interval must be wider than the band taken from it.
+            for i in 1..self.bins.len() - 1 {
+                let width = self.bins[i].below_hu - self.bins[i - 1].below_hu;
+                if width <= blend {
+                    return bad(format!(
+                        "blend_hu = {blend} HU is not narrower than '{}' ({width} HU wide)",
+                        self.bins[i].material
+                    ));
+                }
+            }
+        }
         mu_water_per_mm(self.calibration_kev).map(|_| ())
     }
 
     /// The composition of a CT volume (HU): per voxel its interval's material and the
     /// calibrated density. Only materials that occur are kept (in model order).
     pub fn composition(&self, hu: &Volume) -> Result<(Composition, Vec<Material>)> {
-        let materials = self.materials()?;
+        let (bounds, materials) = self.intervals()?;
         let e = self.calibration_kev;
         let mu_w = mu_water_per_mm(e)?;
-        // ρ per (1 + HU/1000), per bin: 10·μ_w[mm⁻¹] / (μ/ρ)[cm²/g].
+        // ρ per (1 + HU/1000), per interval: 10·μ_w[mm⁻¹] / (μ/ρ)[cm²/g].
         let scale = materials
             .iter()
             .map(|m| Ok(10.0 * mu_w / m.mass_attenuation(e)?))
             .collect::<Result<Vec<f64>>>()?;
-        let bounds: Vec<f64> = self.bins.iter().map(|b| b.below_hu).collect();
         let which = |h: f32| {
             let h = f64::from(h);
             bounds[..bounds.len() - 1].partition_point(|&b| b <= h)

@@ -261,8 +261,21 @@ impl Volume {
     }
 }
 
-/// `nx·ny·nz`, refusing zero sizes, overflow and volumes above [`MAX_VOXELS`].
+/// `nx·ny·nz`, refusing zero sizes, overflow, volumes above [`MAX_VOXELS`] and volumes
+/// whose f32 values would not fit in this machine's memory ([`crate::memory`]).
 pub fn checked_voxel_count(dims: [usize; 3]) -> Result<usize> {
+    let count = voxel_count_within_max(dims)?;
+    crate::memory::check(
+        count as u128 * 4,
+        &format!(
+            "a {}×{}×{} volume ({count} voxels of f32)",
+            dims[0], dims[1], dims[2]
+        ),
+    )?;
+    Ok(count)
+}
+
+fn voxel_count_within_max(dims: [usize; 3]) -> Result<usize> {
     if dims.contains(&0) {
         return Err(SimError::InvalidVolume(format!(
             "dimensions {}×{}×{} contain a zero",

@@ -349,6 +349,7 @@ fn bad_spectral_inputs_are_named() {
     let e = TissueModel {
         calibration_kev: 70.0,
         bins: vec![],
+        blend_hu: 0.0,
     }
     .validate()
     .unwrap_err();

@@ -211,6 +211,49 @@ fn merge(args: &ProjectArgs) -> Result<Scene> {
 /// the parts (primary, scatter) it was made of.
 type RenderView<'a> = dyn Fn(usize, &View) -> Result<(Vec<Projection>, Option<Acquired>)> + 'a;
 
+/// Geometry that is legal but almost certainly not meant: a warning where the source or
+/// the detector sits inside the volume, or where some views miss it; an error where every
+/// view misses it and no mesh is in the scene (the images would be all zero).
+fn check_geometry(views: &[View], vol: &tomograf_sim::Volume, meshes: bool) -> Result<()> {
+    use tomograf_sim::geometry::coverage::coverage;
+    let c: Vec<_> = views.iter().map(|v| coverage(v, vol)).collect();
+    let list = |f: &dyn Fn(&tomograf_sim::geometry::coverage::Coverage) -> bool| {
+        let hits: Vec<String> = c
+            .iter()
+            .enumerate()
+            .filter(|(_, c)| f(c))
+            .map(|(i, _)| i.to_string())
+            .take(8)
+            .collect();
+        (!hits.is_empty()).then(|| hits.join(", "))
+    };
+    if let Some(v) = list(&|c| c.source_inside) {
+        eprintln!(
+            "warning: the source lies inside the volume (views {v}): only the part of the \
+             volume in front of the source is integrated; raise --sad if this is not meant"
+        );
+    }
+    if let Some(v) = list(&|c| c.detector_inside) {
+        eprintln!(
+            "warning: the detector cuts through the volume (views {v}): rays end at the \
+             detector, so the line integrals are truncated; raise --sid (it is at or just \
+             above --sad)"
+        );
+    }
+    if c.iter().all(|c| c.rays_hitting == 0) {
+        let msg = "no ray of any view meets the volume, so every image would hold zeros: \
+                   check --isocentre (default: the volume's centre), --offset, --sad and the \
+                   detector size";
+        if !meshes {
+            bail!("{msg}");
+        }
+        eprintln!("warning: {msg} (only the meshes are in the beam)");
+    } else if let Some(v) = list(&|c| c.rays_hitting == 0) {
+        eprintln!("warning: views {v} miss the volume entirely (images of zeros)");
+    }
+    Ok(())
+}
+
 pub fn run(args: ProjectArgs) -> Result<()> {
     let t0 = Instant::now();
     let scene = merge(&args)?;
@@ -222,6 +265,16 @@ pub fn run(args: ProjectArgs) -> Result<()> {
     };
     let t_load = t0.elapsed();
     let job = resolve(&scene, &vol)?;
+    check_geometry(&job.views, &vol, !scene.mesh.is_empty())?;
+    let pixels: u128 = job
+        .views
+        .iter()
+        .map(|v| v.rows as u128 * v.cols as u128)
+        .sum();
+    tomograf_sim::memory::check(
+        pixels * 4,
+        &format!("{} views held as f32 images", job.views.len()),
+    )?;
     // One view → one image per detector channel.
     let prepared;
     let renderer;

@@ -54,6 +54,15 @@ fn load(scene: &Scene, keep_hu: Option<f64>) -> Result<(Volume, VolumeSource)> {
         .clone()
         .unwrap_or_else(|| "hu".into())
         .to_ascii_lowercase();
+    if let Some(p) = &v.path
+        && (v.phantom_dims.is_some() || v.phantom_spacing_mm.is_some())
+    {
+        bail!(
+            "--phantom-dims and --phantom-spacing are for the built-in phantom; the input {} \
+             has its own grid (resample it first, or drop the input)",
+            p.display()
+        );
+    }
     let (mut vol, phantom) = match &v.path {
         Some(p) => (load_volume_file(p, v.allow_non_ct.unwrap_or(false))?, None),
         None => (

@@ -74,6 +74,9 @@ pub struct CommonArgs {
     /// Backend: flex (CPU, default), ndarray, cuda, wgpu (as compiled in).
     #[arg(long)]
     pub backend: Option<String>,
+    /// With --stage data: make only the train or only the test sets (default both).
+    #[arg(long)]
+    pub split: Option<String>,
     /// With --stage report: report on the test items scored so far (an interim report of a
     /// sharded evaluation; it names the cells that average fewer phantoms than the scale).
     #[arg(long)]
@@ -194,6 +197,15 @@ pub fn run(command: StudyCommand) -> Result<()> {
         .map(parse_shard)
         .transpose()?
         .unwrap_or((0, 1));
+    let splits: &[&str] = match common.split.as_deref() {
+        None => &["train", "test"],
+        Some("train") => &["train"],
+        Some("test") => &["test"],
+        Some(other) => bail!("unknown --split '{other}': use train or test"),
+    };
+    if common.split.is_some() && stage != Stage::Data {
+        bail!("--split is for --stage data (make only the train or only the test sets)");
+    }
     if common.partial && stage != Stage::Report {
         bail!("--partial is for --stage report (an interim report while shards still run)");
     }
@@ -220,7 +232,7 @@ pub fn run(command: StudyCommand) -> Result<()> {
     study.check_settings()?;
     let all = stage == Stage::All;
     if all || stage == Stage::Data {
-        study.data(shard)?;
+        study.data(shard, splits)?;
     }
     if all || stage == Stage::Train {
         study.train(shard)?;
@@ -320,10 +332,13 @@ impl Study {
         }
     }
 
-    /// Every data set, or this shard's items of each.
-    fn data(&self, (i, n): (usize, usize)) -> Result<()> {
+    /// Every data set of `splits`, or this shard's items of each.
+    fn data(&self, (i, n): (usize, usize), splits: &[&str]) -> Result<()> {
         let shard = (n > 1).then(|| format!("{i}/{n}"));
         for (split, specs) in [("train", &self.train), ("test", &self.test)] {
+            if !splits.contains(&split) {
+                continue;
+            }
             for spec in specs {
                 eprintln!("data: {split} set '{}'", spec.name);
                 crate::dataset::run(self.dataset_args(split, spec, shard.clone()))

@@ -146,8 +146,9 @@ pub fn read_dicom_series(dir: &Path, allow_non_ct: bool) -> Result<Volume> {
                 return Err(DatasetError::unsupported(
                     path,
                     format!(
-                        "modality is {modality:?}, not CT (pass allow_non_ct to read \
-                         other modalities anyway)"
+                        "modality is {modality:?}, not CT (--allow-non-ct, or \
+                         allow_non_ct = true in a scene's [volume], reads other modalities \
+                         anyway)"
                     ),
                 ));
             }

@@ -85,7 +85,13 @@ fn open_error(path: &Path, e: ReadError) -> DatasetError {
         source = s.source();
     }
     if eof {
-        DatasetError::truncated(path, format!("the DICOM data ends early ({message})"))
+        DatasetError::truncated(
+            path,
+            format!(
+                "the DICOM data ends early, or does not match the transfer syntax its header \
+                 names (implicit/explicit VR, byte order) ({message})"
+            ),
+        )
     } else {
         DatasetError::corrupt(path, format!("cannot parse the DICOM file: {message}"))
     }
@@ -239,6 +245,22 @@ pub(super) fn read_pixels(slice: &Slice, out: &mut [f32]) -> Result<()> {
     };
     let size = (f.bits_allocated / 8) as usize;
     let need = out.len() * size;
+    // One pad byte makes an odd length even (PS3.5 §8.1.1); anything more means the header
+    // does not describe the data (Rows, Columns or BitsAllocated wrong, or several frames).
+    if bytes.len() > need + need % 2 {
+        return Err(DatasetError::corrupt(
+            path,
+            format!(
+                "PixelData holds {} bytes but {} rows × {} columns of {} bits need {need}: the \
+                 header's Rows, Columns or BitsAllocated do not describe the pixel data (or it \
+                 holds several frames, which is not supported)",
+                bytes.len(),
+                slice.rows,
+                slice.cols,
+                f.bits_allocated
+            ),
+        ));
+    }
     if bytes.len() < need {
         return Err(DatasetError::truncated(
             path,

@@ -64,10 +64,12 @@ pub(crate) fn sample_row(
         let p = match cached {
             Some((l, p)) if l == lambda => p,
             _ => {
-                let p = Poisson::new(lambda).map_err(|e| {
+                let p = Poisson::new(lambda).map_err(|_| {
                     SimError::OutOfRange(format!(
-                        "quantum-noise sampling with {lambda} effective quanta (mean {m}, \
-                         second moment {s}): {e}"
+                        "quantum noise cannot be sampled with {lambda:.3e} quanta in a pixel \
+                         (mean signal {m:.3e}): the exposure is beyond any real one; lower the \
+                         mAs (--mas, [spectrum] mas), or use a noiseless detector \
+                         (--detector-model noiseless-csi)"
                     ))
                 })?;
                 cached = Some((lambda, p));

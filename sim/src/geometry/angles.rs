@@ -3,6 +3,10 @@
 use super::Pose;
 use crate::error::{Result, SimError};
 
+/// Most views one arc may hold (a million: the poses and views of a job are held in
+/// memory, ~1 KiB each).
+pub const MAX_VIEWS: usize = 1_000_000;
+
 /// `count` poses starting at θ = `start_deg`, every `step_deg`, at elevation `phi_deg`
 /// (e.g. `arc(0.0, 5.0, 72, 0.0)` is the paper's 72 views every 5° of a full rotation).
 pub fn arc(start_deg: f64, step_deg: f64, count: usize, phi_deg: f64) -> Result<Vec<Pose>> {
@@ -10,6 +14,12 @@ pub fn arc(start_deg: f64, step_deg: f64, count: usize, phi_deg: f64) -> Result<
         return Err(SimError::InvalidGeometry(
             "an arc needs at least one view".into(),
         ));
+    }
+    if count > MAX_VIEWS {
+        return Err(SimError::InvalidGeometry(format!(
+            "an arc of {count} views is more than {MAX_VIEWS} in one job; split it into \
+             several jobs (e.g. `dataset --shard`, or arcs with other start angles)"
+        )));
     }
     if !(start_deg.is_finite() && step_deg.is_finite() && phi_deg.is_finite()) {
         return Err(SimError::InvalidGeometry(

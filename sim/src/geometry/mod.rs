@@ -9,8 +9,11 @@
 //!   source point (or a beam direction), the centre of pixel (0, 0) and the two
 //!   pixel-step vectors. Renderers take only views.
 //! * [`angles`] — named views (AP, lateral) and arcs.
+//! * [`coverage`] — how a view's beam meets a volume (source or detector inside it, rays
+//!   that miss it), for warnings about geometry that is legal but not what was meant.
 
 pub mod angles;
+pub mod coverage;
 mod detector;
 mod pose;
 mod setup;

@@ -34,6 +34,10 @@ pub struct Geometry {
     pub isocentre: DVec3,
 }
 
+/// Largest SAD or SID, mm (100 m, far beyond any X-ray set-up; a source at 1e300 mm
+/// loses every digit of the ray directions and renders zeros).
+pub const MAX_DISTANCE_MM: f64 = 1e5;
+
 impl Geometry {
     /// Checks distances and the detector.
     pub fn validate(&self) -> Result<()> {
@@ -45,12 +49,18 @@ impl Geometry {
             )));
         }
         if let Beam::Cone { sad_mm, sid_mm } = self.beam {
-            if !(sad_mm.is_finite() && sad_mm > 0.0) {
+            if !(sad_mm.is_finite() && sad_mm > 0.0 && sad_mm <= MAX_DISTANCE_MM) {
                 return Err(SimError::InvalidGeometry(format!(
-                    "SAD is {sad_mm} mm; it must be finite and > 0"
+                    "SAD is {sad_mm} mm; it must be finite, > 0 and at most {MAX_DISTANCE_MM} mm \
+                     (for rays that are parallel, use a parallel beam)"
                 )));
             }
-            if !sid_mm.is_finite() || sid_mm < sad_mm {
+            if !(sid_mm.is_finite() && sid_mm <= MAX_DISTANCE_MM) {
+                return Err(SimError::InvalidGeometry(format!(
+                    "SID is {sid_mm} mm; it must be finite and at most {MAX_DISTANCE_MM} mm"
+                )));
+            }
+            if sid_mm < sad_mm {
                 return Err(SimError::InvalidGeometry(format!(
                     "SID ({sid_mm} mm) is smaller than SAD ({sad_mm} mm): the detector would sit between the source and the isocentre"
                 )));

@@ -88,7 +88,17 @@ fn load_obj(path: &Path) -> Result<TriMesh> {
 
 fn load_stl(path: &Path) -> Result<TriMesh> {
     let mut f = std::fs::File::open(path).map_err(|e| read_err(path, e))?;
-    let m = stl_io::read_stl(&mut f).map_err(|e| read_err(path, e))?;
+    let m = stl_io::read_stl(&mut f).map_err(|e| {
+        let ends_early = e.kind() == std::io::ErrorKind::UnexpectedEof;
+        read_err(
+            path,
+            if ends_early {
+                format!("the STL file ends early (truncated): {e}")
+            } else {
+                e.to_string()
+            },
+        )
+    })?;
     Ok(TriMesh {
         vertices: m
             .vertices

@@ -7,6 +7,7 @@
 //! so a ray that starts inside a mesh is handled; intervals are then clipped to the ray's
 //! `[t_min, t_max]`.
 
+use super::analytic::{PlacedPrimitive, Primitive};
 use super::intersect::{Hit, ShearedRay};
 use super::{MeshError, Placement, Result, TriMesh, topology};
 use crate::accel::intervals::Interval;
@@ -20,7 +21,7 @@ use obvhs::cwbvh::CwBvh;
 use obvhs::cwbvh::bvh2_to_cwbvh::bvh2_to_cwbvh;
 use std::time::Duration;
 
-/// A closed mesh in the world with its material.
+/// A closed mesh or an analytic solid in the world with its material.
 #[derive(Clone)]
 pub struct MeshObject {
     /// Name (for messages and per-mesh outputs).
@@ -35,6 +36,23 @@ pub struct MeshObject {
     /// density when `material` is a known name ([`crate::material::by_name`]); override
     /// with [`MeshObject::with_density`].
     pub density_g_cm3: Option<f64>,
+    /// Where its surface is.
+    surface: Surface,
+    lo: DVec3,
+    hi: DVec3,
+    volume_mm3: f64,
+}
+
+/// A mesh object's surface: triangles with their BVHs, or an analytic solid.
+#[derive(Clone)]
+enum Surface {
+    Triangles(Box<Triangles>),
+    Analytic(PlacedPrimitive),
+}
+
+/// Triangles (world mm) and the BVHs that find them.
+#[derive(Clone)]
+struct Triangles {
     /// Triangles (world mm), in the ray BVH's primitive order.
     tris: Vec<[DVec3; 3]>,
     /// The 8-wide compressed BVH rays traverse (about 2× faster than the binary one,
@@ -45,20 +63,20 @@ pub struct MeshObject {
     bvh: Bvh2,
     /// Input triangle index → position in `tris`.
     slot: Vec<u32>,
-    lo: DVec3,
-    hi: DVec3,
-    volume_mm3: f64,
 }
 
 impl std::fmt::Debug for MeshObject {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("MeshObject")
-            .field("name", &self.name)
+        let mut d = f.debug_struct("MeshObject");
+        d.field("name", &self.name)
             .field("material", &self.material)
             .field("mu_per_mm", &self.mu_per_mm)
-            .field("density_g_cm3", &self.density_g_cm3)
-            .field("triangles", &self.tris.len())
-            .finish()
+            .field("density_g_cm3", &self.density_g_cm3);
+        match &self.surface {
+            Surface::Triangles(t) => d.field("triangles", &t.tris.len()),
+            Surface::Analytic(p) => d.field("primitive", &p.primitive),
+        };
+        d.finish()
     }
 }
 
@@ -82,13 +100,7 @@ impl MeshObject {
         mu_per_mm: Option<f64>,
         check_self_intersection: bool,
     ) -> Result<Self> {
-        if let Some(mu) = mu_per_mm
-            && !(mu.is_finite() && mu >= 0.0)
-        {
-            return Err(MeshError::OutOfRange(format!(
-                "mesh {name}: mu = {mu} mm⁻¹; it must be finite and ≥ 0"
-            )));
-        }
+        check_mu(name, mu_per_mm)?;
         let world = mesh.placed(placement)?;
         topology::check(&world).map_err(|e| prefix(name, e))?;
         let aabbs: Vec<Aabb> = (0..world.triangles.len())
@@ -127,10 +139,12 @@ impl MeshObject {
             material: material.to_string(),
             mu_per_mm,
             density_g_cm3: crate::material::by_name(material).ok().map(|m| m.density()),
-            tris,
-            rays,
-            bvh,
-            slot,
+            surface: Surface::Triangles(Box::new(Triangles {
+                tris,
+                rays,
+                bvh,
+                slot,
+            })),
             lo,
             hi,
             volume_mm3: world.signed_volume(),
@@ -142,6 +156,37 @@ impl MeshObject {
             }
         }
         Ok(object)
+    }
+
+    /// An analytic solid ([`Primitive`]: box, ellipsoid or sphere, cylinder) placed by
+    /// `placement`, whose ray intervals are exact (closed form, no triangles); otherwise
+    /// the same as a mesh of `material` (and `mu_per_mm`, mm⁻¹, for the ideal DRR).
+    pub fn analytic(
+        name: &str,
+        primitive: Primitive,
+        placement: &Placement,
+        material: &str,
+        mu_per_mm: Option<f64>,
+    ) -> Result<Self> {
+        check_mu(name, mu_per_mm)?;
+        let placed =
+            PlacedPrimitive::new(primitive, placement.matrix()?).map_err(|e| prefix(name, e))?;
+        let (lo, hi) = placed.bounds();
+        Ok(Self {
+            name: name.to_string(),
+            material: material.to_string(),
+            mu_per_mm,
+            density_g_cm3: crate::material::by_name(material).ok().map(|m| m.density()),
+            volume_mm3: placed.volume_mm3(),
+            surface: Surface::Analytic(placed),
+            lo,
+            hi,
+        })
+    }
+
+    /// Whether the surface is an analytic solid (exact intervals, no triangles).
+    pub fn is_analytic(&self) -> bool {
+        matches!(self.surface, Surface::Analytic(_))
     }
 
     /// The same mesh at density `density_g_cm3` (g/cm³, finite and > 0).
@@ -156,9 +201,12 @@ impl MeshObject {
         Ok(self)
     }
 
-    /// Number of triangles.
+    /// Number of triangles (0 for an analytic solid).
     pub fn triangle_count(&self) -> usize {
-        self.tris.len()
+        match &self.surface {
+            Surface::Triangles(t) => t.tris.len(),
+            Surface::Analytic(_) => 0,
+        }
     }
 
     /// Enclosed volume, mm³.
@@ -171,14 +219,17 @@ impl MeshObject {
         (self.lo, self.hi)
     }
 
-    /// Heap bytes (triangles and both BVHs).
+    /// Heap bytes (triangles and both BVHs; 0 for an analytic solid).
     pub fn memory_bytes(&self) -> usize {
-        self.tris.capacity() * std::mem::size_of::<[DVec3; 3]>()
-            + self.rays.nodes.capacity() * std::mem::size_of::<obvhs::cwbvh::node::CwBvhNode>()
-            + self.rays.primitive_indices.capacity() * 4
-            + self.bvh.nodes.capacity() * std::mem::size_of::<obvhs::bvh2::node::Bvh2Node>()
-            + self.bvh.primitive_indices.capacity() * 4
-            + self.slot.capacity() * 4
+        let Surface::Triangles(t) = &self.surface else {
+            return 0;
+        };
+        t.tris.capacity() * std::mem::size_of::<[DVec3; 3]>()
+            + t.rays.nodes.capacity() * std::mem::size_of::<obvhs::cwbvh::node::CwBvhNode>()
+            + t.rays.primitive_indices.capacity() * 4
+            + t.bvh.nodes.capacity() * std::mem::size_of::<obvhs::bvh2::node::Bvh2Node>()
+            + t.bvh.primitive_indices.capacity() * 4
+            + t.slot.capacity() * 4
     }
 
     /// The line of `ray` against the bounding box (slab test, f64): `(t0, t1)` or `None`.
@@ -203,6 +254,15 @@ impl MeshObject {
     /// before entries at equal `t`).
     pub fn hits(&self, ray: &Ray, out: &mut Vec<Hit>) {
         out.clear();
+        let t = match &self.surface {
+            Surface::Triangles(t) => t,
+            Surface::Analytic(p) => {
+                if let Some((t0, t1)) = p.span(ray) {
+                    out.extend([Hit { t: t0, sign: 1 }, Hit { t: t1, sign: -1 }]);
+                }
+                return;
+            }
+        };
         let Some((t0, t1)) = self.box_span(ray) else {
             return;
         };
@@ -221,8 +281,8 @@ impl MeshObject {
         );
         let r = obvhs::ray::Ray::new(origin, d, 0.0, len);
         let sheared = ShearedRay::new(ray.origin, ray.direction);
-        self.rays.ray_traverse_anyhit(r, |_, id| {
-            let [a, b, c] = self.tris[id];
+        t.rays.ray_traverse_anyhit(r, |_, id| {
+            let [a, b, c] = t.tris[id];
             if let Some(h) = sheared.hit(a, b, c) {
                 out.push(h);
             }
@@ -265,18 +325,22 @@ impl MeshObject {
     /// Pairs of triangles that cross (sharing no vertex position; coplanar overlaps are
     /// not detected), found with the BVH; returns the count and one pair (input order
     /// is lost: indices are in the ray BVH's order).
+    /// An analytic solid has none.
     pub fn self_intersections(&self) -> (usize, (usize, usize)) {
         let mut pairs = 0;
         let mut first = (0, 0);
-        for (i, tri) in self.tris.iter().enumerate() {
+        let Surface::Triangles(t) = &self.surface else {
+            return (pairs, first);
+        };
+        for (i, tri) in t.tris.iter().enumerate() {
             let lo = tri[0].min(tri[1]).min(tri[2]).as_vec3a();
             let hi = tri[0].max(tri[1]).max(tri[2]).as_vec3a();
             let query = Aabb::new(lo - 1e-3, hi + 1e-3);
-            self.bvh.aabb_traverse(query, |bvh, node| {
+            t.bvh.aabb_traverse(query, |bvh, node| {
                 let n = &bvh.nodes[node as usize];
                 for j in n.first_index..n.first_index + n.prim_count {
-                    let j = self.slot[bvh.primitive_indices[j as usize] as usize] as usize;
-                    if j > i && triangles_cross(tri, &self.tris[j]) {
+                    let j = t.slot[bvh.primitive_indices[j as usize] as usize] as usize;
+                    if j > i && triangles_cross(tri, &t.tris[j]) {
                         if pairs == 0 {
                             first = (i, j);
                         }
@@ -287,6 +351,16 @@ impl MeshObject {
             });
         }
         (pairs, first)
+    }
+}
+
+/// Refuses a non-finite or negative explicit attenuation.
+fn check_mu(name: &str, mu_per_mm: Option<f64>) -> Result<()> {
+    match mu_per_mm {
+        Some(mu) if !(mu.is_finite() && mu >= 0.0) => Err(MeshError::OutOfRange(format!(
+            "mesh {name}: mu = {mu} mm⁻¹; it must be finite and ≥ 0"
+        ))),
+        _ => Ok(()),
     }
 }
 

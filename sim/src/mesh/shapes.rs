@@ -241,13 +241,17 @@ pub fn prism(outline: &[[f64; 2]], height: f64) -> Result<TriMesh> {
     }))
 }
 
-/// A cylinder of `radius` and `height` (mm) along z with `segments` sides (≥ 3),
-/// vertices on the circle (inscribed polygon).
+/// Most sides of a generated cylinder (4 M triangles).
+pub const MAX_SEGMENTS: u32 = 1 << 20;
+
+/// A cylinder of `radius` and `height` (mm) along z with `segments` sides (3 to
+/// [`MAX_SEGMENTS`]), vertices on the circle (inscribed polygon).
 pub fn cylinder(radius: f64, height: f64, segments: u32) -> Result<TriMesh> {
     positive("cylinder radius", radius)?;
-    if segments < 3 {
+    if !(3..=MAX_SEGMENTS).contains(&segments) {
         return Err(MeshError::OutOfRange(format!(
-            "cylinder needs ≥ 3 segments, got {segments}"
+            "cylinder needs 3 to {MAX_SEGMENTS} segments, got {segments} (an exact \
+             cylinder needs none: kind = \"cylinder\" without resolution)"
         )));
     }
     let outline: Vec<[f64; 2]> = (0..segments)
@@ -332,6 +336,11 @@ pub fn tube(path: &[DVec3], radius: f64, segments: u32) -> Result<TriMesh> {
 /// leaving its header at +z (towards the head), looping and running 12 cm posterior (+y)
 /// into the chest. Returned as `(name, mesh)` pairs, centred on the can.
 pub fn pacemaker(segments: u32) -> Result<Vec<(String, TriMesh)>> {
+    if segments > MAX_SEGMENTS {
+        return Err(MeshError::OutOfRange(format!(
+            "pacemaker resolution {segments}; at most {MAX_SEGMENTS}"
+        )));
+    }
     let segments = segments.max(8);
     // Can outline: a stadium (two half-discs joined by straight sides).
     let (half_w, r) = (25.0, 22.5);

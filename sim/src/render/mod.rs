@@ -18,6 +18,11 @@ use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 use std::sync::Arc;
 
+/// Smallest trilinear step, voxels: 100 samples per voxel. Finer steps change a line
+/// integral by less than the f32 image holds and would run for hours (a step of 1e-9
+/// never finishes).
+pub const MIN_TRILINEAR_STEP: f64 = 0.01;
+
 /// How a ray is integrated through the volume.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(tag = "kind", rename_all = "kebab-case")]
@@ -177,10 +182,13 @@ impl<'a> Renderer<'a> {
         occupied: impl FnOnce() -> Option<GridBox>,
     ) -> Result<Self> {
         if let Projector::Trilinear { step_voxels } = projector
-            && !(step_voxels.is_finite() && step_voxels > 0.0)
+            && !(step_voxels.is_finite() && step_voxels >= MIN_TRILINEAR_STEP)
         {
             return Err(SimError::OutOfRange(format!(
-                "trilinear step is {step_voxels} voxels; it must be finite and > 0"
+                "trilinear step is {step_voxels} voxels; it must be finite and ≥ \
+                 {MIN_TRILINEAR_STEP} ({} samples per voxel; exact Siddon is faster than any \
+                 step that small)",
+                1.0 / MIN_TRILINEAR_STEP
             )));
         }
         let bounds = match projector {

@@ -1,0 +1,406 @@
+//! The bad-input catalogue (issue 23): one table of inputs a user may give — files
+//! tomograf did not write, impossible geometry, sizes beyond memory, corrupt checkpoints —
+//! each with the words its error must contain. Every row must end with a non-zero exit,
+//! no panic, no abort, within a time limit (a hang fails), and the named words on stderr.
+//! `TOMOGRAF_MEMORY_LIMIT_GB=8` makes the "beyond memory" rows independent of the machine.
+
+mod common;
+
+use std::path::Path;
+use std::process::{Command, Stdio};
+use std::time::{Duration, Instant};
+
+/// Runs the binary with `args` under a memory limit of 8 GiB, killing it after `limit`.
+/// Returns (exit code, stderr), or `None` on a timeout.
+fn run(args: &[String], limit: Duration) -> Option<(Option<i32>, String)> {
+    let mut child = Command::new(env!("CARGO_BIN_EXE_tomograf"))
+        .args(args)
+        .env("TOMOGRAF_MEMORY_LIMIT_GB", "8")
+        .stdin(Stdio::null())
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("runs");
+    let start = Instant::now();
+    loop {
+        if let Some(status) = child.try_wait().expect("waits") {
+            let mut err = String::new();
+            use std::io::Read;
+            child
+                .stderr
+                .take()
+                .unwrap()
+                .read_to_string(&mut err)
+                .unwrap();
+            return Some((status.code(), err));
+        }
+        if start.elapsed() > limit {
+            let _ = child.kill();
+            let _ = child.wait();
+            return None;
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    }
+}
+
+fn s(p: &Path) -> String {
+    p.to_str().unwrap().to_string()
+}
+
+/// A minimal NIfTI-1 file: float32 voxels `data` on a `dims` grid of 1 mm voxels.
+fn nifti_f32(path: &Path, dims: [u16; 3], data: &[f32]) {
+    let mut h = vec![0u8; 352];
+    h[0..4].copy_from_slice(&348i32.to_le_bytes());
+    let dim: [i16; 8] = [
+        3,
+        dims[0] as i16,
+        dims[1] as i16,
+        dims[2] as i16,
+        1,
+        1,
+        1,
+        1,
+    ];
+    for (i, d) in dim.iter().enumerate() {
+        h[40 + 2 * i..42 + 2 * i].copy_from_slice(&d.to_le_bytes());
+    }
+    h[70..72].copy_from_slice(&16i16.to_le_bytes()); // DT_FLOAT32
+    h[72..74].copy_from_slice(&32i16.to_le_bytes());
+    let pixdim: [f32; 8] = [1.0, 1.0, 1.0, 1.0, 1.0, 0.0, 0.0, 0.0];
+    for (i, p) in pixdim.iter().enumerate() {
+        h[76 + 4 * i..80 + 4 * i].copy_from_slice(&p.to_le_bytes());
+    }
+    h[108..112].copy_from_slice(&352f32.to_le_bytes()); // vox_offset
+    h[112..116].copy_from_slice(&1f32.to_le_bytes()); // scl_slope
+    h[344..348].copy_from_slice(b"n+1\0");
+    for v in data {
+        h.extend_from_slice(&v.to_le_bytes());
+    }
+    std::fs::write(path, h).unwrap();
+}
+
+/// Writes `mean_volume.npy` of shape `dims` (z, y, x) holding `data`, f32 little-endian.
+fn npy(path: &Path, shape: [u64; 3], data: &[f32]) {
+    use npyz::WriterBuilder;
+    let mut out = Vec::new();
+    {
+        let mut w = npyz::WriteOptions::<f32>::new()
+            .default_dtype()
+            .shape(&shape)
+            .writer(&mut out)
+            .begin_nd()
+            .unwrap();
+        w.extend(data.iter().copied()).unwrap();
+        w.finish().unwrap();
+    }
+    std::fs::write(path, out).unwrap();
+}
+
+fn copy_dir(from: &Path, to: &Path) {
+    std::fs::create_dir_all(to).unwrap();
+    for e in std::fs::read_dir(from).unwrap() {
+        let e = e.unwrap();
+        std::fs::copy(e.path(), to.join(e.file_name())).unwrap();
+    }
+}
+
+/// Overwrites the 16-bit value of the first explicit-VR little-endian US element `tag`
+/// (group, element) in a DICOM file.
+fn patch_us(path: &Path, tag: (u16, u16), value: u16) {
+    let mut b = std::fs::read(path).unwrap();
+    let mut pat = Vec::new();
+    pat.extend_from_slice(&tag.0.to_le_bytes());
+    pat.extend_from_slice(&tag.1.to_le_bytes());
+    pat.extend_from_slice(b"US\x02\x00");
+    let at = b
+        .windows(pat.len())
+        .position(|w| w == pat.as_slice())
+        .expect("tag present")
+        + pat.len();
+    b[at..at + 2].copy_from_slice(&value.to_le_bytes());
+    std::fs::write(path, b).unwrap();
+}
+
+#[test]
+fn every_bad_input_ends_in_a_clear_error() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let p = |name: &str| d.join(name);
+    let out = |name: &str| s(&p(name));
+
+    // Fixtures: small valid files, then broken copies.
+    let small = ["--phantom-dims", "16,16,8", "--phantom-spacing", "20,20,40"];
+    let proj = p("proj");
+    let mut a = vec!["project".to_string()];
+    a.extend(small.iter().map(|x| x.to_string()));
+    a.extend(["--rows", "16", "--cols", "16", "--arc", "0:30:12", "-o"].map(String::from));
+    a.push(s(&proj));
+    common::ok(&common::tomograf(
+        &a.iter().map(String::as_str).collect::<Vec<_>>(),
+    ));
+    common::ok(&common::tomograf(&[
+        "dataset",
+        "-o",
+        &out("data"),
+        "--phantoms",
+        "1",
+        "--size",
+        "16",
+        "--views",
+        "10",
+    ]));
+    let item = s(&p("data").join("00000"));
+    common::ok(&common::tomograf(&[
+        "phantom",
+        "-o",
+        &out("ct.nii"),
+        "--dims",
+        "16,16,8",
+        "--spacing",
+        "20,20,40",
+    ]));
+    common::ok(&common::tomograf(&[
+        "phantom",
+        "--dicom",
+        "-o",
+        &out("dicom"),
+        "--dims",
+        "16,16,4",
+        "--spacing",
+        "20,20,40",
+    ]));
+    // Truncated and garbage volumes.
+    let ct = std::fs::read(p("ct.nii")).unwrap();
+    std::fs::write(p("truncated.nii"), &ct[..ct.len() / 2]).unwrap();
+    std::fs::write(p("garbage.nii"), vec![0x5au8; 600]).unwrap();
+    std::fs::write(p("empty.nii"), b"").unwrap();
+    let mut nan = vec![-1000.0f32; 8 * 8 * 8];
+    nan[100] = f32::NAN;
+    nifti_f32(&p("nan.nii"), [8, 8, 8], &nan);
+    let mut inf = vec![0.0f32; 8 * 8 * 8];
+    inf[7] = f32::INFINITY;
+    nifti_f32(&p("inf.nii"), [8, 8, 8], &inf);
+    std::fs::create_dir_all(p("no-dicom")).unwrap();
+    std::fs::write(p("no-dicom").join("readme.txt"), "not DICOM").unwrap();
+    // A DICOM series whose headers claim half the rows of the pixel data.
+    copy_dir(&p("dicom"), &p("dicom-rows"));
+    for e in std::fs::read_dir(p("dicom-rows")).unwrap() {
+        patch_us(&e.unwrap().path(), (0x0028, 0x0010), 8);
+    }
+    // Meshes.
+    // A binary STL header announcing 10 triangles, then half of one.
+    let mut stl = vec![0u8; 80];
+    stl.extend_from_slice(&10u32.to_le_bytes());
+    stl.extend_from_slice(&[0u8; 25]);
+    std::fs::write(p("cut.stl"), stl).unwrap();
+    std::fs::write(p("bad.obj"), "v 0 0 0\nv 1 0 0\nf 1 2 7\n").unwrap();
+    // Spectra.
+    std::fs::write(p("negative.txt"), "20 1.0\n30 -2.0\n40 1.0\n").unwrap();
+    std::fs::write(p("words.txt"), "kev fluence\nabc def\n").unwrap();
+    // A regular file where a folder must go.
+    std::fs::write(p("file"), "x").unwrap();
+    let under_file = s(&p("file").join("sub"));
+    // Checkpoints: the shipped demo model, then corrupt copies.
+    let demo = Path::new(env!("CARGO_MANIFEST_DIR")).join("model/checkpoints/demo");
+    let broken = |name: &str, f: &dyn Fn(&Path)| -> String {
+        let c = p(name);
+        copy_dir(&demo, &c);
+        f(&c);
+        s(&c)
+    };
+    let empty_bpk = broken("ck-empty-bpk", &|c| {
+        std::fs::write(c.join("generator.bpk"), b"").unwrap()
+    });
+    let zero_scale = broken("ck-zero-scale", &|c| {
+        let t = std::fs::read_to_string(c.join("state.json")).unwrap();
+        let mut j: serde_json::Value = serde_json::from_str(&t).unwrap();
+        j["proj_scale"] = serde_json::json!(0.0);
+        std::fs::write(c.join("state.json"), j.to_string()).unwrap();
+    });
+    let nan_mean = broken("ck-nan-mean", &|c| {
+        npy(
+            &c.join("mean_volume.npy"),
+            [2, 2, 2],
+            &[0.0, 1.0, f32::NAN, 0.0, 0.0, 0.0, 0.0, 0.0],
+        )
+    });
+    let cut_mean = broken("ck-cut-mean", &|c| {
+        let b = std::fs::read(c.join("mean_volume.npy")).unwrap();
+        std::fs::write(c.join("mean_volume.npy"), &b[..b.len() - 100]).unwrap();
+    });
+    let no_mean = broken("ck-no-mean", &|c| {
+        std::fs::remove_file(c.join("mean_volume.npy")).unwrap()
+    });
+    let other_preset = broken("ck-other-preset", &|c| {
+        let t = std::fs::read_to_string(c.join("config.toml")).unwrap();
+        std::fs::write(
+            c.join("config.toml"),
+            t.replace("hidden = 128", "hidden = 64"),
+        )
+        .unwrap();
+    });
+    // Scenes.
+    let scene = |name: &str, text: &str| -> String {
+        let f = p(&format!("{name}.toml"));
+        std::fs::write(&f, text).unwrap();
+        s(&f)
+    };
+    let small_scene = "[volume]\nphantom_dims = [16, 16, 8]\nphantom_spacing_mm = [20.0, 20.0, 40.0]\n[detector]\nrows = 16\ncols = 16\n";
+
+    let proj_s = s(&proj);
+    let o = out("o");
+    // (arguments, words the error must contain)
+    let rows: Vec<(Vec<String>, &str)> = vec![
+        // Sizes beyond memory and counts beyond reason.
+        (vec!["project", "--arc", "0:5:1000000000", "-o", &o].map_into(), "more than 1000000 in one job"),
+        (vec!["project", "--scene", &scene("arc", &format!("{small_scene}[views]\narc = \"0:5:1000000000\"\n")), "-o", &o].map_into(), "more than 1000000"),
+        (vec!["project", "--arc", "0:1:500000", "--rows", "256", "--cols", "256", "-o", &o].map_into(), "held as f32 images needs"),
+        (vec!["project", "--scene", &scene("cyl", &format!("{small_scene}[[mesh]]\nname = \"c\"\nkind = \"cylinder\"\nresolution = 4000000000\nmu_per_mm = 0.1\n")), "-o", &o].map_into(), "segments"),
+        (vec!["reconstruct-classical", &proj_s, "--dims", "100000,100000,100000", "-o", &out("r.nii")].map_into(), "exceed the limit"),
+        (vec!["reconstruct-classical", &proj_s, "--dims", "2400,2400,2400", "-o", &out("r.nii")].map_into(), "more than this machine's 8.0 GiB"),
+        (vec!["project", "--phantom-dims", "2400,2400,2400", "-o", &o].map_into(), "more than this machine's 8.0 GiB"),
+        (vec!["phantom", "--dims", "2400,2400,2400", "-o", &out("big.nii")].map_into(), "more than this machine's 8.0 GiB"),
+        // Runaway settings.
+        (vec!["project", "--projector", "trilinear", "--step", "1e-9", "-o", &o].map_into(), "≥ 0.01"),
+        (vec!["--threads", "100000", "project", "-o", &o].map_into(), "give 1 to 1024"),
+        (vec!["--threads", "0", "project", "-o", &o].map_into(), "give 1 to 1024"),
+        // Impossible or silently wrong geometry.
+        (vec!["project", "--sad", "1e300", "-o", &o].map_into(), "at most 100000 mm"),
+        (vec!["project", "--sid", "nan", "-o", &o].map_into(), "SID is NaN"),
+        (vec!["project", "--sad", "1000", "--sid", "900", "-o", &o].map_into(), "smaller than SAD"),
+        (vec!["project", "--isocentre", "5000,0,0", "--pitch", "1.5,1.5", "-o", &o].map_into(), "no ray of any view meets the volume"),
+        (vec!["project", "--offset", "1e9,0", "-o", &o].map_into(), "no ray of any view meets the volume"),
+        (vec!["project", "--view", "sideways", "-o", &o].map_into(), "neither a named view"),
+        (vec!["project", "--arc", "0:5:0", "-o", &o].map_into(), "at least one view"),
+        (vec!["project", "--rows", "0", "-o", &o].map_into(), "0"),
+        (vec!["project", &out("ct.nii"), "--phantom-dims", "16,16,16", "-o", &o].map_into(), "are for the built-in phantom"),
+        (vec!["project", "--beam", "parallel", "--sad", "1000", "-o", &o].map_into(), "do not apply to a parallel beam"),
+        // Volumes tomograf did not write.
+        (vec!["project", &out("truncated.nii"), "-o", &o].map_into(), "truncated.nii"),
+        (vec!["project", &out("garbage.nii"), "-o", &o].map_into(), "garbage.nii"),
+        (vec!["project", &out("empty.nii"), "-o", &o].map_into(), "empty.nii"),
+        (vec!["project", &out("nan.nii"), "-o", &o].map_into(), "NaN"),
+        (vec!["project", &out("inf.nii"), "-o", &o].map_into(), "inf"),
+        (vec!["project", &out("missing.nii"), "-o", &o].map_into(), "missing.nii"),
+        (vec!["project", &out("no-dicom"), "-o", &o].map_into(), "no-dicom"),
+        (vec!["project", &out("dicom-rows"), "-o", &o].map_into(), "do not describe the pixel data"),
+        (vec!["project", &out("ct.nii"), "--units", "furlongs", "-o", &o].map_into(), "furlongs"),
+        // Meshes and scenes typed by hand.
+        (vec!["project", "--scene", &scene("stl", &format!("{small_scene}[[mesh]]\nname = \"m\"\npath = \"{}\"\nmu_per_mm = 0.1\n", out("cut.stl"))), "-o", &o].map_into(), "ends early"),
+        (vec!["project", "--scene", &scene("obj", &format!("{small_scene}[[mesh]]\nname = \"m\"\npath = \"{}\"\nmu_per_mm = 0.1\n", out("bad.obj"))), "-o", &o].map_into(), "bad.obj"),
+        (vec!["project", "--scene", &scene("unknown-key", "[volume]\ncolour = 1\n"), "-o", &o].map_into(), "unknown field `colour`"),
+        (vec!["project", "--scene", &scene("not-toml", "[volume\n"), "-o", &o].map_into(), "not valid"),
+        (vec!["project", "--scene", &out("no-such-scene.toml"), "-o", &o].map_into(), "no-such-scene.toml"),
+        (vec!["project", "--scene", &scene("mat", &format!("{small_scene}[[mesh]]\nname = \"m\"\nkind = \"sphere\"\nmaterial = \"unobtainium\"\n")), "-o", &o].map_into(), "unknown material: 'unobtainium'"),
+        (vec!["project", "--scene", &scene("exact", &format!("{small_scene}[[mesh]]\nname = \"m\"\nkind = \"cylinder\"\nexact = true\nresolution = 8\nmu_per_mm = 0.1\n")), "-o", &o].map_into(), "drop one of them"),
+        (vec!["project", "--scene", &scene("blend", &format!("{small_scene}[spectrum]\nkvp = 100\n[materials]\nblend_hu = 500\n")), "-o", &o].map_into(), "not narrower than 'adipose'"),
+        // Physics out of range.
+        (vec!["project", "--preset", "kv-flat-panel-1000kvp", "-o", &o].map_into(), "kv-flat-panel-1000kvp"),
+        (vec!["project", "--kvp", "1000", "-o", &o].map_into(), "1000"),
+        (vec!["project", "--kvp", "100", "--mas=-1", "-o", &o].map_into(), "mas = -1; it must be finite and > 0"),
+        (vec!["project", "--preset", "kv-flat-panel-120kvp", "--mas", "1e30", "--noise-seed", "1", "-o", &o].map_into(), "lower the mAs"),
+        (vec!["project", "--kvp", "100", "--detector-model", "superconducting", "-o", &o].map_into(), "superconducting"),
+        (vec!["project", "--energy-kev", "0", "-o", &o].map_into(), "keV"),
+        (vec!["project", "--projector", "montecarlo", "-o", &o].map_into(), "unknown projector 'montecarlo'"),
+        (vec!["project", "--scene", &scene("spec-neg", &format!("{small_scene}[spectrum]\nfile = \"{}\"\n", out("negative.txt"))), "-o", &o].map_into(), "negative.txt"),
+        (vec!["project", "--scene", &scene("spec-words", &format!("{small_scene}[spectrum]\nfile = \"{}\"\n", out("words.txt"))), "-o", &o].map_into(), "words.txt"),
+        // Outputs where a file is.
+        (vec!["project", "-o", &under_file].map_into(), "file"),
+        (vec!["reconstruct-classical", &proj_s, "--dims", "8,8,8", "-o", &s(&p("file").join("sub").join("r.nii"))].map_into(), "cannot create the output folder"),
+        (vec!["train", &out("data"), "-o", &under_file, "--config", "tiny", "--iterations", "1"].map_into(), "cannot create the output folder"),
+        // Evaluation and inference.
+        (vec!["evaluate", &out("data"), "--items", "0", "-o", &out("ev")].map_into(), "--items 0 scores nothing"),
+        (vec!["reconstruct", &item, "--checkpoint", &s(&demo), "--iterations", "0", "-o", &out("rec.nii")].map_into(), "at least 1"),
+        (vec!["reconstruct", &item, "--checkpoint", &empty_bpk, "-o", &out("rec.nii")].map_into(), "empty, truncated or corrupt"),
+        (vec!["reconstruct", &item, "--checkpoint", &zero_scale, "-o", &out("rec.nii")].map_into(), "proj_scale = 0"),
+        (vec!["reconstruct", &item, "--checkpoint", &nan_mean, "-o", &out("rec.nii")].map_into(), "mean_volume.npy"),
+        (vec!["reconstruct", &item, "--checkpoint", &cut_mean, "-o", &out("rec.nii")].map_into(), "truncated or corrupt NPY"),
+        (vec!["reconstruct", &item, "--checkpoint", &no_mean, "-o", &out("rec.nii")].map_into(), "missing"),
+        (vec!["reconstruct", &item, "--checkpoint", &other_preset, "-o", &out("rec.nii")].map_into(), "generator.bpk"),
+        (vec!["reconstruct", &item, "--checkpoint", &out("no-checkpoint"), "-o", &out("rec.nii")].map_into(), "no-checkpoint"),
+        (vec!["reconstruct-classical", &out("no-proj"), "--dims", "8,8,8", "-o", &out("r.nii")].map_into(), "no-proj"),
+    ];
+    assert!(rows.len() >= 40, "{} rows", rows.len());
+    let mut failures = Vec::new();
+    for (args, words) in &rows {
+        let line = args.join(" ");
+        match run(args, Duration::from_secs(60)) {
+            None => failures.push(format!("HANG (over 60 s): {line}")),
+            Some((code, err)) => {
+                if code == Some(0) {
+                    failures.push(format!("SUCCEEDED: {line}\n{err}"));
+                } else if err.contains("panicked")
+                    || code.is_none()
+                    || code == Some(101)
+                    || code == Some(134)
+                {
+                    failures.push(format!("PANIC/ABORT (exit {code:?}): {line}\n{err}"));
+                } else if !err.contains(words) {
+                    failures.push(format!("no '{words}' in the error of: {line}\n{err}"));
+                }
+            }
+        }
+    }
+    assert!(
+        failures.is_empty(),
+        "{} of {} rows failed:\n\n{}",
+        failures.len(),
+        rows.len(),
+        failures.join("\n\n")
+    );
+    // No row left a half-written image behind.
+    assert!(!p("o").join("drr.npy").exists());
+}
+
+/// `vec![..].map_into()`: the row's arguments as owned strings.
+trait MapInto {
+    fn map_into(self) -> Vec<String>;
+}
+
+impl MapInto for Vec<&str> {
+    fn map_into(self) -> Vec<String> {
+        self.into_iter().map(String::from).collect()
+    }
+}
+
+/// Geometry that is legal but almost certainly not meant renders with a warning: the
+/// detector through the patient (SID = SAD), the source inside it (SAD 10 mm); a
+/// sensible set-up warns about nothing.
+#[test]
+fn suspicious_geometry_is_named() {
+    let dir = tempfile::tempdir().unwrap();
+    let o = s(&dir.path().join("o"));
+    let small = [
+        "--phantom-dims",
+        "16,16,8",
+        "--phantom-spacing",
+        "20,20,40",
+        "--rows",
+        "16",
+        "--cols",
+        "16",
+    ];
+    for (extra, words) in [
+        (
+            &["--sad", "1000", "--sid", "1000"][..],
+            Some("the detector cuts through the volume"),
+        ),
+        (
+            &["--sad", "10", "--sid", "1500"][..],
+            Some("the source lies inside the volume"),
+        ),
+        (&["--sad", "1000", "--sid", "1500"][..], None),
+    ] {
+        let mut args = vec!["project"];
+        args.extend(small);
+        args.extend(extra);
+        args.extend(["-o", &o]);
+        let out = common::tomograf(&args);
+        common::ok(&out);
+        let err = String::from_utf8_lossy(&out.stderr);
+        match words {
+            Some(w) => assert!(err.contains(w), "{extra:?}: {err}"),
+            None => assert!(!err.contains("warning"), "{extra:?}: {err}"),
+        }
+    }
+}
