@@ -47,38 +47,6 @@ fn s(p: &Path) -> String {
     p.to_str().unwrap().to_string()
 }
 
-/// A minimal NIfTI-1 file: float32 voxels `data` on a `dims` grid of 1 mm voxels.
-fn nifti_f32(path: &Path, dims: [u16; 3], data: &[f32]) {
-    let mut h = vec![0u8; 352];
-    h[0..4].copy_from_slice(&348i32.to_le_bytes());
-    let dim: [i16; 8] = [
-        3,
-        dims[0] as i16,
-        dims[1] as i16,
-        dims[2] as i16,
-        1,
-        1,
-        1,
-        1,
-    ];
-    for (i, d) in dim.iter().enumerate() {
-        h[40 + 2 * i..42 + 2 * i].copy_from_slice(&d.to_le_bytes());
-    }
-    h[70..72].copy_from_slice(&16i16.to_le_bytes()); // DT_FLOAT32
-    h[72..74].copy_from_slice(&32i16.to_le_bytes());
-    let pixdim: [f32; 8] = [1.0, 1.0, 1.0, 1.0, 1.0, 0.0, 0.0, 0.0];
-    for (i, p) in pixdim.iter().enumerate() {
-        h[76 + 4 * i..80 + 4 * i].copy_from_slice(&p.to_le_bytes());
-    }
-    h[108..112].copy_from_slice(&352f32.to_le_bytes()); // vox_offset
-    h[112..116].copy_from_slice(&1f32.to_le_bytes()); // scl_slope
-    h[344..348].copy_from_slice(b"n+1\0");
-    for v in data {
-        h.extend_from_slice(&v.to_le_bytes());
-    }
-    std::fs::write(path, h).unwrap();
-}
-
 /// Writes `mean_volume.npy` of shape `dims` (z, y, x) holding `data`, f32 little-endian.
 fn npy(path: &Path, shape: [u64; 3], data: &[f32]) {
     use npyz::WriterBuilder;
@@ -176,10 +144,10 @@ fn every_bad_input_ends_in_a_clear_error() {
     std::fs::write(p("empty.nii"), b"").unwrap();
     let mut nan = vec![-1000.0f32; 8 * 8 * 8];
     nan[100] = f32::NAN;
-    nifti_f32(&p("nan.nii"), [8, 8, 8], &nan);
+    common::nifti_f32(&p("nan.nii"), [8, 8, 8], [1.0; 3], &nan);
     let mut inf = vec![0.0f32; 8 * 8 * 8];
     inf[7] = f32::INFINITY;
-    nifti_f32(&p("inf.nii"), [8, 8, 8], &inf);
+    common::nifti_f32(&p("inf.nii"), [8, 8, 8], [1.0; 3], &inf);
     std::fs::create_dir_all(p("no-dicom")).unwrap();
     std::fs::write(p("no-dicom").join("readme.txt"), "not DICOM").unwrap();
     // A DICOM series whose headers claim half the rows of the pixel data.
@@ -261,7 +229,7 @@ fn every_bad_input_ends_in_a_clear_error() {
         (vec!["project", "--phantom-dims", "2400,2400,2400", "-o", &o].map_into(), "more than this machine's 8.0 GiB"),
         (vec!["phantom", "--dims", "2400,2400,2400", "-o", &out("big.nii")].map_into(), "more than this machine's 8.0 GiB"),
         // Runaway settings.
-        (vec!["project", "--projector", "trilinear", "--step", "1e-9", "-o", &o].map_into(), "≥ 0.01"),
+        (vec!["project", "--projector", "trilinear", "--step", "1e-9", "-o", &o].map_into(), "≥ 0.001"),
         (vec!["--threads", "100000", "project", "-o", &o].map_into(), "give 1 to 1024"),
         (vec!["--threads", "0", "project", "-o", &o].map_into(), "give 1 to 1024"),
         // Impossible or silently wrong geometry.
@@ -403,4 +371,42 @@ fn suspicious_geometry_is_named() {
             None => assert!(!err.contains("warning"), "{extra:?}: {err}"),
         }
     }
+}
+
+/// `scan` lists the readable series and names each DICOM file it had to skip (a
+/// truncated slice), instead of passing over it in silence.
+#[test]
+fn scan_names_the_files_it_skips() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path().join("tree");
+    common::ok(&common::tomograf(&[
+        "phantom",
+        "--dicom",
+        "-o",
+        &s(&d),
+        "--dims",
+        "16,16,4",
+        "--spacing",
+        "20,20,40",
+    ]));
+    let mut files: Vec<_> = std::fs::read_dir(&d)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .collect();
+    files.sort();
+    let b = std::fs::read(&files[0]).unwrap();
+    std::fs::write(&files[0], &b[..200]).unwrap();
+    let out = common::tomograf(&["scan", &s(&dir.path())]);
+    common::ok(&out);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("skipped 1 DICOM file")
+            && err.contains(files[0].file_name().unwrap().to_str().unwrap()),
+        "{err}"
+    );
+    let listed = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        listed.contains(&format!("\t{}\t", files.len() - 1)),
+        "{listed}"
+    );
 }

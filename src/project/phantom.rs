@@ -113,7 +113,16 @@ pub struct ScanArgs {
 
 /// Lists the DICOM series under a folder tree, one per line.
 pub fn scan(args: ScanArgs) -> Result<()> {
-    let series = tomograf_datasets::dicom::scan_dicom_tree(&args.root)?;
+    let (series, skipped) = tomograf_datasets::dicom::scan_dicom_tree_reporting(&args.root)?;
+    for (path, why) in &skipped {
+        eprintln!("skipped {}: {why}", path.display());
+    }
+    if !skipped.is_empty() {
+        eprintln!(
+            "warning: skipped {} DICOM file(s) that could not be read (listed above)",
+            skipped.len()
+        );
+    }
     println!("modality\tfiles\trows×cols\tseries UID\tdescription\tfolder");
     for s in &series {
         println!(

@@ -186,17 +186,34 @@ pub fn read_dicom_series(dir: &Path, allow_non_ct: bool) -> Result<Volume> {
 /// `SeriesInstanceUID` are skipped; a folder that cannot be listed is an error.
 /// Only headers are read (up to the pixel data), so scanning is fast.
 pub fn scan_dicom_tree(root: &Path) -> Result<Vec<SeriesInfo>> {
+    Ok(scan_dicom_tree_reporting(root)?.0)
+}
+
+/// [`scan_dicom_tree`], also returning the files that are DICOM (they carry the `DICM`
+/// marker) but could not be read, each with the reason, so that a scan can say what it
+/// skipped.
+pub fn scan_dicom_tree_reporting(root: &Path) -> Result<(Vec<SeriesInfo>, Vec<(PathBuf, String)>)> {
+    let mut skipped = Vec::new();
     let mut found = Vec::new();
     let mut pending = vec![root.to_owned()];
     while let Some(dir) = pending.pop() {
         let (files, subdirs) = list_dir(&dir)?;
         let mut in_dir: BTreeMap<String, SeriesInfo> = BTreeMap::new();
         for path in &files {
-            let Ok(Some(obj)) = open_header(path) else {
-                continue;
+            let obj = match open_header(path) {
+                Ok(Some(obj)) => obj,
+                Ok(None) => continue,
+                Err(e) => {
+                    skipped.push((path.clone(), e.to_string()));
+                    continue;
+                }
             };
-            let Ok(uid) = required_str(path, &obj, tags::SERIES_INSTANCE_UID) else {
-                continue;
+            let uid = match required_str(path, &obj, tags::SERIES_INSTANCE_UID) {
+                Ok(uid) => uid,
+                Err(e) => {
+                    skipped.push((path.clone(), e.to_string()));
+                    continue;
+                }
             };
             let info = in_dir.entry(uid.clone()).or_insert_with(|| SeriesInfo {
                 series_uid: uid,
@@ -219,7 +236,8 @@ pub fn scan_dicom_tree(root: &Path) -> Result<Vec<SeriesInfo>> {
         pending.extend(subdirs);
     }
     found.sort_by(|a, b| (&a.folder, &a.series_uid).cmp(&(&b.folder, &b.series_uid)));
-    Ok(found)
+    skipped.sort();
+    Ok((found, skipped))
 }
 
 /// The regular files and the sub-folders of `dir`, each sorted by name. Symbolic links to
