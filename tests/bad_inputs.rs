@@ -396,7 +396,7 @@ fn scan_names_the_files_it_skips() {
     files.sort();
     let b = std::fs::read(&files[0]).unwrap();
     std::fs::write(&files[0], &b[..200]).unwrap();
-    let out = common::tomograf(&["scan", &s(&dir.path())]);
+    let out = common::tomograf(&["scan", &s(dir.path())]);
     common::ok(&out);
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(

@@ -189,10 +189,13 @@ pub fn scan_dicom_tree(root: &Path) -> Result<Vec<SeriesInfo>> {
     Ok(scan_dicom_tree_reporting(root)?.0)
 }
 
+/// Files a scan skipped: each path with the reason it could not be read.
+pub type Skipped = Vec<(PathBuf, String)>;
+
 /// [`scan_dicom_tree`], also returning the files that are DICOM (they carry the `DICM`
 /// marker) but could not be read, each with the reason, so that a scan can say what it
 /// skipped.
-pub fn scan_dicom_tree_reporting(root: &Path) -> Result<(Vec<SeriesInfo>, Vec<(PathBuf, String)>)> {
+pub fn scan_dicom_tree_reporting(root: &Path) -> Result<(Vec<SeriesInfo>, Skipped)> {
     let mut skipped = Vec::new();
     let mut found = Vec::new();
     let mut pending = vec![root.to_owned()];

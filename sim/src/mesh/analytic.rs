@@ -147,7 +147,7 @@ fn unit_quadric(o: DVec3, d: DVec3, use_axis: [bool; 3]) -> Option<(f64, f64)> {
     let mid = -beta / alpha;
     let p = o + d * mid;
     let delta = alpha * (1.0 - p.dot(p));
-    if !(delta > 0.0) {
+    if delta.is_nan() || delta <= 0.0 {
         return None;
     }
     let half = delta.sqrt() / alpha;
