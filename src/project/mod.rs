@@ -265,7 +265,6 @@ pub fn run(args: ProjectArgs) -> Result<()> {
     };
     let t_load = t0.elapsed();
     let job = resolve(&scene, &vol)?;
-    check_geometry(&job.views, &vol, !scene.mesh.is_empty())?;
     let pixels: u128 = job
         .views
         .iter()
@@ -275,6 +274,7 @@ pub fn run(args: ProjectArgs) -> Result<()> {
         pixels * 4,
         &format!("{} views held as f32 images", job.views.len()),
     )?;
+    check_geometry(&job.views, &vol, !scene.mesh.is_empty())?;
     // One view → one image per detector channel.
     let prepared;
     let renderer;
