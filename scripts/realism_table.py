@@ -12,7 +12,7 @@ import statistics
 import sys
 from pathlib import Path
 
-LEVELS = ["ideal-drr", "polychromatic", "noise-blur", "scatter"]
+LEVELS = ["ideal-drr", "polychromatic", "noise-blur", "scatter", "scatter-corrected"]
 
 
 def cells(study: Path):
@@ -31,6 +31,7 @@ def main():
     study = Path(sys.argv[1])
     metric = sys.argv[2] if len(sys.argv) > 2 else "psnr_db"
     data = cells(study)
+    levels = [t for t in LEVELS if any(k[0] == t for k in data)]
     # (views, label) → test set → values
     table = {}
     for (test, cell), rows in data.items():
@@ -45,6 +46,8 @@ def main():
                 else:
                     continue  # mean volume, SART-TV from the mean: one row is enough
                     # (they depend on the training set only through its mean)
+            elif method == "PCA-MAP prior":
+                continue  # a classical cell given a training set only for its mean volume
             else:
                 label = method
             key = (int(r["views"]), label)
@@ -57,12 +60,12 @@ def main():
             if r["method"] in ("mean training volume", "SART-TV from the mean"):
                 key = (int(r["views"]), r["method"] + " ← ideal-drr")
                 table.setdefault(key, {}).setdefault(test, []).append(float(r[metric]))
-    print(f"| views | method | " + " | ".join(f"`{t}`" for t in LEVELS) + " |")
-    print("|---|---|" + "---|" * len(LEVELS))
+    print(f"| views | method | " + " | ".join(f"`{t}`" for t in levels) + " |")
+    print("|---|---|" + "---|" * len(levels))
     for key in sorted(table, key=lambda k: (k[0], order(k[1]))):
         views, label = key
         vals = []
-        for t in LEVELS:
+        for t in levels:
             v = table[key].get(t, [])
             if not v:
                 vals.append("—")

@@ -154,6 +154,8 @@ pub fn run(args: DemoArgs) -> Result<()> {
         merge: false,
         train_data: (args.train_phantoms > 0).then_some(train),
         pca_noise: DEFAULT_PCA_NOISE,
+        scatter_correction: Default::default(),
+        scatter_prior_data: None,
     })?;
     eprintln!(
         "results: {0}/results.md, figures: {0}/*_slices.png, {0}/*_profile.png",

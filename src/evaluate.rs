@@ -9,7 +9,7 @@
 //! classical baselines (FDK, SART-TV) are scored.
 
 use crate::figures::slices_and_profile;
-use crate::reconstruct::{paper_poses, references, run_one, write_hu};
+use crate::reconstruct::{correct_scatter, paper_poses, references, run_one, write_hu};
 use anyhow::{Context, Result, bail};
 use clap::Args;
 use serde::{Deserialize, Serialize};
@@ -22,8 +22,9 @@ use tomograf_model::config::{InferOverrides, Tune};
 use tomograf_model::data::Item;
 use tomograf_model::metrics::{mean_std, psnr, rmse, ssim3d};
 use tomograf_model::pca::PcaMap;
+use tomograf_model::scatter_correction::ScatterCorrection;
 use tomograf_model::{backend, checkpoint, data};
-use tomograf_sim::Volume;
+use tomograf_sim::{Pose, Volume};
 
 #[derive(Debug, Args)]
 pub struct EvaluateArgs {
@@ -81,6 +82,16 @@ pub struct EvaluateArgs {
     /// line integral.
     #[arg(long, default_value_t = DEFAULT_PCA_NOISE)]
     pub pca_noise: f64,
+    /// Correct every method's views for scatter before reconstruction (test sets recorded
+    /// with scatter): `prior` estimates it through the item's own acquisition from the mean
+    /// training volume (needs --checkpoint or --train-data); `oracle` from the ground-truth
+    /// CT (an upper bound on what a correction can give, not a method); `none` (default).
+    #[arg(long, default_value = "none")]
+    pub scatter_correction: ScatterCorrection,
+    /// Without --checkpoint: the training set whose mean volume `--scatter-correction
+    /// prior` starts from, when the PCA-MAP prior is not wanted (otherwise --train-data's).
+    #[arg(long)]
+    pub scatter_prior_data: Option<PathBuf>,
     /// Score nothing: combine the finished items' scores under --output into results.md
     /// and results.csv (errors naming the items still missing).
     #[arg(long)]
@@ -164,6 +175,13 @@ pub struct Job {
     /// The PCA-MAP prior's training set and noise, when it is scored.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub pca: Option<(PathBuf, f64)>,
+    /// The views' scatter correction (absent: none, and in folders written before it).
+    #[serde(default, skip_serializing_if = "is_none")]
+    pub scatter_correction: ScatterCorrection,
+}
+
+fn is_none(c: &ScatterCorrection) -> bool {
+    *c == ScatterCorrection::None
 }
 
 /// One score: an item, a view count, a method.
@@ -210,6 +228,11 @@ pub struct Evaluation<'a> {
     pub pca_noise: f64,
     /// Also score FDK and SART-TV.
     pub classical: bool,
+    /// Correct the views for scatter first (every method sees the corrected views).
+    pub scatter_correction: ScatterCorrection,
+    /// Without a checkpoint: the training set whose mean volume the `prior` scatter
+    /// correction starts from (`None`: `train_data`'s).
+    pub scatter_prior_data: Option<&'a Path>,
     /// Show inference progress bars.
     pub show: bool,
 }
@@ -245,6 +268,8 @@ pub fn run(args: EvaluateArgs) -> Result<()> {
         shard,
         pca_noise: args.pca_noise,
         classical: !args.no_baselines,
+        scatter_correction: args.scatter_correction,
+        scatter_prior_data: args.scatter_prior_data.as_deref(),
         show: true,
     };
     let made = evaluate(&e)?;
@@ -290,6 +315,7 @@ pub fn evaluate(e: &Evaluation) -> Result<usize> {
         psnr_threshold: e.infer.psnr_threshold,
         refine_iterations: e.infer.refine_iterations,
         pca: e.train_data.map(|p| (p.to_path_buf(), e.pca_noise)),
+        scatter_correction: e.scatter_correction,
     };
     if !job.model && !job.classical {
         bail!("nothing to evaluate: give a checkpoint or score the classical baselines");
@@ -343,6 +369,28 @@ pub fn evaluate(e: &Evaluation) -> Result<usize> {
         baselines.push(p);
     }
     baselines.extend(classical.iter().map(|b| b.as_ref()));
+    // The scatter correction's prior: the mean training volume, the checkpoint's or that of
+    // a training set's CTs.
+    let train_mean = match (&model, e.scatter_prior_data.or(e.train_data)) {
+        (None, Some(dir)) if e.scatter_correction == ScatterCorrection::Prior => {
+            let train = data::load_dataset(dir, None)
+                .with_context(|| format!("the scatter prior's training set {}", dir.display()))?;
+            Some(MeanVolume::from_volumes(
+                train.iter().filter_map(|i| i.ct.as_ref()),
+            )?)
+        }
+        _ => None,
+    };
+    let prior_mean = model
+        .as_ref()
+        .map(|(_, _, mean, _)| mean)
+        .or(train_mean.as_ref());
+    if e.scatter_correction == ScatterCorrection::Prior && prior_mean.is_none() {
+        bail!(
+            "--scatter-correction prior estimates scatter from the mean training volume: give \
+             --checkpoint or --train-data"
+        );
+    }
     let (shard, shards) = e.shard;
     let mut made = 0;
     for (n, item) in items.iter().enumerate() {
@@ -350,6 +398,8 @@ pub fn evaluate(e: &Evaluation) -> Result<usize> {
         if n % shards != shard || path.exists() {
             continue;
         }
+        let corrected = correct_views(item, e, prior_mean)?;
+        let item = corrected.as_ref().unwrap_or(item);
         let mut rows = Vec::new();
         for &count in e.views {
             let poses = paper_poses(count)?;
@@ -424,6 +474,20 @@ pub fn evaluate(e: &Evaluation) -> Result<usize> {
         made += 1;
     }
     Ok(made)
+}
+
+/// `item` with the views that `e.views` use corrected for scatter as `e` asks (`None`: no
+/// correction asked).
+fn correct_views(item: &Item, e: &Evaluation, prior: Option<&MeanVolume>) -> Result<Option<Item>> {
+    let mut poses: Vec<Pose> = Vec::new();
+    for &count in e.views {
+        for pose in paper_poses(count)? {
+            if !poses.contains(&pose) {
+                poses.push(pose);
+            }
+        }
+    }
+    correct_scatter(item, e.scatter_correction, prior, &poses, e.seed, e.show)
 }
 
 fn item_path(output: &Path, id: &str) -> PathBuf {

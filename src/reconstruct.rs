@@ -5,9 +5,11 @@ use anyhow::{Context, Result, bail};
 use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
 use std::path::{Path, PathBuf};
+use tomograf_model::baseline::{Baseline, MeanVolume};
 use tomograf_model::config::{InferConfig, InferOverrides, Tune};
 use tomograf_model::data::Item;
 use tomograf_model::reconstruct::{Reconstruction, Reference, reconstruct};
+use tomograf_model::scatter_correction::{ScatterCorrection, correct_item};
 use tomograf_model::{backend, checkpoint, data};
 use tomograf_sim::geometry::angles::parse_pose;
 use tomograf_sim::{Pose, Volume};
@@ -49,6 +51,11 @@ pub struct ReconstructArgs {
     /// Backend: flex (CPU, default), ndarray, cuda, wgpu (as compiled in).
     #[arg(long)]
     pub backend: Option<String>,
+    /// Correct the views for scatter first (items recorded with scatter): `prior` from the
+    /// checkpoint's mean training volume, `oracle` from the item's ground truth (an upper
+    /// bound, not a method), `none` (default). See docs/scatter.md.
+    #[arg(long, default_value = "none")]
+    pub scatter_correction: ScatterCorrection,
 }
 
 /// The paper's view sets (Methods 1.7), starting from the AP view.
@@ -84,6 +91,57 @@ pub fn references(item: &Item, poses: &[Pose]) -> Result<Vec<Reference>> {
             })
         })
         .collect()
+}
+
+/// `item` with its views at `poses` corrected for scatter (`None` when `correction` is
+/// none): the estimate is `prior` (the mean training volume) on the item's grid, or the
+/// item's ground truth for `oracle`. `seed` seeds the estimate's Monte Carlo.
+pub fn correct_scatter(
+    item: &Item,
+    correction: ScatterCorrection,
+    prior: Option<&MeanVolume>,
+    poses: &[Pose],
+    seed: u64,
+    show: bool,
+) -> Result<Option<Item>> {
+    if correction == ScatterCorrection::None {
+        return Ok(None);
+    }
+    tomograf_model::scatter_correction::correctable(item)?;
+    let grid = item.ct.as_ref().with_context(|| {
+        format!(
+            "item {}: scatter correction needs its ct.nii.gz for the estimate's grid",
+            item.id
+        )
+    })?;
+    let estimate = match correction {
+        ScatterCorrection::Prior => prior
+            .context("scatter correction from the prior needs a mean training volume")?
+            .reconstruct(&[], grid, &item.scale)?,
+        _ => grid.clone(),
+    };
+    let mut indices = poses
+        .iter()
+        .map(|&p| {
+            item.find_pose(p).with_context(|| {
+                format!(
+                    "item {} has no projection at θ = {}°, φ = {}°",
+                    item.id, p.theta_deg, p.phi_deg
+                )
+            })
+        })
+        .collect::<Result<Vec<usize>>>()?;
+    indices.sort_unstable();
+    indices.dedup();
+    if show {
+        eprintln!(
+            "item {}: correcting {} view(s) for scatter ({correction} estimate)",
+            item.id,
+            indices.len()
+        );
+    }
+    let seed = tomograf_sim::acquisition::frame_seed(seed, 0x5CA7);
+    Ok(Some(correct_item(item, &estimate, &indices, seed)?))
 }
 
 /// Loads a checkpoint's generator and reconstructs `item` from `poses`.
@@ -152,6 +210,15 @@ pub fn run(args: ReconstructArgs) -> Result<()> {
         None => paper_poses(args.views)?,
     };
     let generator = checkpoint::load_generator(&args.checkpoint, &device)?;
+    let corrected = correct_scatter(
+        &item,
+        args.scatter_correction,
+        Some(&generator.prior),
+        &poses,
+        args.seed,
+        true,
+    )?;
+    let item = corrected.unwrap_or(item);
     let infer = generator.config.infer.overridden(&InferOverrides {
         tune: args.tune,
         iterations: args.iterations,

@@ -278,6 +278,9 @@ fn every_bad_input_ends_in_a_clear_error() {
         (vec!["train", &out("data"), "-o", &under_file, "--config", "tiny", "--iterations", "1"].map_into(), "cannot create the output folder"),
         // Evaluation and inference.
         (vec!["evaluate", &out("data"), "--items", "0", "-o", &out("ev")].map_into(), "--items 0 scores nothing"),
+        (vec!["evaluate", &out("data"), "--scatter-correction", "prior", "-o", &out("ev-sc")].map_into(), "give --checkpoint or --train-data"),
+        (vec!["evaluate", &out("data"), "--scatter-correction", "sideways", "-o", &out("ev-sc2")].map_into(), "expected 'none', 'prior' or 'oracle'"),
+        (vec!["reconstruct", &item, "--checkpoint", &s(&demo), "--scatter-correction", "prior", "-o", &out("rec.nii")].map_into(), "has no scatter to correct"),
         (vec!["reconstruct", &item, "--checkpoint", &s(&demo), "--iterations", "0", "-o", &out("rec.nii")].map_into(), "at least 1"),
         (vec!["reconstruct", &item, "--checkpoint", &empty_bpk, "-o", &out("rec.nii")].map_into(), "empty, truncated or corrupt"),
         (vec!["reconstruct", &item, "--checkpoint", &zero_scale, "-o", &out("rec.nii")].map_into(), "proj_scale = 0"),

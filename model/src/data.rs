@@ -7,6 +7,7 @@ use crate::render::DensityScale;
 use serde::Deserialize;
 use std::path::{Path, PathBuf};
 use tomograf_datasets::preprocess::HuWindow;
+use tomograf_sim::acquisition::Acquisition;
 use tomograf_sim::attenuation::mu_water_per_mm;
 use tomograf_sim::{Geometry, Pose, View, Volume};
 
@@ -35,6 +36,9 @@ pub struct Item {
     pub window: HuWindow,
     /// Normalised density → mu.
     pub scale: DensityScale,
+    /// The acquisition the projections were recorded with (`None`: ideal DRRs, or an item
+    /// written before acquisitions were recorded).
+    pub acquisition: Option<Acquisition>,
 }
 
 impl Item {
@@ -64,6 +68,14 @@ struct ItemJson {
     ct: String,
     projections: String,
     views: String,
+    #[serde(default)]
+    acquisition: Option<AcquisitionJson>,
+}
+
+/// `item.json`'s `acquisition`: the settings and the noise seed.
+#[derive(Deserialize)]
+struct AcquisitionJson {
+    settings: Acquisition,
 }
 
 #[derive(Deserialize)]
@@ -151,6 +163,7 @@ pub fn load_item(dir: &Path) -> Result<Item> {
         views,
         window: item.hu_window,
         scale,
+        acquisition: item.acquisition.map(|a| a.settings),
     })
 }
 

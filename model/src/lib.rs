@@ -19,6 +19,7 @@
 //! * [`trilinear`] — trilinear sampling of a volume tensor (built from `gather`).
 //! * [`discriminator`], [`losses`], [`augment`] — D1 (3D) and D2 (2D), eqs. 7–12, DAG.
 //! * [`train`], [`checkpoint`], [`reconstruct`], [`metrics`], [`data`].
+//! * [`scatter_correction`] — an item's views corrected for scatter from a prior estimate.
 //! * [`baseline`], [`pca`] — what the model is compared with: the mean volume, SART-TV from
 //!   zero or from the mean, FDK, and the PCA-MAP linear prior of the training volumes.
 
@@ -38,6 +39,7 @@ pub mod prior;
 pub mod rays;
 pub mod reconstruct;
 pub mod render;
+pub mod scatter_correction;
 pub mod train;
 pub mod trilinear;
 

@@ -391,6 +391,13 @@ impl Prepared {
         r.mass_thickness(view, &self.columns)
     }
 
+    /// The expected (noiseless) primary signal of a view (through the anti-scatter grid, if
+    /// any), without scatter.
+    pub fn primary(&self, projector: Projector, view: &View) -> Result<ExpectedImage> {
+        let t = self.mass_thickness(projector, view)?;
+        self.integrator.expected(&t, view, self.mas)
+    }
+
     /// The expected (noiseless) signal of a view, and of the same view without the object
     /// (for flat fields).
     pub fn expected(

@@ -40,6 +40,8 @@ use serde::{Deserialize, Serialize};
 #[serde(rename_all = "snake_case", deny_unknown_fields)]
 pub struct TissueBin {
     /// Upper bound, HU (exclusive); the last bin's is ignored (it takes everything above).
+    /// JSON has no infinity: an unbounded last bin is written `null` and read back as +∞.
+    #[serde(deserialize_with = "bound_or_infinity")]
     pub below_hu: f64,
     /// A material name ([`material::by_name`]), or the name given to `mix`.
     pub material: String,
@@ -61,6 +63,11 @@ pub struct TissueModel {
     /// mixture of the two neighbouring materials (partial volume); 0 = none.
     #[serde(default, skip_serializing_if = "is_zero")]
     pub blend_hu: f64,
+}
+
+/// A bound in HU, `null` (how JSON writes +∞) read as +∞.
+fn bound_or_infinity<'de, D: serde::Deserializer<'de>>(d: D) -> std::result::Result<f64, D::Error> {
+    Ok(Option::<f64>::deserialize(d)?.unwrap_or(f64::INFINITY))
 }
 
 fn is_zero(v: &f64) -> bool {

@@ -3,6 +3,7 @@
 
 use crate::physics::PhysicsArgs;
 use anyhow::{Result, bail};
+use tomograf_model::scatter_correction::ScatterCorrection;
 
 /// One data set a study trains or tests on: a phantom population and a physics.
 #[derive(Debug, Clone)]
@@ -17,6 +18,11 @@ pub struct DataSpec {
     pub pacemaker: bool,
     /// Detector physics (ideal DRR when empty).
     pub physics: PhysicsArgs,
+    /// A test set that evaluates another set's data (its folder name) differently: with
+    /// `correction`, and no data of its own.
+    pub data_of: Option<&'static str>,
+    /// The scatter correction every method's views get before reconstruction.
+    pub correction: ScatterCorrection,
 }
 
 impl DataSpec {
@@ -28,7 +34,14 @@ impl DataSpec {
             table: false,
             pacemaker: false,
             physics,
+            data_of: None,
+            correction: ScatterCorrection::None,
         }
+    }
+
+    /// The folder name of the data this set evaluates.
+    pub fn data_name(&self) -> &'static str {
+        self.data_of.unwrap_or(self.name)
     }
 
     /// Whether the physics is real (a spectrum and a detector; it then takes a noise seed).
@@ -80,6 +93,25 @@ pub fn realism_levels(scatter_photons: u64) -> Vec<DataSpec> {
             kv(None, Some("estimate"), Some(scatter_photons)),
         ),
     ]
+}
+
+/// The realism-gap study's test sets: the levels, and — when `scatter` is among them —
+/// `scatter-corrected`, the `scatter` test data with every method's views corrected for
+/// scatter from the mean training volume (`tomograf evaluate --scatter-correction prior`).
+pub fn realism_test_sets(levels: &[DataSpec]) -> Vec<DataSpec> {
+    let mut out = levels.to_vec();
+    if let Some(s) = levels.iter().find(|s| s.name == "scatter") {
+        out.push(DataSpec {
+            name: "scatter-corrected",
+            about: "the scatter test data, every method's views corrected for scatter first: a \
+                    Monte Carlo scatter-to-primary estimate through the mean training volume \
+                    with the acquisition's own physics",
+            data_of: Some("scatter"),
+            correction: ScatterCorrection::Prior,
+            ..s.clone()
+        });
+    }
+    out
 }
 
 /// The domain-shift study's training set: lidc phantoms, preset kv-flat-panel-120kvp.

@@ -170,7 +170,8 @@ pub fn run(command: StudyCommand) -> Result<()> {
                 &a.levels,
                 "realism level",
             )?;
-            (Kind::RealismGap, a.common, levels.clone(), levels)
+            let tests = levels::realism_test_sets(&levels);
+            (Kind::RealismGap, a.common, levels, tests)
         }
         StudyCommand::DomainShift(a) => {
             let shifts = levels::select(levels::shifts(), &a.shifts, "shift")?;
@@ -277,7 +278,7 @@ impl Study {
     }
 
     fn data_dir(&self, split: &str, spec: &DataSpec) -> PathBuf {
-        self.dir.join("data").join(split).join(spec.name)
+        self.dir.join("data").join(split).join(spec.data_name())
     }
 
     fn model_dir(&self, spec: &DataSpec) -> PathBuf {
@@ -339,7 +340,7 @@ impl Study {
             if !splits.contains(&split) {
                 continue;
             }
-            for spec in specs {
+            for spec in specs.iter().filter(|s| s.data_of.is_none()) {
                 eprintln!("data: {split} set '{}'", spec.name);
                 crate::dataset::run(self.dataset_args(split, spec, shard.clone()))
                     .with_context(|| format!("{split} set '{}'", spec.name))?;
@@ -406,6 +407,9 @@ impl Study {
             }
         }
         let mut scored = 0;
+        // Where the classical cell's scatter correction takes its mean volume from (every
+        // training set holds the same CTs).
+        let prior_data = self.train.first().map(|m| self.data_dir("train", m));
         for test in &self.test {
             let data = self.finish_data("test", test)?;
             let mut cells: Vec<(Option<PathBuf>, PathBuf, Option<PathBuf>)> =
@@ -433,6 +437,8 @@ impl Study {
                     shard,
                     pca_noise: crate::evaluate::DEFAULT_PCA_NOISE,
                     classical: checkpoint.is_none(),
+                    scatter_correction: test.correction,
+                    scatter_prior_data: prior_data.as_deref(),
                     show: false,
                 })?;
             }

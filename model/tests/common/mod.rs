@@ -67,5 +67,6 @@ pub fn item(n: usize, views: usize, det: usize, shift: f64) -> Item {
         views: views_v,
         window,
         scale,
+        acquisition: None,
     }
 }

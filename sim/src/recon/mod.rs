@@ -9,6 +9,8 @@
 //! * [`sart`] — SART (ordered subsets) and SIRT on the Siddon operator, with
 //!   non-negativity and optional TV steps (ASD-POCS style).
 //! * [`tv`] — total variation and its gradient.
+//! * [`scatter_correction`] — −log projections corrected by the scatter-to-primary ratio
+//!   an estimate of the object gives through the acquisition's own scatter model.
 //!
 //! Inputs are line-integral images ([`crate::render::Projection`], dimensionless ∫mu ds)
 //! and the views they were taken in; outputs are volumes of linear attenuation (mm⁻¹) on
@@ -18,6 +20,7 @@
 pub mod backproject;
 pub mod fdk;
 pub mod sart;
+pub mod scatter_correction;
 pub mod tv;
 
 pub use backproject::{SiddonOperator, backproject, forward_project};
