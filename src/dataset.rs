@@ -200,6 +200,7 @@ pub fn run(args: DatasetArgs) -> Result<()> {
     }
     std::fs::create_dir_all(&args.output)
         .with_context(|| format!("cannot create {}", args.output.display()))?;
+    atomic::remove_stale_temporaries(&args.output)?;
 
     let mine: Vec<usize> = (0..sources.len()).filter(|i| i % shards == shard).collect();
     let bar = ProgressBar::new(mine.len() as u64).with_style(

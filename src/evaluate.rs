@@ -322,6 +322,7 @@ pub fn evaluate(e: &Evaluation) -> Result<usize> {
     }
     std::fs::create_dir_all(e.output.join("items"))
         .with_context(|| format!("cannot create {}", e.output.display()))?;
+    tomograf_datasets::atomic::remove_stale_temporaries(e.output)?;
     check_job(e.output, &job)?;
     // The checkpoint's inference settings, mean training volume and projection scale.
     let model = match e.checkpoint {

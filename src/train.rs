@@ -31,7 +31,9 @@ pub struct TrainArgs {
     /// Use only the items of this split.
     #[arg(long)]
     pub split: Option<String>,
-    /// Continue from the run folder's checkpoint.
+    /// Continue from the run folder's checkpoint (putting back one whose save was killed);
+    /// when there is none yet — a run killed before its first checkpoint — start afresh, so
+    /// the same command resumes a job however far it got.
     #[arg(long)]
     pub resume: bool,
     /// Backend: flex (CPU, default), ndarray, cuda, wgpu (as compiled in).
@@ -49,7 +51,20 @@ pub fn run(args: TrainArgs) -> Result<()> {
     let scale = items[0].scale;
     let ck = args.output.join("checkpoint");
     let ids: Vec<String> = items.iter().map(|i| i.id.clone()).collect();
-    let mut trainer = if args.resume {
+    if args.output.is_dir() {
+        let stale = tomograf_datasets::atomic::remove_stale_temporaries(&args.output)?;
+        if stale > 0 {
+            eprintln!("removed {stale} temporary file(s) a killed run left");
+        }
+    }
+    let resumable = args.resume && checkpoint::recover(&ck)?;
+    if args.resume && !resumable {
+        eprintln!(
+            "no checkpoint in {} yet: starting afresh",
+            args.output.display()
+        );
+    }
+    let mut trainer = if resumable {
         let (t, state) = checkpoint::load_trainer(&ck, &device)
             .with_context(|| format!("resuming from {}", ck.display()))?;
         eprintln!("resuming at iteration {}", state.iteration);
@@ -73,7 +88,10 @@ pub fn run(args: TrainArgs) -> Result<()> {
     }
     std::fs::create_dir_all(&args.output)
         .with_context(|| format!("cannot create the output folder {}", args.output.display()))?;
-    std::fs::write(args.output.join("config.toml"), trainer.config.to_toml())?;
+    let toml = trainer.config.to_toml();
+    tomograf_datasets::atomic::write_atomic(&args.output.join("config.toml"), |w| {
+        w.write_all(toml.as_bytes())
+    })?;
     let csv_path = args.output.join("metrics.csv");
     let mut rows = keep_rows(&csv_path, trainer.iteration)?;
     let (g, d) = trainer.parameter_counts();
@@ -164,12 +182,16 @@ fn save(
     rows: &[String],
     out: &Path,
 ) -> Result<()> {
-    checkpoint::save(trainer, scale, ck)?;
-    let mut f = std::fs::File::create(csv_path)?;
-    writeln!(f, "{HEADER}")?;
-    for r in rows {
-        writeln!(f, "{r}")?;
-    }
+    // The metrics before the checkpoint: a run killed between the two resumes from the
+    // previous checkpoint and recomputes the rows after it (the other order lost the rows
+    // between the two checkpoints: found by tests/soak.rs).
+    tomograf_datasets::atomic::write_atomic(csv_path, |f| {
+        writeln!(f, "{HEADER}")?;
+        for r in rows {
+            writeln!(f, "{r}")?;
+        }
+        Ok(())
+    })?;
     let series = |col: usize| -> Vec<(f64, f64)> {
         rows.iter()
             .filter_map(|r| {
@@ -192,5 +214,7 @@ fn save(
             ("l1_volume", series(11)),
             ("l1_patch", series(12)),
         ],
-    )
+    )?;
+    checkpoint::save(trainer, scale, ck)?;
+    Ok(())
 }

@@ -150,8 +150,115 @@ fn sync_dir(dir: &Path) {
     let _ = dir;
 }
 
+/// The process id a temporary file of this module was created by, from its name
+/// (`.<name>.<pid>.<n>.tmp` or `.<stem>-tmp-<pid>-<n><suffix>`); `None` for other files.
+fn temp_owner(name: &str) -> Option<u32> {
+    if !name.starts_with('.') {
+        return None;
+    }
+    if let Some(rest) = name.strip_suffix(".tmp") {
+        // .<name>.<pid>.<n>
+        let mut parts = rest.rsplitn(3, '.');
+        let n = parts.next()?;
+        let pid = parts.next()?;
+        parts.next()?;
+        n.parse::<u64>().ok()?;
+        return pid.parse().ok();
+    }
+    // .<stem>-tmp-<pid>-<n><suffix>
+    let (_, tail) = name.rsplit_once("-tmp-")?;
+    let (pid, rest) = tail.split_once('-')?;
+    let n: String = rest.chars().take_while(char::is_ascii_digit).collect();
+    if n.is_empty() || !rest[n.len()..].starts_with('.') {
+        return None;
+    }
+    pid.parse().ok()
+}
+
+/// Whether process `pid` is running on this machine (Linux: `/proc/<pid>` exists). Where
+/// that cannot be told, every process counts as alive, so nothing is removed.
+fn alive(pid: u32) -> bool {
+    if pid == std::process::id() {
+        return true;
+    }
+    let proc_root = Path::new("/proc/self");
+    if !proc_root.exists() {
+        return true;
+    }
+    Path::new("/proc").join(pid.to_string()).exists()
+}
+
+/// Removes, under `dir` (recursively), the temporary files this module's writers left when
+/// their process was killed (SIGKILL, power loss: no destructor ran) — those whose creating
+/// process is no longer running on this machine; a live writer's temporaries (another shard
+/// in the same folder) are kept. Returns how many were removed. A resumed job calls it on
+/// its output folder, so a kill leaves no orphaned file behind. (On a file system shared
+/// between machines a temporary of a writer on another machine looks orphaned here: run
+/// the resumes of one folder on one machine, or accept that such a writer fails and is
+/// re-run.)
+pub fn remove_stale_temporaries(dir: &Path) -> Result<usize> {
+    let mut removed = 0;
+    let mut stack = vec![dir.to_path_buf()];
+    while let Some(d) = stack.pop() {
+        let entries = match std::fs::read_dir(&d) {
+            Ok(e) => e,
+            Err(e) if e.kind() == io::ErrorKind::NotFound => continue,
+            Err(e) => return Err(DatasetError::io(&d, "listing", e)),
+        };
+        for entry in entries {
+            let entry = entry.map_err(|e| DatasetError::io(&d, "listing", e))?;
+            let path = entry.path();
+            let kind = entry
+                .file_type()
+                .map_err(|e| DatasetError::io(&path, "reading the type of", e))?;
+            if kind.is_dir() {
+                stack.push(path);
+            } else if kind.is_file()
+                && let Some(pid) = entry.file_name().to_str().and_then(temp_owner)
+                && !alive(pid)
+            {
+                std::fs::remove_file(&path)
+                    .map_err(|e| DatasetError::io(&path, "removing the stale temporary", e))?;
+                removed += 1;
+            }
+        }
+    }
+    Ok(removed)
+}
+
 #[cfg(test)]
 mod tests {
+    #[test]
+    fn temporaries_are_recognised_and_stale_ones_removed() {
+        assert_eq!(temp_owner(".item.json.1234.7.tmp"), Some(1234));
+        assert_eq!(temp_owner(".ct_nii-tmp-99-0.nii.gz"), Some(99));
+        for other in [
+            "item.json",
+            ".hidden",
+            ".a.b.tmp",
+            "x-tmp-1-2.nii",
+            ".a-tmp-x-1.nii",
+        ] {
+            assert_eq!(temp_owner(other), None, "{other}");
+        }
+        let dir = tempfile::tempdir().unwrap();
+        let sub = dir.path().join("00001");
+        std::fs::create_dir(&sub).unwrap();
+        // pid 0 is never a user process; our own pid is alive.
+        let dead = sub.join(".projections.npy.0.3.tmp");
+        let dead2 = dir.path().join(".ct-tmp-0-1.nii.gz");
+        let mine = sub.join(format!(".item.json.{}.0.tmp", std::process::id()));
+        let keep = sub.join("item.json");
+        for f in [&dead, &dead2, &mine, &keep] {
+            std::fs::write(f, b"x").unwrap();
+        }
+        if Path::new("/proc/self").exists() {
+            assert_eq!(remove_stale_temporaries(dir.path()).unwrap(), 2);
+            assert!(!dead.exists() && !dead2.exists());
+        }
+        assert!(mine.exists() && keep.exists());
+    }
+
     use super::*;
     use std::io::Write;
 

@@ -4,8 +4,11 @@
 //! the networks as burnpack files (`generator.bpk`, `codes.bpk`, `d1.bpk`, `d2.bpk`) and
 //! the optimizers' state (`opt_g.bpk`, `opt_codes.bpk`, `opt_d1.bpk`, `opt_d2.bpk`).
 //!
-//! A checkpoint is written into `<name>.tmp` and renamed over `<name>`, so an interrupted
-//! save leaves the previous checkpoint intact. Inference needs `config.toml`, `state.json`,
+//! A checkpoint is written into `<name>.tmp` (its `state.json` last, so a complete
+//! `<name>.tmp` is one with a `state.json`); the previous one is renamed to `<name>.old`,
+//! `<name>.tmp` to `<name>`, and `<name>.old` removed. A save killed at any point leaves
+//! either the previous or the new checkpoint, and [`recover`] (called when training resumes)
+//! puts it back in place. Inference needs `config.toml`, `state.json`,
 //! `mean_volume.npy`, `codes.json` and `generator.bpk`.
 
 use crate::config::TrainConfig;
@@ -111,16 +114,6 @@ pub fn save(trainer: &Trainer, density_scale: DensityScale, dir: &Path) -> Resul
     }
     std::fs::create_dir_all(&tmp).map_err(|e| err(&tmp, e))?;
     std::fs::write(tmp.join("config.toml"), trainer.config.to_toml()).map_err(|e| err(&tmp, e))?;
-    let state = State {
-        iteration: trainer.iteration,
-        proj_scale: trainer.proj_scale,
-        density_scale,
-    };
-    std::fs::write(
-        tmp.join("state.json"),
-        serde_json::to_string_pretty(&state).expect("state serialises"),
-    )
-    .map_err(|e| err(&tmp, e))?;
     let p = tmp.join("generator.bpk");
     trainer
         .field
@@ -168,11 +161,59 @@ pub fn save(trainer: &Trainer, density_scale: DensityScale, dir: &Path) -> Resul
     let p = tmp.join("mean_volume.npy");
     tomograf_datasets::image::write_npy(&p, &m.data, &[m.dims[2], m.dims[1], m.dims[0]])
         .map_err(|e| err(&p, e))?;
+    // Last: the state, which marks the folder complete.
+    let state = State {
+        iteration: trainer.iteration,
+        proj_scale: trainer.proj_scale,
+        density_scale,
+    };
+    std::fs::write(
+        tmp.join("state.json"),
+        serde_json::to_string_pretty(&state).expect("state serialises"),
+    )
+    .map_err(|e| err(&tmp, e))?;
+    let old = sibling(dir, "old")?;
+    if old.exists() {
+        std::fs::remove_dir_all(&old).map_err(|e| err(&old, e))?;
+    }
     if dir.exists() {
-        std::fs::remove_dir_all(dir).map_err(|e| err(dir, e))?;
+        std::fs::rename(dir, &old).map_err(|e| err(dir, e))?;
     }
     std::fs::rename(&tmp, dir).map_err(|e| err(dir, e))?;
+    if old.exists() {
+        std::fs::remove_dir_all(&old).map_err(|e| err(&old, e))?;
+    }
     Ok(())
+}
+
+/// `<dir>.<suffix>` beside `dir`.
+fn sibling(dir: &Path, suffix: &str) -> Result<std::path::PathBuf> {
+    let name = dir
+        .file_name()
+        .ok_or_else(|| err(dir, "checkpoint path has no folder name"))?;
+    Ok(dir.with_file_name(format!("{}.{suffix}", name.to_string_lossy())))
+}
+
+/// Puts a checkpoint whose save was killed back in place: when `dir` is missing, a
+/// complete `<dir>.tmp` (killed between the renames) or else `<dir>.old` (killed before the
+/// new one was complete) becomes `dir`; leftovers of finished or abandoned saves are
+/// removed. Returns whether `dir` now exists. Called by [`load_trainer`] (not by inference,
+/// which must not move the folders of a training run that is saving).
+pub fn recover(dir: &Path) -> Result<bool> {
+    let (tmp, old) = (sibling(dir, "tmp")?, sibling(dir, "old")?);
+    if !dir.exists() {
+        if tmp.join("state.json").is_file() {
+            std::fs::rename(&tmp, dir).map_err(|e| err(dir, e))?;
+        } else if old.exists() {
+            std::fs::rename(&old, dir).map_err(|e| err(dir, e))?;
+        }
+    }
+    for leftover in [tmp, old] {
+        if dir.exists() && leftover.exists() {
+            std::fs::remove_dir_all(&leftover).map_err(|e| err(&leftover, e))?;
+        }
+    }
+    Ok(dir.exists())
 }
 
 fn read_meta(dir: &Path) -> Result<(TrainConfig, State)> {
@@ -225,6 +266,7 @@ fn require_mean(dir: &Path) -> Result<MeanVolume> {
 
 /// Loads a whole trainer (to resume training).
 pub fn load_trainer(dir: &Path, device: &Device) -> Result<(Trainer, State)> {
+    recover(dir)?;
     let (config, state) = read_meta(dir)?;
     let mean = require_mean(dir)?;
     let codes = read_codes(dir)?;

@@ -256,6 +256,7 @@ impl Study {
     fn check_settings(&self) -> Result<()> {
         std::fs::create_dir_all(&self.dir)
             .with_context(|| format!("cannot create {}", self.dir.display()))?;
+        tomograf_datasets::atomic::remove_stale_temporaries(&self.dir)?;
         let path = self.dir.join("study.json");
         if let Ok(bytes) = std::fs::read(&path) {
             let old: Settings = serde_json::from_slice(&bytes)
@@ -370,7 +371,9 @@ impl Study {
                 continue;
             }
             let data = self.finish_data("train", spec)?;
-            let resume = dir.join("checkpoint").exists();
+            // `--resume` continues the checkpoint when there is one (putting back one whose
+            // save was killed) and starts afresh otherwise.
+            let resume = true;
             eprintln!(
                 "train: model '{}' ({})",
                 spec.name,
