@@ -26,6 +26,7 @@
 //! can be converted with `gdcmconv --raw` or `dcmdjpeg`. Stacks that are tilted (gantry
 //! tilt), sheared, unevenly spaced or missing slices are refused rather than resampled.
 
+mod lengths;
 mod slice;
 mod write;
 
@@ -170,6 +171,11 @@ pub fn read_dicom_series(dir: &Path, allow_non_ct: bool) -> Result<Volume> {
         path: dir.to_owned(),
         detail: e.to_string(),
     })?;
+    // Every slice's file must be able to hold its pixels before the volume is allocated
+    // (a header can claim 8000 × 8000 pixels in a 1 kB file).
+    for slice in &slices {
+        slice.check_file_holds_pixels()?;
+    }
     let mut data = vec![0.0f32; count];
     for (slice, out) in slices.iter().zip(data.chunks_exact_mut(dims[0] * dims[1])) {
         read_pixels(slice, out)?;

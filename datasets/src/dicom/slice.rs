@@ -52,6 +52,9 @@ pub(super) fn open_header(path: &Path) -> Result<Option<DefaultDicomObject>> {
     if head.len() < 132 || &head[128..] != b"DICM" {
         return Ok(None);
     }
+    // Declared lengths against the file's size before the parser allocates them.
+    let bytes = std::fs::read(path).map_err(|e| DatasetError::io(path, "reading", e))?;
+    super::lengths::check(path, &bytes)?;
     let obj = OpenFileOptions::new()
         .read_until(tags::PIXEL_DATA)
         .open_file(path)
@@ -204,6 +207,28 @@ pub(super) fn parse_slice(path: &Path, obj: &DefaultDicomObject) -> Result<Slice
             intercept,
         },
     })
+}
+
+impl Slice {
+    /// Errors when the slice's file is smaller than its pixels (rows × columns × bits
+    /// allocated, native encoding), before anything is allocated for them.
+    pub(super) fn check_file_holds_pixels(&self) -> Result<()> {
+        let need =
+            u64::from(self.rows) * u64::from(self.cols) * u64::from(self.format.bits_allocated) / 8;
+        let len = std::fs::metadata(&self.path)
+            .map_err(|e| DatasetError::io(&self.path, "reading the size of", e))?
+            .len();
+        if len < need {
+            return Err(DatasetError::truncated(
+                &self.path,
+                format!(
+                    "{} × {} pixels of {} bits need {need} bytes, but the file holds {len}",
+                    self.rows, self.cols, self.format.bits_allocated
+                ),
+            ));
+        }
+        Ok(())
+    }
 }
 
 /// Reads the whole file of `slice` and writes its rescaled pixel values into `out`

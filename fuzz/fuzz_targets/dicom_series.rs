@@ -1,0 +1,7 @@
+//! DICOM slices and series assembly (slices cut at `--slice--`). Body: [`tomograf_fuzz::targets`].
+#![no_main]
+use libfuzzer_sys::fuzz_target;
+
+fuzz_target!(|data: &[u8]| {
+    tomograf_fuzz::targets::dicom_series(data);
+});

@@ -1,0 +1,100 @@
+//! The fuzz targets' bodies, shared by the cargo-fuzz binaries (`fuzz/fuzz_targets/`) and the
+//! corpus replay on stable (`tests/fuzz_corpus.rs`, which includes this file by path).
+//! Every input must end in a value or an error: never a panic, an abort for memory or a hang.
+//!
+//! What they share: the parsers read paths, so each input is written to a
+//! file in a scratch folder of this process (under /dev/shm when it exists), and a memory
+//! limit small enough that a header asking for more is refused before any allocation.
+
+use std::path::{Path, PathBuf};
+use std::sync::Once;
+
+static INIT: Once = Once::new();
+
+/// The scratch folder of this process (created once), with the memory limit set.
+pub fn scratch() -> PathBuf {
+    let shm = Path::new("/dev/shm");
+    let base = if shm.is_dir() {
+        shm.to_path_buf()
+    } else {
+        std::env::temp_dir()
+    };
+    let dir = base.join(format!("tomograf-fuzz-{}", std::process::id()));
+    INIT.call_once(|| {
+        // 1 GiB: libFuzzer's default -rss_limit_mb is 2048, so a header that passes this
+        // check cannot make an input abort for memory.
+        // SAFETY: set once, before any other thread of this process reads the environment.
+        unsafe { std::env::set_var("TOMOGRAF_MEMORY_LIMIT_GB", "1") };
+        std::fs::create_dir_all(&dir).expect("scratch folder");
+    });
+    dir
+}
+
+/// Writes `bytes` to `name` in the scratch folder and returns its path.
+pub fn file(name: &str, bytes: &[u8]) -> PathBuf {
+    let p = scratch().join(name);
+    std::fs::write(&p, bytes).expect("scratch file");
+    p
+}
+
+/// NIfTI-1, plain or gzip (the reader tells them by the gzip magic).
+pub fn nifti(data: &[u8]) {
+    let p = file("input.nii", data);
+    let _ = tomograf_datasets::nifti::read_nifti(&p);
+}
+
+/// The marker that cuts a `dicom_series` input into slice files.
+pub const SLICE_MARKER: &[u8] = b"--slice--";
+
+/// DICOM slices and series assembly: the input is cut at each [`SLICE_MARKER`] into files
+/// (at most 4) of one folder, read as a series and scanned as a tree.
+pub fn dicom_series(data: &[u8]) {
+    let dir = scratch().join("series");
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).expect("series folder");
+    let mut rest = data;
+    for i in 0..4 {
+        let cut = if i == 3 {
+            None
+        } else {
+            rest.windows(SLICE_MARKER.len())
+                .position(|w| w == SLICE_MARKER)
+        };
+        let (part, next) = match cut {
+            Some(k) => (&rest[..k], &rest[k + SLICE_MARKER.len()..]),
+            None => (rest, &[][..]),
+        };
+        std::fs::write(dir.join(format!("slice{i}.dcm")), part).expect("slice file");
+        if cut.is_none() {
+            break;
+        }
+        rest = next;
+    }
+    let _ = tomograf_datasets::dicom::read_dicom_series(&dir, false);
+    let _ = tomograf_datasets::dicom::scan_dicom_tree_reporting(&dir);
+}
+
+/// A mesh file with extension `ext` (`obj`, `ply`, `stl`).
+pub fn mesh(ext: &str, data: &[u8]) {
+    let p = file(&format!("input.{ext}"), data);
+    let _ = tomograf_sim::mesh::io::load(&p);
+}
+
+/// A user spectrum file (energy, fluence rows).
+pub fn spectrum(data: &[u8]) {
+    let p = file("input.txt", data);
+    let _ = tomograf_sim::spectrum::Spectrum::from_file(&p);
+}
+
+/// A target's body: parse one input.
+pub type Target = fn(&[u8]);
+
+/// Every target by name (the folder names under `fuzz/corpus/` and `fuzz/seeds/`).
+pub const TARGETS: &[(&str, Target)] = &[
+    ("nifti", nifti),
+    ("dicom_series", dicom_series),
+    ("mesh_obj", |d| mesh("obj", d)),
+    ("mesh_ply", |d| mesh("ply", d)),
+    ("mesh_stl", |d| mesh("stl", d)),
+    ("spectrum", spectrum),
+];
