@@ -45,10 +45,23 @@ pub(super) fn check(path: &Path, bytes: &[u8]) -> Result<()> {
         explicit: true,
         big_endian: false,
     };
-    // The file meta group: explicit VR little endian, elements of group 0002.
+    // The file meta group: explicit VR little endian, elements of group 0002. When it
+    // starts with its group length (0002,0000), as the standard requires, the data set
+    // starts where that says — as the parser reads it — whatever the elements in between.
     let mut at = 132;
+    let mut meta_end = None;
+    if at + 12 <= bytes.len()
+        && let Some(e) = element(bytes, at, le)
+        && e.tag == (0x0002, 0x0000)
+        && e.length == 4
+        && e.value + 4 <= bytes.len()
+    {
+        meta_end = Some(e.value + 4 + u32_at(bytes, e.value, false) as usize);
+        at = e.value + 4;
+    }
+    let limit = meta_end.unwrap_or(bytes.len()).min(bytes.len());
     let mut syntax_uid = String::new();
-    while at + 8 <= bytes.len() && u16_at(bytes, at, false) == 0x0002 {
+    while at + 8 <= limit && u16_at(bytes, at, false) == 0x0002 {
         let Some(e) = element(bytes, at, le) else {
             break;
         };
@@ -63,6 +76,12 @@ pub(super) fn check(path: &Path, bytes: &[u8]) -> Result<()> {
                 .to_string();
         }
         at = e.value + e.length as usize;
+    }
+    if let Some(end) = meta_end {
+        if end > bytes.len() {
+            return Ok(()); // the parser reports the meta group as truncated
+        }
+        at = end;
     }
     if DEFLATED.contains(&syntax_uid.as_str()) {
         return Ok(());
@@ -284,7 +303,21 @@ mod tests {
         // Undefined length: the walk stops there (the parser reads it item by item).
         let und = explicit((0x7FE0, 0x0010), b"OB", UNDEFINED, b"");
         assert!(check(p, &file("1.2.840.10008.1.2.4.50", &und)).is_ok());
-        // Not a Part-10 file: nothing to check here.
+        // Not a Part-10 file: nothing to check here; a file that ends right after the
+        // marker or inside the group length ends in Ok or a truncation error, never a panic.
         assert!(check(p, b"not dicom").is_ok());
+        let mut short = vec![0u8; 128];
+        short.extend(b"DICM");
+        for extra in [
+            &b""[..],
+            b"\x02\x00\x00\x00UL\x04",
+            b"\x02\x00\x00\x00UL\x04\x00\xff\xff",
+        ] {
+            let mut f = short.clone();
+            f.extend(extra);
+            if let Err(e) = check(p, &f) {
+                assert!(e.to_string().contains("truncated"), "{e}");
+            }
+        }
     }
 }
