@@ -344,3 +344,77 @@ pub fn plot_histograms(
         .collect();
     plot_lines(path, axes, &steps)
 }
+
+/// Deviations with error bars: for each row `(x, y, half-width of our error bar, codes'
+/// lowest, codes' highest)` (all in %), our value as a dot with its bar and the codes'
+/// range as a grey bar beside it, with the 0 and ±2 % lines; writes a 800×420 PNG.
+pub fn plot_deviations(path: &Path, axes: &Axes, rows: &[(f64, f64, f64, f64, f64)]) -> Result<()> {
+    font()?;
+    let plot_err = |e: &dyn std::fmt::Display| anyhow::anyhow!("plot {}: {e}", path.display());
+    let (mut y0, mut y1) = (-2.5f64, 2.5f64);
+    for &(_, y, e, lo, hi) in rows {
+        y0 = y0.min(y - e).min(lo);
+        y1 = y1.max(y + e).max(hi);
+    }
+    let pad = 0.05 * (y1 - y0);
+    let n = rows.len() as f64;
+    let root = BitMapBackend::new(path, (800, 420)).into_drawing_area();
+    root.fill(&WHITE).map_err(|e| plot_err(&e))?;
+    let mut chart = ChartBuilder::on(&root)
+        .margin(10)
+        .caption(axes.title, ("sans-serif", 18))
+        .x_label_area_size(36)
+        .y_label_area_size(56)
+        .build_cartesian_2d(-1.0..n, (y0 - pad)..(y1 + pad))
+        .map_err(|e| plot_err(&e))?;
+    chart
+        .configure_mesh()
+        .x_desc(axes.x)
+        .y_desc(axes.y)
+        .label_style(("sans-serif", 12))
+        .axis_desc_style(("sans-serif", 14))
+        .light_line_style(WHITE.mix(0.0))
+        .draw()
+        .map_err(|e| plot_err(&e))?;
+    for (y, style) in [
+        (0.0, BLACK.stroke_width(1)),
+        (2.0, RGBColor(160, 160, 160).stroke_width(1)),
+        (-2.0, RGBColor(160, 160, 160).stroke_width(1)),
+    ] {
+        chart
+            .draw_series(LineSeries::new([(-1.0, y), (n, y)], style))
+            .map_err(|e| plot_err(&e))?;
+    }
+    let grey = RGBColor(150, 150, 150);
+    chart
+        .draw_series(rows.iter().map(|&(x, _, _, lo, hi)| {
+            Rectangle::new([(x + 0.15, lo), (x + 0.35, hi)], grey.filled())
+        }))
+        .map_err(|e| plot_err(&e))?
+        .label("codes' range (EGSnrc, Geant4, MCNP, Penelope)")
+        .legend(move |(x, y)| Rectangle::new([(x, y - 4), (x + 12, y + 4)], grey.filled()));
+    let blue = COLOURS[0];
+    chart
+        .draw_series(rows.iter().map(|&(x, y, e, _, _)| {
+            PathElement::new(vec![(x, y - e), (x, y + e)], blue.stroke_width(2))
+        }))
+        .map_err(|e| plot_err(&e))?;
+    chart
+        .draw_series(
+            rows.iter()
+                .map(|&(x, y, _, _, _)| Circle::new((x, y), 4, blue.filled())),
+        )
+        .map_err(|e| plot_err(&e))?
+        .label("tomograf ± 2 standard errors")
+        .legend(move |(x, y)| Circle::new((x + 6, y), 4, blue.filled()));
+    chart
+        .configure_series_labels()
+        .background_style(WHITE.mix(0.8))
+        .border_style(BLACK)
+        .label_font(("sans-serif", 12))
+        .position(SeriesLabelPosition::UpperRight)
+        .draw()
+        .map_err(|e| plot_err(&e))?;
+    root.present().map_err(|e| plot_err(&e))?;
+    Ok(())
+}

@@ -20,6 +20,7 @@ mod scatter_images;
 mod scene;
 mod study;
 mod train;
+mod validate;
 
 use anyhow::Result;
 use clap::{Parser, Subcommand};
@@ -62,6 +63,9 @@ enum Command {
     /// The studies: realism gap (ideal DRR → real detector) and domain shift, with a report.
     #[command(subcommand)]
     Study(study::StudyCommand),
+    /// Validate the physics against published references (AAPM TG-195 Monte Carlo cases).
+    #[command(subcommand)]
+    Validate(validate::ValidateCommand),
 }
 
 fn main() {
@@ -116,5 +120,6 @@ fn run(cli: Cli) -> Result<()> {
         Command::Evaluate(args) => evaluate::run(args),
         Command::Demo(args) => demo::run(args),
         Command::Study(c) => study::run(c),
+        Command::Validate(c) => validate::run(c),
     }
 }

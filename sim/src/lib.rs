@@ -28,6 +28,7 @@ pub mod scatter;
 pub mod spectrum;
 pub mod tissue;
 pub mod trace;
+pub mod validation;
 pub mod volume;
 
 pub use error::{Result, SimError};

@@ -7,6 +7,9 @@
 //! * [`transport`] — Woodcock tracking and interaction sampling in the voxel composition;
 //! * [`estimator`] — the point-detector (forced detection) estimator on a coarse grid;
 //! * [`engine`] — photons from the source, batches, seeds, the separate images;
+//! * [`field`] — a point source collimated to a rectangular field;
+//! * [`region`] — analytic scoring regions (boxes, cylinders);
+//! * [`energy_imparted`] — the energy-imparted (dose) tally per voxel and region;
 //! * [`estimate`] — the fast estimate (coarse, few photons, smoothed);
 //! * [`matched`] — matched-physics mode (monoenergetic, constant albedo, isotropic or
 //!   Henyey–Greenstein phase, homogeneous box) for the cross-check with Mitsuba 3.
@@ -17,11 +20,14 @@
 
 pub mod anti_scatter_grid;
 pub mod cross_sections;
+pub mod energy_imparted;
 pub mod engine;
 pub mod estimate;
 pub mod estimator;
+pub mod field;
 pub mod majorant;
 pub mod matched;
+pub mod region;
 pub mod transport;
 
 pub use anti_scatter_grid::AntiScatterGrid;

@@ -154,6 +154,11 @@ impl Medium {
         Ok(self)
     }
 
+    /// The composition the photons cross.
+    pub fn composition(&self) -> &Composition {
+        &self.composition
+    }
+
     /// Highest tabulated energy, keV.
     pub fn e_max_kev(&self) -> f64 {
         self.e_max_kev

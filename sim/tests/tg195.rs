@@ -1,0 +1,50 @@
+//! A reduced AAPM TG-195 run (docs/validation.md has the full one, `tomograf validate
+//! tg195`): Case 1's HVL/QVL ratios and Case 2's whole box and three VOIs, each within a
+//! tolerance of 4 of our standard errors plus half the four codes' spread.
+
+use tomograf_sim::validation::tg195::{self, Beam, Comparison};
+
+fn check(rows: &[Comparison]) {
+    for r in rows {
+        let (lo, hi) = r.reference.range();
+        let tol = 4.0 * r.ours_se + 0.5 * (hi - lo);
+        eprintln!(
+            "{} {}: ours {:.6} ± {:.6}, codes' mean {:.6} (range {:.6}–{:.6}), {:+.2} %",
+            r.case,
+            r.quantity,
+            r.ours,
+            r.ours_se,
+            r.reference.mean(),
+            lo,
+            hi,
+            r.deviation_percent()
+        );
+        assert!(
+            (r.ours - r.reference.mean()).abs() <= tol,
+            "{} {}: ours {} vs codes' mean {} (tolerance {tol})",
+            r.case,
+            r.quantity,
+            r.ours,
+            r.reference.mean()
+        );
+    }
+}
+
+#[test]
+fn case1_half_and_quarter_value_layers() {
+    for beam in [Beam::Mono(30.0), Beam::Kvp(100)] {
+        let rows = tg195::case1(beam, 1_000_000, 1).unwrap();
+        check(
+            &rows
+                .into_iter()
+                .filter(|r| r.quantity.starts_with("ratio"))
+                .collect::<Vec<_>>(),
+        );
+    }
+}
+
+#[test]
+fn case2_radiography_box_and_vois() {
+    let rows = tg195::case2(Beam::Mono(56.4), false, &[3, 6, 7], 1_000_000, 2).unwrap();
+    check(&rows);
+}

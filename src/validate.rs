@@ -1,0 +1,352 @@
+//! `tomograf validate tg195`: runs the AAPM TG-195 cases through the energy-imparted tally
+//! (`tomograf_sim::validation::tg195`) and writes the comparison with the four codes as a
+//! markdown table, a CSV and figures.
+
+use crate::figures::{Axes, plot_deviations, plot_points};
+use anyhow::{Context, Result};
+use clap::{Args, Subcommand};
+use indicatif::{ProgressBar, ProgressStyle};
+use std::fmt::Write as _;
+use std::io::Write as _;
+use std::path::PathBuf;
+use std::time::Instant;
+use tomograf_datasets::atomic::write_atomic;
+use tomograf_sim::validation::tg195::{self, Beam, Comparison};
+
+#[derive(Subcommand, Debug)]
+pub enum ValidateCommand {
+    /// The AAPM TG-195 Monte Carlo reference cases 1, 2 and 4.2 against EGSnrc, Geant4,
+    /// MCNP and Penelope: a table (ours ± standard error, each code, their mean and
+    /// spread, our deviation in % and in standard errors), a CSV and plots.
+    Tg195(Tg195Args),
+}
+
+#[derive(Args, Debug)]
+pub struct Tg195Args {
+    /// Output folder (tg195.md, tg195.csv, tg195-deviations.png, tg195-case42.png).
+    #[arg(short, long, default_value = "docs/validation")]
+    output: PathBuf,
+    /// Cases to run, comma-separated: 1, 2, 4.2.
+    #[arg(long, default_value = "1,2,4.2", value_delimiter = ',')]
+    cases: Vec<String>,
+    /// Photons per Case 1 run (three runs per beam, four beams).
+    #[arg(long, default_value_t = 2_000_000)]
+    photons_case1: u64,
+    /// Photons per Case 2 run (four runs).
+    #[arg(long, default_value_t = 20_000_000)]
+    photons_case2: u64,
+    /// Photons per Case 4.2 run (four runs; each scores all 36 angles).
+    #[arg(long, default_value_t = 20_000_000)]
+    photons_case42: u64,
+    /// Random seed.
+    #[arg(long, default_value_t = 0)]
+    seed: u64,
+}
+
+pub fn run(cmd: ValidateCommand) -> Result<()> {
+    match cmd {
+        ValidateCommand::Tg195(args) => tg195_command(args),
+    }
+}
+
+/// One run of the validation: its label and how to make it.
+type Job = (
+    String,
+    Box<dyn Fn() -> tomograf_sim::Result<Vec<Comparison>>>,
+);
+
+fn tg195_command(args: Tg195Args) -> Result<()> {
+    for c in &args.cases {
+        anyhow::ensure!(
+            ["1", "2", "4.2"].contains(&c.as_str()),
+            "--cases: unknown case '{c}'; give 1, 2 and/or 4.2"
+        );
+    }
+    let want = |c: &str| args.cases.iter().any(|x| x == c);
+    let seed = args.seed;
+    let mut jobs: Vec<Job> = Vec::new();
+    if want("1") {
+        for beam in [
+            Beam::Mono(30.0),
+            Beam::Mono(100.0),
+            Beam::Kvp(30),
+            Beam::Kvp(100),
+        ] {
+            let n = args.photons_case1;
+            jobs.push((
+                format!("case 1, {}", beam.label()),
+                Box::new(move || tg195::case1(beam, n, seed)),
+            ));
+        }
+    }
+    if want("2") {
+        for beam in [Beam::Mono(56.4), Beam::Kvp(120)] {
+            for tomo in [false, true] {
+                let n = args.photons_case2;
+                jobs.push((
+                    format!(
+                        "case 2, {} {}",
+                        if tomo { "tomosynthesis" } else { "radiography" },
+                        beam.label()
+                    ),
+                    Box::new(move || {
+                        tg195::case2(beam, tomo, &[1, 2, 3, 4, 5, 6, 7, 8, 9], n, seed)
+                    }),
+                ));
+            }
+        }
+    }
+    if want("4.2") {
+        for beam in [Beam::Mono(56.4), Beam::Kvp(120)] {
+            for wide in [false, true] {
+                let n = args.photons_case42;
+                jobs.push((
+                    format!(
+                        "case 4.2, {} mm {}",
+                        if wide { 80 } else { 10 },
+                        beam.label()
+                    ),
+                    Box::new(move || tg195::case42(beam, wide, n, seed)),
+                ));
+            }
+        }
+    }
+    std::fs::create_dir_all(&args.output)
+        .with_context(|| format!("cannot create {}", args.output.display()))?;
+    let bar = ProgressBar::new(jobs.len() as u64).with_style(
+        ProgressStyle::with_template("{spinner} run {pos}/{len} [{bar:30}] {elapsed} {msg}")
+            .expect("valid template")
+            .progress_chars("=> "),
+    );
+    let start = Instant::now();
+    let mut rows = Vec::new();
+    let mut times = Vec::new();
+    for (label, job) in &jobs {
+        bar.set_message(label.clone());
+        let t = Instant::now();
+        rows.extend(job().with_context(|| label.clone())?);
+        times.push((label.clone(), t.elapsed().as_secs_f64()));
+        bar.inc(1);
+    }
+    bar.finish_and_clear();
+    let total = start.elapsed().as_secs_f64();
+    let settings = format!(
+        "photons per run: case 1 {}, case 2 {}, case 4.2 {}; seed {}; {} thread(s); {:.0} s in all",
+        args.photons_case1,
+        args.photons_case2,
+        args.photons_case42,
+        args.seed,
+        rayon::current_num_threads(),
+        total
+    );
+    let md = table(&rows, &settings, &times);
+    let text = csv(&rows);
+    write_atomic(&args.output.join("tg195.md"), |w| {
+        w.write_all(md.as_bytes())
+    })?;
+    write_atomic(&args.output.join("tg195.csv"), |w| {
+        w.write_all(text.as_bytes())
+    })?;
+    figures(&args.output, &rows)?;
+    print!("{}", summary(&rows));
+    eprintln!("{settings}; written to {}", args.output.display());
+    Ok(())
+}
+
+/// The agreement targets of the issue: Case 1 ratios within 1 % of the codes' mean,
+/// everything of Cases 2 and 4.2 within 2 % or inside the codes' range.
+fn target(r: &Comparison) -> Option<f64> {
+    if r.case.starts_with("1 ") {
+        r.quantity.starts_with("ratio").then_some(1.0)
+    } else {
+        Some(2.0)
+    }
+}
+
+fn verdict(r: &Comparison) -> &'static str {
+    match target(r) {
+        None => "(unit uncertain)",
+        Some(t) if r.agrees(t) => "yes",
+        Some(_) => "**no**",
+    }
+}
+
+fn table(rows: &[Comparison], settings: &str, times: &[(String, f64)]) -> String {
+    let codes = tg195::codes();
+    let mut s = String::new();
+    let _ = writeln!(
+        s,
+        "# TG-195: tomograf against EGSnrc, Geant4, MCNP and Penelope\n\n{settings}.\n\n\
+         Case 1: air kerma at 100 cm per source photon in the transcription's convention \
+         (Σ E·μen/ρ·Φ / 100) and its HVL/QVL ratios; Cases 2 and 4.2: energy imparted, eV per \
+         source photon. \"±\": one standard error. \"target\": within 1 % (Case 1 ratios) \
+         or 2 % (Cases 2, 4.2) of the codes' mean, or inside their range.\n"
+    );
+    let _ = writeln!(
+        s,
+        "| case | quantity | tomograf | {} | codes' mean | codes' range | deviation (%) | deviation (SE) | target |",
+        codes.join(" | ")
+    );
+    let _ = writeln!(
+        s,
+        "|---|---|---:|{}---:|---|---:|---:|---|",
+        "---:|".repeat(4)
+    );
+    for r in rows {
+        let (lo, hi) = r.reference.range();
+        let c: Vec<String> = r
+            .reference
+            .codes
+            .iter()
+            .map(|v| v.map_or("—".into(), num))
+            .collect();
+        let _ = writeln!(
+            s,
+            "| {} | {} | {} ± {} | {} | {} | {}–{} | {:+.2} | {:+.1} | {} |",
+            r.case,
+            r.quantity,
+            num(r.ours),
+            num(r.ours_se),
+            c.join(" | "),
+            num(r.reference.mean()),
+            num(lo),
+            num(hi),
+            r.deviation_percent(),
+            r.deviation_se(),
+            verdict(r)
+        );
+    }
+    let _ = writeln!(s, "\n{}", summary(rows));
+    let _ = writeln!(s, "Seconds per run:\n");
+    for (label, t) in times {
+        let _ = writeln!(s, "* {label}: {t:.1} s");
+    }
+    s
+}
+
+/// Four significant digits (more for small ratios' differences to show).
+fn num(v: f64) -> String {
+    if v == 0.0 || !v.is_finite() {
+        return format!("{v}");
+    }
+    let digits = (5 - v.abs().log10().floor() as i32).max(0) as usize;
+    format!("{v:.digits$}")
+}
+
+fn summary(rows: &[Comparison]) -> String {
+    let judged: Vec<&Comparison> = rows.iter().filter(|r| target(r).is_some()).collect();
+    let ok = judged.iter().filter(|r| verdict(r) == "yes").count();
+    let worst = judged
+        .iter()
+        .max_by(|a, b| {
+            a.deviation_percent()
+                .abs()
+                .total_cmp(&b.deviation_percent().abs())
+        })
+        .map(|r| format!("{} {}: {:+.2} %", r.case, r.quantity, r.deviation_percent()))
+        .unwrap_or_default();
+    format!(
+        "{ok} of {} judged rows meet the target; largest deviation from the codes' mean: {worst}\n",
+        judged.len()
+    )
+}
+
+fn csv(rows: &[Comparison]) -> String {
+    let mut s = String::from(
+        "case,quantity,ours,ours_se,egsnrc,geant4,mcnp,penelope,codes_mean,codes_min,codes_max,deviation_percent,deviation_se\n",
+    );
+    for r in rows {
+        let (lo, hi) = r.reference.range();
+        let c: Vec<String> = r
+            .reference
+            .codes
+            .iter()
+            .map(|v| v.map_or(String::new(), |v| v.to_string()))
+            .collect();
+        let _ = writeln!(
+            s,
+            "{},{},{},{},{},{},{},{},{},{}",
+            r.case,
+            r.quantity.replace(',', ";"),
+            r.ours,
+            r.ours_se,
+            c.join(","),
+            r.reference.mean(),
+            lo,
+            hi,
+            r.deviation_percent(),
+            r.deviation_se()
+        );
+    }
+    s
+}
+
+fn figures(dir: &std::path::Path, rows: &[Comparison]) -> Result<()> {
+    let judged: Vec<&Comparison> = rows
+        .iter()
+        .filter(|r| target(r).is_some() && !r.case.starts_with("4.2"))
+        .collect();
+    if !judged.is_empty() {
+        let points: Vec<(f64, f64, f64, f64, f64)> = judged
+            .iter()
+            .enumerate()
+            .map(|(i, r)| {
+                let m = r.reference.mean();
+                let (lo, hi) = r.reference.range();
+                (
+                    i as f64,
+                    r.deviation_percent(),
+                    200.0 * r.ours_se / m,
+                    (lo / m - 1.0) * 100.0,
+                    (hi / m - 1.0) * 100.0,
+                )
+            })
+            .collect();
+        plot_deviations(
+            &dir.join("tg195-deviations.png"),
+            &Axes {
+                title: "TG-195 cases 1 (ratios) and 2: tomograf vs the codes' mean",
+                x: "row of tg195.md (case 1 ratios, then case 2 box and VOIs)",
+                y: "deviation from the codes' mean (%)",
+            },
+            &points,
+        )?;
+    }
+    let c42: Vec<&Comparison> = rows
+        .iter()
+        .filter(|r| r.case.starts_with("4.2") && r.quantity.ends_with('°'))
+        .collect();
+    if !c42.is_empty() {
+        let mut series: Vec<(String, Vec<(f64, f64)>)> = Vec::new();
+        for r in &c42 {
+            let angle: f64 = r
+                .quantity
+                .trim_start_matches("Periphery ")
+                .trim_end_matches('°')
+                .parse()
+                .unwrap_or(f64::NAN);
+            let ours = format!("{} tomograf", r.case.trim_start_matches("4.2 "));
+            let refs = format!("{} codes' mean", r.case.trim_start_matches("4.2 "));
+            for (name, v) in [(ours, r.ours), (refs, r.reference.mean())] {
+                match series.iter_mut().find(|(n, _)| *n == name) {
+                    Some((_, s)) => s.push((angle, v)),
+                    None => series.push((name, vec![(angle, v)])),
+                }
+            }
+        }
+        let named: Vec<(&str, Vec<(f64, f64)>)> = series
+            .iter()
+            .map(|(n, s)| (n.as_str(), s.clone()))
+            .collect();
+        plot_points(
+            &dir.join("tg195-case42.png"),
+            &Axes {
+                title: "TG-195 case 4.2: peripheral cylinder vs source angle",
+                x: "source angle (degrees)",
+                y: "energy imparted (eV per photon)",
+            },
+            &named,
+        )?;
+    }
+    Ok(())
+}
