@@ -235,6 +235,20 @@ def acquire(
     detector by name (`detector_models`). GIL released; seeded, thread-count
     independent."""
 
+def dose(
+    hu: Volume,
+    views: Union[View, Sequence[View]],
+    preset: str = "kv-flat-panel-120kvp",
+    kvp: Optional[float] = None,
+    mas: Optional[float] = None,
+    photons: int = 1_000_000,
+    seed: int = 0,
+) -> Volume:
+    """Absorbed dose in Gy (a Volume on the CT's grid) that the views deliver to a CT in HU
+    with a preset's spectrum (kVp, mAs per view) and tissues: Monte Carlo, `photons`
+    histories per view, each view's source collimated to its detector, electron energy
+    deposited locally. Seeded; GIL released; thread-count independent."""
+
 def detector_models() -> List[str]:
     """Detector model names: "perfect-absorber" (alias "ideal"), "noiseless-csi",
     "kv-flat-panel", "cbct", "photon-counting"."""

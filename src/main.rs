@@ -8,6 +8,7 @@ mod dataset;
 mod demo;
 #[cfg(test)]
 mod doc_examples;
+mod dose;
 mod evaluate;
 mod figures;
 mod output;

@@ -68,6 +68,9 @@
 //! strip_um = 36.0                   # lead strip thickness (default 36)
 //! interspace = "aluminium"          # or "air" (default aluminium)
 //!
+//! [dose]                            # absorbed dose, Gy: {prefix}_dose.nii.gz and .json
+//! photons = 1000000                 # Monte Carlo histories per view (default 1e6)
+//!
 //! [materials]
 //! model = "schneider"               # or "five-tissue", "water"
 //! calibration_kev = 70.0
@@ -147,6 +150,8 @@ pub struct Scene {
     pub mesh: Vec<MeshEntry>,
     /// Scattered radiation (docs/scatter.md); absent = none.
     pub scatter: Option<crate::scatter_images::ScatterSection>,
+    /// Absorbed dose (docs/scatter.md, "Dose"); absent = not computed.
+    pub dose: Option<crate::dose::DoseSection>,
 }
 
 /// Which physics between the traced paths and the image (see `crate::physics`).

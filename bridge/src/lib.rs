@@ -57,6 +57,7 @@ fn tomograf_py(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(phantom::describe_chest, m)?)?;
     // Real detector physics (spectrum, tissues, detector).
     m.add_function(wrap_pyfunction!(physics::acquire, m)?)?;
+    m.add_function(wrap_pyfunction!(physics::dose, m)?)?;
     m.add_function(wrap_pyfunction!(physics::presets, m)?)?;
     m.add_function(wrap_pyfunction!(physics::detector_models, m)?)?;
     // Scatter.

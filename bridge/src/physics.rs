@@ -59,13 +59,7 @@ pub fn acquire<'py>(
             )));
         }
     };
-    let mut acq = Acquisition::preset(preset).map_err(errors::sim)?;
-    if let Some(k) = kvp {
-        acq.spectrum.kvp = Some(k);
-    }
-    if let Some(m) = mas {
-        acq.spectrum.mas = m;
-    }
+    let mut acq = acquisition(preset, kvp, mas)?;
     if energy_bins.is_some() {
         acq.spectrum.bins = energy_bins;
     }
@@ -109,4 +103,44 @@ pub fn acquire<'py>(
     let arr =
         ndarray::ArrayD::from_shape_vec(shape, out).map_err(|e| errors::value(e.to_string()))?;
     Ok(arr.into_pyarray(py))
+}
+
+/// A preset with another tube voltage or exposure.
+fn acquisition(preset: &str, kvp: Option<f64>, mas: Option<f64>) -> PyResult<Acquisition> {
+    let mut acq = Acquisition::preset(preset).map_err(errors::sim)?;
+    if let Some(k) = kvp {
+        acq.spectrum.kvp = Some(k);
+    }
+    if let Some(m) = mas {
+        acq.spectrum.mas = m;
+    }
+    Ok(acq)
+}
+
+/// Absorbed dose (**Gy**, a :class:`Volume` on the CT's grid) that ``views`` deliver to a
+/// CT in **HU** with a preset's spectrum and tissues, optionally another ``kvp`` or ``mas``
+/// (mA·s per view): a Monte Carlo of ``photons`` histories per view, each view's source
+/// collimated to its detector panel, electron energy deposited where the photon
+/// interacts (no electron transport). Seeded; GIL released; the result does not depend
+/// on the thread count. See docs/scatter.md, "Dose".
+#[pyfunction]
+#[pyo3(signature = (hu, views, preset="kv-flat-panel-120kvp", kvp=None, mas=None, photons=1_000_000, seed=0))]
+#[allow(clippy::too_many_arguments)]
+pub fn dose(
+    py: Python<'_>,
+    hu: &PyVolume,
+    views: &Bound<'_, PyAny>,
+    preset: &str,
+    kvp: Option<f64>,
+    mas: Option<f64>,
+    photons: u64,
+    seed: u64,
+) -> PyResult<PyVolume> {
+    let acq = acquisition(preset, kvp, mas)?;
+    let (list, _) = crate::render::view_list(views)?;
+    let vol = &hu.inner;
+    let d = py
+        .detach(|| acq.dose(vol, &list, photons, seed))
+        .map_err(errors::sim)?;
+    Ok(PyVolume::wrap(d.gray))
 }

@@ -261,6 +261,25 @@ def test_acquire_gives_seeded_detector_images_close_to_the_drr():
         tg.acquire(hu, views, kvp=30)
 
 
+def test_dose_is_a_seeded_volume_in_gray_proportional_to_the_exposure():
+    hu = tg.thorax(dims=(24, 20, 12), spacing_mm=(14.0, 12.0, 26.0))
+    views = tg.Geometry.cone(1000, 1500, tg.Detector(8, 8, 48.0)).views(
+        [tg.Pose(0, 0), tg.Pose(90, 0)]
+    )
+    d = tg.dose(hu, views, photons=20000, seed=1)
+    assert d.dims == hu.dims and d.spacing == hu.spacing
+    gy = d.array
+    assert np.isfinite(gy).all() and (gy >= 0).all() and gy.max() > 0
+    # Air has no mass and gets no dose; the same seed gives the same bytes.
+    assert gy[hu.array < -990].max() == 0.0
+    np.testing.assert_array_equal(gy, tg.dose(hu, views, photons=20000, seed=1).array)
+    # The same histories at twice the mAs: twice the dose.
+    twice = tg.dose(hu, views, mas=2.0, photons=20000, seed=1).array
+    np.testing.assert_allclose(twice, 2.0 * gy, rtol=1e-6)
+    with pytest.raises(ValueError, match="photons = 0"):
+        tg.dose(hu, views, photons=0)
+
+
 def test_acquire_takes_the_detector_names_of_the_cli():
     hu = tg.thorax(dims=(48, 40, 24), spacing_mm=(7.0, 6.0, 13.0))
     view = tg.Geometry.cone(1000, 1500, tg.Detector(16, 24, 16.0)).view(tg.Pose(0, 0))

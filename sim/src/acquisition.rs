@@ -227,6 +227,31 @@ impl Acquisition {
         self.prepare_with_meshes(hu, seed, None)
     }
 
+    /// The absorbed dose `views` deliver to the CT `hu` (HU) with this acquisition's
+    /// spectrum, exposure (mAs per view) and tissues: `photons` Monte Carlo histories per
+    /// view, each view's source collimated to its detector (docs/scatter.md, "Dose").
+    /// Seeded; the bytes do not depend on the thread count.
+    pub fn dose(
+        &self,
+        hu: &Volume,
+        views: &[View],
+        photons: u64,
+        seed: u64,
+    ) -> Result<crate::scatter::dose::Dose> {
+        let spectrum = self.spectrum.spectrum()?;
+        let (composition, materials) = self.materials.composition(hu)?;
+        let e_max = spectrum.energies_kev().iter().copied().fold(1.0, f64::max);
+        let medium = transport::Medium::new(&composition, &materials, e_max)?;
+        crate::scatter::dose::acquisition_dose(
+            &medium,
+            &spectrum,
+            self.spectrum.mas,
+            views,
+            photons,
+            seed,
+        )
+    }
+
     /// [`Acquisition::prepare`] with mesh objects in the same rays: each mesh names a
     /// material of the library ([`material::by_name`]) and has a density
     /// ([`crate::mesh::MeshObject::density_g_cm3`]); inside a mesh its material replaces

@@ -259,6 +259,9 @@ pub fn run(args: ProjectArgs) -> Result<()> {
     let scene = merge(&args)?;
     let outputs = Outputs::from_scene(&scene)?;
     let acquisition = physics::acquisition(&scene)?;
+    if let Some(d) = &scene.dose {
+        crate::dose::check(d, acquisition.as_ref(), !scene.mesh.is_empty())?;
+    }
     let (vol, source) = match &acquisition {
         None => load_mu(&scene)?,
         Some((acq, _)) => load_hu(&scene, acq.materials.calibration_kev)?,
@@ -385,6 +388,9 @@ pub fn run(args: ProjectArgs) -> Result<()> {
     }
     if !separate.is_empty() {
         files += separate.finish(&sidecar)?;
+    }
+    if let Some(d) = &scene.dose {
+        files += crate::dose::write(d, acquisition.as_ref(), &vol, &job.views, &outputs)?;
     }
     eprintln!(
         "rendered {} view(s) of {}×{} in {:.1} ms ({:.1} ms per view; loading {:.0} ms); wrote {} file(s) to {}",

@@ -10,6 +10,7 @@
 //! * [`field`] — a point source collimated to a rectangular field;
 //! * [`region`] — analytic scoring regions (boxes, cylinders);
 //! * [`energy_imparted`] — the energy-imparted (dose) tally per voxel and region;
+//! * [`dose`] — an acquisition's absorbed dose (Gy), view by view;
 //! * [`estimate`] — the fast estimate (coarse, few photons, smoothed);
 //! * [`matched`] — matched-physics mode (monoenergetic, constant albedo, isotropic or
 //!   Henyey–Greenstein phase, homogeneous box) for the cross-check with Mitsuba 3.
@@ -20,6 +21,7 @@
 
 pub mod anti_scatter_grid;
 pub mod cross_sections;
+pub mod dose;
 pub mod energy_imparted;
 pub mod engine;
 pub mod estimate;

@@ -1,0 +1,86 @@
+//! End-to-end tests of `[dose]` on the command line: the dose NIfTI and JSON beside the
+//! images, dose where the body is and not in air, bytes independent of the thread count,
+//! and clear errors for scenes that cannot have a dose.
+
+mod common;
+
+use common::*;
+use std::path::{Path, PathBuf};
+
+/// Renders the small phantom (2 views, 8 × 8 panel) with `dose` as the body of `[dose]`
+/// into `dir/name` with `global` flags; returns the output folder.
+fn run(dir: &Path, name: &str, global: &[&str], dose: &str) -> PathBuf {
+    let out = dir.join(name);
+    let scene = dir.join(format!("{name}.toml"));
+    std::fs::write(
+        &scene,
+        format!(
+            "[volume]\nphantom_dims = [24, 24, 16]\nphantom_spacing_mm = [15.0, 15.0, 20.0]\n\
+             [detector]\nrows = 8\ncols = 8\n[views]\nposes = [\"ap\", \"lateral\"]\n\
+             [acquisition]\npreset = \"kv-flat-panel-120kvp\"\nseed = 3\n\
+             [output]\ndir = \"{}\"\nformats = [\"npy\"]\n[dose]\n{dose}\n",
+            out.display()
+        ),
+    )
+    .unwrap();
+    let mut args = global.to_vec();
+    args.extend(["project", "--scene", scene.to_str().unwrap()]);
+    ok(&tomograf(&args));
+    out
+}
+
+#[test]
+fn dose_files_are_written_and_follow_the_body() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let out = run(d, "a", &["--threads", "1"], "photons = 20000");
+    let nii = out.join("drr_dose.nii.gz");
+    let vol = tomograf_datasets::nifti::read_nifti(&nii).unwrap();
+    assert_eq!(vol.dims(), [24, 24, 16]);
+    let gy = vol.data();
+    assert!(gy.iter().all(|v| v.is_finite() && *v >= 0.0));
+    let max = gy.iter().copied().fold(0.0f32, f32::max);
+    assert!(max > 0.0);
+    // The phantom's corners are air (no mass, no dose); its centre is tissue in the beam.
+    assert_eq!(gy[0], 0.0);
+    let centre = gy[12 + 24 * (12 + 24 * 8)];
+    assert!(centre > 0.0, "centre dose {centre}");
+    let json: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("drr_dose.json")).unwrap()).unwrap();
+    assert_eq!(json["views"].as_array().unwrap().len(), 2);
+    assert_eq!(json["photons_per_view"], 20000);
+    assert!(json["energy_imparted_joule"].as_f64().unwrap() > 0.0);
+    // Same bytes on two threads.
+    let two = run(d, "b", &["--threads", "2"], "photons = 20000");
+    assert_eq!(
+        std::fs::read(&nii).unwrap(),
+        std::fs::read(two.join("drr_dose.nii.gz")).unwrap()
+    );
+}
+
+#[test]
+fn scenes_without_a_dose_are_refused_before_rendering() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let fails = |body: &str| {
+        let scene = d.join("bad.toml");
+        std::fs::write(
+            &scene,
+            format!("[output]\ndir = \"{}\"\n{body}", d.join("o").display()),
+        )
+        .unwrap();
+        let out = tomograf(&["project", "--scene", scene.to_str().unwrap()]);
+        assert!(!out.status.success(), "should fail: {body}");
+        assert!(
+            !d.join("o").join("drr.npy").exists(),
+            "rendered before refusing"
+        );
+        String::from_utf8_lossy(&out.stderr).into_owned()
+    };
+    let e = fails("[dose]\nphotons = 1000\n");
+    assert!(e.contains("[dose]") && e.contains("acquisition"), "{e}");
+    let e = fails("[acquisition]\npreset = \"kv-flat-panel-120kvp\"\n[dose]\nphotons = 0\n");
+    assert!(e.contains("photons = 0"), "{e}");
+    let e = fails("[acquisition]\npreset = \"kv-flat-panel-120kvp\"\n[dose]\nphotns = 10\n");
+    assert!(e.contains("photns"), "{e}");
+}
