@@ -8,11 +8,11 @@
 //!   aluminium filter (a 40 × 40 mm slab standing in for the r = 20 mm disc; the beam is
 //!   0.5 mm wide there) with its upstream face at 100 mm; air kerma at 1000 mm from the
 //!   photons crossing a 5 mm-radius disc, Σ w·E·(μen/ρ)_air/(A·|cos θ|), with TG-195's own
-//!   air μen/ρ table (part of the case's definition: NIST's, interpolated log–log between
-//!   its 20 and 30 keV knots, is up to 4 % lower at 25 keV and moves the 100 kVp ratios by
-//!   +0.8 and +1.2 %; docs/validation.md). Compared as the HVL and QVL ratios (unit-free)
-//!   and as absolute kerma in the transcription's convention (Σ E[keV]·μen/ρ[cm²/g]·Φ[cm⁻²]
-//!   / 100).
+//!   air μen/ρ table (part of the case's definition; with the NIST-based table of
+//!   `crate::spectrum` as it was before this validation, 4 % low at 25 keV, the 100 kVp
+//!   ratios were +0.8 and +1.2 % off: docs/validation.md). Compared as the HVL and QVL
+//!   ratios (unit-free) and as absolute kerma in the transcription's convention
+//!   (Σ E[keV]·μen/ρ[cm²/g]·Φ[cm⁻²] / 100).
 //! * **Case 2** — a 390 × 390 × 200 mm ICRU soft-tissue box at 1550–1750 mm, field
 //!   390 × 390 mm at 1800 mm; tomosynthesis: source moved to y = −1800·tan 15°. Whole box
 //!   and nine 30 mm VOIs. Voxels of 5 mm hold the box exactly (its faces lie on voxel
