@@ -86,6 +86,7 @@ pub fn write(
         "mas_per_view": acq.spectrum.mas,
         "seed": seed,
         "max_gy": max,
+        "max_gy_per_mas": f64::from(max) / (acq.spectrum.mas * views.len() as f64),
         "energy_imparted_joule": dose.energy_joule,
         "views": dose.per_view.iter().zip(&dose.source_photons).map(|(e, n)| serde_json::json!({
             "source_photons": n,

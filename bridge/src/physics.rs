@@ -7,7 +7,7 @@ use numpy::{IntoPyArray, PyArrayDyn};
 use pyo3::prelude::*;
 use tomograf_sim::Projector;
 use tomograf_sim::acquisition::{Acquisition, PRESETS};
-use tomograf_sim::detector::{DetectorModel, Output};
+use tomograf_sim::detector::{Clipping, DetectorModel, Output};
 
 /// Names of the acquisition presets (``"ideal-drr"`` is :func:`project` itself).
 #[pyfunction]
@@ -30,7 +30,8 @@ pub fn detector_models() -> Vec<&'static str> {
 /// (``"raw"`` ADU/counts, ``"flat-field"`` transmission, or ``"log-line-integral"``, the
 /// default); ``detector`` replaces the preset's detector by name (:func:`detector_models`,
 /// e.g. ``"noiseless-csi"``). Noise is seeded by ``seed``: view ``i`` of the list has its own stream, so the
-/// result depends only on the inputs, never on the thread count.
+/// result depends only on the inputs, never on the thread count. Photon-starved or
+/// saturated pixels raise a ``UserWarning`` that counts them and names ``mas``.
 ///
 /// Returns float32 ``(rows, cols)`` for one view, ``(views, rows, cols)`` for a list; a
 /// photon-counting detector adds a channel axis after the views axis.
@@ -82,16 +83,33 @@ pub fn acquire<'py>(
     let (rows, cols) = (list[0].rows, list[0].cols);
     let vol = &hu.inner;
     let channels = acq.detector.channels();
-    let out = py.detach(|| -> PyResult<Vec<f32>> {
+    let (out, clipping) = py.detach(|| -> PyResult<(Vec<f32>, Clipping)> {
         let prepared = acq.prepare(vol, seed).map_err(errors::sim)?;
         let mut data = Vec::with_capacity(list.len() * channels * rows * cols);
+        let mut clipping = Clipping::default();
         for (i, view) in list.iter().enumerate() {
-            for img in prepared.acquire(proj, view, i).map_err(errors::sim)? {
+            let parts = prepared
+                .acquire_with_parts(proj, view, i)
+                .map_err(errors::sim)?;
+            let pixels = parts.images.iter().map(|p| p.data.len()).sum();
+            clipping.add(parts.clipped, parts.saturated, pixels);
+            for img in parts.images {
                 data.extend(img.data);
             }
         }
-        Ok(data)
+        Ok((data, clipping))
     })?;
+    // Starved or saturated pixels: the same warning as the command line, as a Python
+    // UserWarning (silence it with the warnings module).
+    if let Some(w) = clipping.warning(acq.spectrum.mas, "mas=") {
+        let category = py.get_type::<pyo3::exceptions::PyUserWarning>();
+        PyErr::warn(
+            py,
+            &category,
+            &std::ffi::CString::new(w).unwrap_or_default(),
+            1,
+        )?;
+    }
     let mut shape = Vec::new();
     if !single {
         shape.push(list.len());

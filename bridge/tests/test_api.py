@@ -280,6 +280,18 @@ def test_dose_is_a_seeded_volume_in_gray_proportional_to_the_exposure():
         tg.dose(hu, views, photons=0)
 
 
+def test_acquire_warns_of_photon_starvation_and_names_mas():
+    hu = tg.thorax(dims=(48, 40, 24), spacing_mm=(7.0, 6.0, 13.0))
+    view = tg.Geometry.cone(1000, 1500, tg.Detector(16, 24, 16.0)).view(tg.Pose(90, 0))
+    with pytest.warns(UserWarning, match=r"photon starvation.*mas = 0.0001 now: mas="):
+        tg.acquire(hu, view, mas=1e-4, signal="log-line-integral")
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        tg.acquire(hu, view)  # the preset's exposure starves nothing
+
+
 def test_acquire_takes_the_detector_names_of_the_cli():
     hu = tg.thorax(dims=(48, 40, 24), spacing_mm=(7.0, 6.0, 13.0))
     view = tg.Geometry.cone(1000, 1500, tg.Detector(16, 24, 16.0)).view(tg.Pose(0, 0))

@@ -340,7 +340,7 @@ pub fn run(args: ProjectArgs) -> Result<()> {
         bar.set_draw_target(indicatif::ProgressDrawTarget::hidden());
     }
     let mut render_time = std::time::Duration::ZERO;
-    let mut clipping = Clipping::default();
+    let mut clipping = tomograf_sim::detector::Clipping::default();
     let mut channels: Vec<Vec<Projection>> = Vec::new();
     let mut channel_outputs: Vec<Outputs> = Vec::new();
     for (i, view) in job.views.iter().enumerate() {
@@ -349,7 +349,11 @@ pub fn run(args: ProjectArgs) -> Result<()> {
         render_time += t.elapsed();
         if let Some(parts) = &parts {
             separate.write_view(i, parts)?;
-            clipping.add(parts, images.iter().map(|p| p.data.len()).sum());
+            clipping.add(
+                parts.clipped,
+                parts.saturated,
+                images.iter().map(|p| p.data.len()).sum(),
+            );
         }
         if channel_outputs.is_empty() {
             channel_outputs = (0..images.len())
@@ -374,7 +378,7 @@ pub fn run(args: ProjectArgs) -> Result<()> {
         );
         sidecar["clipped_pixels"] = serde_json::json!(clipping.clipped);
         sidecar["saturated_pixels"] = serde_json::json!(clipping.saturated);
-        if let Some(w) = clipping.warning(acq.spectrum.mas) {
+        if let Some(w) = clipping.warning(acq.spectrum.mas, "[spectrum] mas or --mas") {
             eprintln!("{w}");
         }
     }
@@ -409,47 +413,4 @@ pub fn run(args: ProjectArgs) -> Result<()> {
 /// Formats named on the command line.
 pub fn parse_formats(names: &[String]) -> Result<Vec<Format>> {
     names.iter().map(|n| Format::parse(n)).collect()
-}
-
-/// Pixels whose signal was clipped, summed over the views of a run with detector physics.
-#[derive(Debug, Default)]
-struct Clipping {
-    clipped: usize,
-    saturated: usize,
-    pixels: usize,
-    views_clipped: usize,
-    views_saturated: usize,
-}
-
-impl Clipping {
-    fn add(&mut self, parts: &tomograf_sim::acquisition::Acquired, pixels: usize) {
-        self.clipped += parts.clipped;
-        self.saturated += parts.saturated;
-        self.pixels += pixels;
-        self.views_clipped += usize::from(parts.clipped > 0);
-        self.views_saturated += usize::from(parts.saturated > 0);
-    }
-
-    /// What to tell the user when a line integral was clipped; `None` when none was.
-    fn warning(&self, mas: f64) -> Option<String> {
-        let mut lines = Vec::new();
-        if self.clipped > 0 {
-            lines.push(format!(
-                "warning: {} of {} pixels ({} view(s)) recorded at most half a signal unit \
-                 (ADU or count) above the dark: photon starvation. Their −log reads \
-                 ln(2·(flat − dark)), less than the object's line integral. Raise the exposure \
-                 (mas = {mas} now: [spectrum] mas or --mas).",
-                self.clipped, self.pixels, self.views_clipped
-            ));
-        }
-        if self.saturated > 0 {
-            lines.push(format!(
-                "warning: {} of {} pixels ({} view(s)) are at the detector's ceiling \
-                 (saturation or the ADC's top code): their signal is clipped. Lower the \
-                 exposure (mas = {mas} now) or raise the readout's range.",
-                self.saturated, self.pixels, self.views_saturated
-            ));
-        }
-        (!lines.is_empty()).then(|| lines.join("\n"))
-    }
 }

@@ -17,12 +17,14 @@
 //! so images are identical for any number of threads.
 
 pub mod blur;
+pub mod clipping;
 pub mod correction;
 pub mod noise;
 pub mod readout;
 pub mod response;
 
 pub use blur::Blur;
+pub use clipping::Clipping;
 pub use correction::{
     Calibration, FlatField, Output, flat_field_correct, log_line_integral,
     log_line_integral_clamped,
