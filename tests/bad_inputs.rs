@@ -262,6 +262,8 @@ fn every_bad_input_ends_in_a_clear_error() {
         (vec!["project", "--scene", &scene("mat", &format!("{small_scene}[[mesh]]\nname = \"m\"\nkind = \"sphere\"\nmaterial = \"unobtainium\"\n")), "-o", &o].map_into(), "unknown material: 'unobtainium'"),
         (vec!["project", "--scene", &scene("exact", &format!("{small_scene}[[mesh]]\nname = \"m\"\nkind = \"cylinder\"\nexact = true\nresolution = 8\nmu_per_mm = 0.1\n")), "-o", &o].map_into(), "drop one of them"),
         (vec!["project", "--scene", &scene("blend", &format!("{small_scene}[spectrum]\nkvp = 100\n[materials]\nblend_hu = 500\n")), "-o", &o].map_into(), "not narrower than 'adipose'"),
+        (vec!["project", "--scene", &scene("dose-drr", &format!("{small_scene}[dose]\nphotons = 1000\n")), "-o", &o].map_into(), "[dose] needs real detector physics"),
+        (vec!["project", "--scene", &scene("dose-zero", &format!("{small_scene}[acquisition]\npreset = \"kv-flat-panel-120kvp\"\n[dose]\nphotons = 0\n")), "-o", &o].map_into(), "[dose] photons = 0"),
         // Physics out of range.
         (vec!["project", "--preset", "kv-flat-panel-1000kvp", "-o", &o].map_into(), "kv-flat-panel-1000kvp"),
         (vec!["project", "--kvp", "1000", "-o", &o].map_into(), "1000"),

@@ -313,10 +313,14 @@ pub fn simulate_with_fluence(
     }
     let packed = medium.composition().packed();
     let n_vox = packed.len();
-    if settings.voxel_map && n_vox > u32::MAX as usize {
-        return Err(SimError::OutOfRange(format!(
-            "energy imparted: {n_vox} voxels is beyond the voxel map's 2³² limit"
-        )));
+    if settings.voxel_map {
+        if n_vox > u32::MAX as usize {
+            return Err(SimError::OutOfRange(format!(
+                "energy imparted: {n_vox} voxels is beyond the voxel map's 2³² limit"
+            )));
+        }
+        // This map and the caller's sum over views (f64 each).
+        crate::memory::check(n_vox as u128 * 16, "the energy-imparted voxel map")?;
     }
     let photons = settings.photons;
     let batches = photons.div_ceil(BATCH);
