@@ -381,6 +381,7 @@ fn the_scene_reference_names_every_key() {
             "## `[scatter]`",
             format!("[scatter]\nmodel = \"none\"\n[scatter.anti_scatter_grid]\n{p}"),
         ),
+        ("## `[dose]`", format!("[dose]\n{p}")),
         ("## `[[mesh]]`", format!("[[mesh]]\n{p}")),
     ];
     let mut missing = Vec::new();
