@@ -36,6 +36,11 @@ pub struct BenchArgs {
     /// `--out docs/model-benchmarks.md`).
     #[arg(long)]
     pub model: bool,
+    /// With --model: measure on this backend (as compiled in, e.g. `cuda` with
+    /// `--features tomograf-model/cuda`) against `flex` in the same run: agreement of
+    /// losses and reconstructions, and speed-ups.
+    #[arg(long, requires = "model")]
+    pub backend: Option<String>,
     /// Only the empty-space skipping and mesh sections (docs/benchmarks.md, docs/meshes.md).
     #[arg(long)]
     pub accel_only: bool,
@@ -133,6 +138,14 @@ pub fn run(args: BenchArgs) -> Result<()> {
     }
     let threads = rayon::current_num_threads();
     let cpu = cpu_model();
+    if let Some(name) = &args.backend {
+        let md = format!(
+            "Measured by `tomograf bench --model --backend {name}{}` on {cpu}, {threads} threads.\n\n{}",
+            if args.quick { " --quick" } else { "" },
+            crate::bench_backend::section(args.quick, args.repeats, name)?
+        );
+        return write_page("Model benchmarks: GPU backend", &md, args.out.as_deref());
+    }
     if args.model {
         let md = format!(
             "Measured by `tomograf bench --model{}` on {cpu}, {threads} threads.\n\n{}",

@@ -18,7 +18,7 @@ use tomograf_model::reconstruct::{Reference, reconstruct};
 use tomograf_model::train::{Trainer, projection_scale};
 use tomograf_model::{backend, checkpoint, data};
 
-fn median(mut v: Vec<f64>) -> f64 {
+pub(crate) fn median(mut v: Vec<f64>) -> f64 {
     v.sort_by(f64::total_cmp);
     let n = v.len();
     if n == 0 {
@@ -31,7 +31,7 @@ fn median(mut v: Vec<f64>) -> f64 {
     }
 }
 
-fn trainer(
+pub(crate) fn trainer(
     config: TrainConfig,
     items: &[Item],
     device: &tomograf_model::Device,
@@ -147,7 +147,7 @@ pub fn section(quick: bool, repeats: usize) -> Result<String> {
     Ok(md)
 }
 
-fn tempfile_dir() -> Result<std::path::PathBuf> {
+pub(crate) fn tempfile_dir() -> Result<std::path::PathBuf> {
     let p = std::env::temp_dir().join(format!("tomograf-bench-model-{}", std::process::id()));
     if p.exists() {
         std::fs::remove_dir_all(&p)?;
