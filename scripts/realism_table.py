@@ -5,9 +5,11 @@ scored on some test sets or view counts only): mean ± std over the phantoms of 
 Usage: scripts/realism_table.py STUDY_DIR [metric]   (metric: psnr_db, ssim, rmse_hu,
 body_psnr_db, …; default psnr_db). Reads STUDY_DIR/eval/<test set>/<cell>/results.csv as
 written by `tomograf evaluate`; prints a Markdown table, rows method ← training set,
-columns the test sets. Standard library only.
+columns the test sets. A cell folder may carry the view counts it was scored at apart
+(model-M-5-10: the 5- and 10-view rows of model M). Standard library only.
 """
 import csv
+import re
 import statistics
 import sys
 from pathlib import Path
@@ -38,7 +40,8 @@ def main():
         for r in rows:
             method = r["method"]
             if cell.startswith("model-"):
-                train = cell[len("model-"):]
+                # A cell scored at some view counts apart is named model-M-5-10: strip them.
+                train = re.sub(r"(-\d+)+$", "", cell[len("model-"):])
                 if method.startswith("TomoGRAF"):
                     label = f"{method} ← {train}"
                 elif method == "PCA-MAP prior":
