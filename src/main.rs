@@ -2,6 +2,7 @@
 
 mod bench;
 mod bench_accel;
+mod bench_backend;
 mod bench_model;
 mod bench_physics;
 mod dataset;
@@ -20,6 +21,7 @@ mod reconstruct;
 mod scatter_images;
 mod scene;
 mod study;
+mod tradeoff;
 mod train;
 mod validate;
 
@@ -67,6 +69,9 @@ enum Command {
     /// Validate the physics against published references (AAPM TG-195 Monte Carlo cases).
     #[command(subcommand)]
     Validate(validate::ValidateCommand),
+    /// Speed against accuracy for your scene: each projector, energy-bin, scatter and blur
+    /// setting timed and compared with the most accurate, with a recommendation.
+    Tradeoff(Box<tradeoff::TradeoffArgs>),
 }
 
 fn main() {
@@ -122,5 +127,6 @@ fn run(cli: Cli) -> Result<()> {
         Command::Demo(args) => demo::run(args),
         Command::Study(c) => study::run(c),
         Command::Validate(c) => validate::run(c),
+        Command::Tradeoff(args) => tradeoff::run(*args),
     }
 }

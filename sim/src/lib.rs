@@ -28,6 +28,7 @@ pub mod scatter;
 pub mod spectrum;
 pub mod tissue;
 pub mod trace;
+pub mod tradeoff;
 pub mod validation;
 pub mod volume;
 

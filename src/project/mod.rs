@@ -155,7 +155,7 @@ pub(super) fn grid_dims(d: [f64; 3]) -> Result<[usize; 3]> {
 }
 
 /// Merges command-line flags into the scene (flags win).
-fn merge(args: &ProjectArgs) -> Result<Scene> {
+pub(crate) fn merge(args: &ProjectArgs) -> Result<Scene> {
     let mut s = match &args.scene {
         Some(p) => Scene::load(p)?,
         None => Scene::default(),

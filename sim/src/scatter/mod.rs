@@ -99,6 +99,25 @@ pub const MAX_PHOTONS: u64 = 1_000_000_000;
 pub const MAX_GRID: usize = 512;
 
 impl ScatterModel {
+    /// The full Monte Carlo with its default settings (100 000 photons, 16² scoring
+    /// points, 50 orders).
+    pub fn monte_carlo_default() -> Self {
+        ScatterModel::MonteCarlo {
+            photons: default_photons(),
+            grid: default_grid(),
+            max_order: default_max_order(),
+        }
+    }
+
+    /// The fast estimate with its default settings (5 000 photons, 8² points, σ 1 cell).
+    pub fn estimate_default() -> Self {
+        ScatterModel::Estimate {
+            photons: default_estimate_photons(),
+            grid: default_estimate_grid(),
+            smoothing: default_smoothing(),
+        }
+    }
+
     /// Checks the settings, naming the bad one.
     pub fn validate(&self) -> Result<()> {
         let bad = |m: String| Err(SimError::OutOfRange(format!("[scatter] {m}")));

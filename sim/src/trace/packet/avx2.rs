@@ -104,17 +104,24 @@ packet_kernel!("avx2,fma", 4, __m256d, __m256d, {
         unsafe { _mm256_storeu_pd(v.as_mut_ptr(), a) };
         v
     }
-    // Always `vgatherdps`: the scalar-load choice (`LOADS`) was measured for AVX-512 only.
+    // `LOADS`: four scalar loads instead of one `vgatherdps` ([`super::scalar_voxel_loads`]).
     #[inline]
     #[target_feature(enable = "avx2,fma")]
     fn gather<const LOADS: bool>(mu: &[f32], index: V) -> V {
+        let index = _mm256_cvtpd_epi32(index);
         // SAFETY: every index is a sum of clamped in-grid voxel indices times strides,
-        // so below mu.len() < 2³¹ (checked by `trace_row`).
+        // so below mu.len() < 2³¹ (checked by `trace_row`); 4 i32 into a local array of
+        // that size.
         unsafe {
-            _mm256_cvtps_pd(_mm_i32gather_ps::<4>(
-                mu.as_ptr(),
-                _mm256_cvtpd_epi32(index),
-            ))
+            let g = if LOADS {
+                let mut idx = [0i32; 4];
+                _mm_storeu_si128(idx.as_mut_ptr().cast(), index);
+                let v = |l: usize| *mu.get_unchecked(idx[l] as usize);
+                _mm_setr_ps(v(0), v(1), v(2), v(3))
+            } else {
+                _mm_i32gather_ps::<4>(mu.as_ptr(), index)
+            };
+            _mm256_cvtps_pd(g)
         }
     }
     // Every lane: a tile of 4 rows × 1 column.

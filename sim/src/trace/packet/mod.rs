@@ -200,7 +200,10 @@ fn dispatch<const PACKED: bool>(
             (Kernel::Avx512, false) => {
                 avx512::trace_row::<PACKED, false>(f, dims, r, min_crossings, k, out, handled)
             }
-            (Kernel::Avx2, _) => {
+            (Kernel::Avx2, true) => {
+                avx2::trace_row::<PACKED, true>(f, dims, r, min_crossings, k, out, handled)
+            }
+            (Kernel::Avx2, false) => {
                 avx2::trace_row::<PACKED, false>(f, dims, r, min_crossings, k, out, handled)
             }
         }
@@ -244,7 +247,10 @@ pub enum Kernel {
     Avx512,
 }
 
-/// The widest kernel this CPU supports, if any.
+/// The widest kernel this CPU supports, if any. `TG_KERNEL=avx2` (on an AVX-512 CPU) or
+/// `TG_KERNEL=none` (the scalar tracer only) narrows the choice, for measuring the kernels
+/// on one machine (read once; a kernel the CPU lacks, or any other value, is ignored). The
+/// results are the same bits with every kernel.
 pub fn kernel() -> Option<Kernel> {
     #[cfg(target_arch = "x86_64")]
     {
@@ -252,10 +258,15 @@ pub fn kernel() -> Option<Kernel> {
         *K.get_or_init(|| {
             let avx2 =
                 std::is_x86_feature_detected!("avx2") && std::is_x86_feature_detected!("fma");
-            if avx2 && std::is_x86_feature_detected!("avx512f") {
+            let widest = if avx2 && std::is_x86_feature_detected!("avx512f") {
                 Some(Kernel::Avx512)
             } else {
                 avx2.then_some(Kernel::Avx2)
+            };
+            match (std::env::var("TG_KERNEL").as_deref(), widest) {
+                (Ok("none"), _) => None,
+                (Ok("avx2"), Some(_)) => Some(Kernel::Avx2),
+                _ => widest,
             }
         })
     }
@@ -265,11 +276,12 @@ pub fn kernel() -> Option<Kernel> {
     }
 }
 
-/// Whether the AVX-512 kernel reads a packet's eight voxel values with eight scalar loads
-/// rather than one `vgatherdps`. Measured on an AMD Zen 4 (EPYC), the loads are faster
-/// (chest-sized AP view, `profile_ap`: docs/projector.md, "Session 10"), so they are the
-/// default on AMD CPUs; elsewhere the gather stays, since the loads were not measured on
-/// other CPUs. `TG_VOXEL_LOADS=scalar` or `=gather` overrides the choice (read once; any
+/// Whether the kernels read a packet's voxel values with scalar loads (eight with
+/// AVX-512, four with AVX2) rather than one `vgatherdps`. Measured on an AMD Zen 4 (EPYC),
+/// the loads are faster with AVX-512 (chest-sized AP view, `profile_ap`: docs/projector.md,
+/// "Session 10"), and on an AVX2-only AMD EPYC with AVX2 (docs/projector.md, "AVX2"), so
+/// they are the default on AMD CPUs; elsewhere the gather stays (docs/projector.md says
+/// what was measured on Intel). `TG_VOXEL_LOADS=scalar` or `=gather` overrides the choice (read once; any
 /// other value keeps the default), for measuring other CPUs; the values read, and so the
 /// results, are the same either way.
 pub fn scalar_voxel_loads() -> bool {
@@ -330,14 +342,21 @@ mod tests {
     use crate::ray::GridBox;
     use rand::{Rng, SeedableRng};
 
-    /// The AVX-512 kernel's two ways of reading voxels give the same bits (both read the
-    /// same f32 values), on random rows of rays through a random grid.
+    /// Each kernel's two ways of reading voxels (a gather, or scalar loads) give the same
+    /// bits (both read the same f32 values), on random rows of rays through a random grid.
     #[test]
     fn scalar_loads_equal_the_gather() {
-        if kernel() != Some(Kernel::Avx512) {
-            eprintln!("no AVX-512 on this CPU: nothing to compare");
+        let kernels = supported();
+        if kernels.is_empty() {
+            eprintln!("no AVX2 on this CPU: nothing to compare");
             return;
         }
+        for kernel in kernels {
+            compare_loads(kernel);
+        }
+    }
+
+    fn compare_loads(kernel: Kernel) {
         let mut r = rand_chacha::ChaCha8Rng::seed_from_u64(40);
         let dims = [37, 29, 23];
         let mu: Vec<f32> = (0..dims.iter().product::<usize>())
@@ -362,23 +381,33 @@ mod tests {
             let n = rays.len();
             let (mut a, mut b) = (vec![0.0; n], vec![0.0; n]);
             let (mut ha, mut hb) = (vec![false; n], vec![false; n]);
-            // SAFETY: AVX-512F was detected above.
+            // SAFETY: the kernel's CPU features were detected (`supported`).
             unsafe {
-                avx512::trace_row::<false, true>(&mu, dims, &rays, 0.0, 1, &mut a, &mut ha);
-                avx512::trace_row::<false, false>(&mu, dims, &rays, 0.0, 1, &mut b, &mut hb);
+                match kernel {
+                    Kernel::Avx512 => {
+                        avx512::trace_row::<false, true>(&mu, dims, &rays, 0.0, 1, &mut a, &mut ha);
+                        avx512::trace_row::<false, false>(
+                            &mu, dims, &rays, 0.0, 1, &mut b, &mut hb,
+                        );
+                    }
+                    Kernel::Avx2 => {
+                        avx2::trace_row::<false, true>(&mu, dims, &rays, 0.0, 1, &mut a, &mut ha);
+                        avx2::trace_row::<false, false>(&mu, dims, &rays, 0.0, 1, &mut b, &mut hb);
+                    }
+                }
             }
-            assert_eq!(ha, hb);
+            assert_eq!(ha, hb, "{kernel:?}");
             for i in 0..n {
                 assert_eq!(
                     a[i].to_bits(),
                     b[i].to_bits(),
-                    "ray {i}: {} vs {}",
+                    "{kernel:?}, ray {i}: {} vs {}",
                     a[i],
                     b[i]
                 );
             }
             traced += ha.iter().filter(|&&h| h).count();
         }
-        assert!(traced > 1000, "only {traced} rays traced");
+        assert!(traced > 1000, "{kernel:?}: only {traced} rays traced");
     }
 }

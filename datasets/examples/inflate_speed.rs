@@ -1,0 +1,72 @@
+//! Inflate speed of a `.nii.gz`: flate2 as this crate builds it (the zlib-rs backend)
+//! against miniz_oxide (flate2's default backend) on the same bytes, interleaved; and the
+//! whole NIfTI read (inflate + voxel conversion) for scale. Not part of the test suite.
+//!
+//! `cargo run --release -p tomograf-datasets --example inflate_speed -- CT.nii.gz [repeats]`
+
+use std::io::Read;
+use std::time::Instant;
+
+fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(f64::total_cmp);
+    v[v.len() / 2]
+}
+
+fn main() {
+    let path = std::env::args()
+        .nth(1)
+        .expect("usage: inflate_speed CT.nii.gz [repeats]");
+    let repeats: usize = std::env::args()
+        .nth(2)
+        .map_or(7, |s| s.parse().expect("repeats: a number"));
+    let gz = std::fs::read(&path).expect("readable file");
+    // The raw deflate stream: after the 10-byte gzip header (and the optional fields the
+    // FLG byte announces), before the 8-byte trailer.
+    let flg = gz[3];
+    let mut at = 10;
+    if flg & 4 != 0 {
+        at += 2 + u16::from_le_bytes([gz[at], gz[at + 1]]) as usize;
+    }
+    for bit in [8u8, 16] {
+        if flg & bit != 0 {
+            at += gz[at..].iter().position(|&b| b == 0).expect("terminated") + 1;
+        }
+    }
+    if flg & 2 != 0 {
+        at += 2;
+    }
+    let raw = &gz[at..gz.len() - 8];
+    let (mut a, mut b, mut c) = (Vec::new(), Vec::new(), Vec::new());
+    let mut size = 0;
+    for _ in 0..repeats.max(1) {
+        let t = Instant::now();
+        let mut out = Vec::new();
+        flate2::read::MultiGzDecoder::new(&gz[..])
+            .read_to_end(&mut out)
+            .expect("inflates");
+        a.push(t.elapsed().as_secs_f64());
+        size = out.len();
+        let t = Instant::now();
+        let out2 = miniz_oxide::inflate::decompress_to_vec(raw).expect("inflates");
+        b.push(t.elapsed().as_secs_f64());
+        assert_eq!(out2.len(), size, "both inflate the same bytes");
+        let t = Instant::now();
+        let v = tomograf_datasets::nifti::read_nifti(std::path::Path::new(&path)).expect("reads");
+        c.push(t.elapsed().as_secs_f64());
+        std::hint::black_box(v);
+    }
+    let (a, b, c) = (median(a), median(b), median(c));
+    println!(
+        "{path}: {:.1} MB compressed, {:.1} MB inflated; median of {repeats}:\n\
+         flate2 (zlib-rs) {:.0} ms ({:.0} MB/s) | miniz_oxide {:.0} ms ({:.0} MB/s) | ratio {:.2}\n\
+         whole NIfTI read (inflate + conversion to f32): {:.0} ms",
+        gz.len() as f64 / 1e6,
+        size as f64 / 1e6,
+        a * 1e3,
+        size as f64 / 1e6 / a,
+        b * 1e3,
+        size as f64 / 1e6 / b,
+        b / a,
+        c * 1e3
+    );
+}
