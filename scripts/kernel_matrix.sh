@@ -8,7 +8,7 @@ E=${E:-target/release/examples/profile_ap}
 B=${B:-target/release/tomograf}
 CT=$1
 lscpu | grep -E "Model name|^CPU\(s\)"
-for theta in 0 30; do
+for theta in 0 30 90; do
   for round in 1 2 3; do
     for cfg in "avx512 gather" "avx512 scalar" "avx2 gather" "avx2 scalar" "none gather"; do
       set -- $cfg

@@ -9,32 +9,13 @@
 
 use anyhow::{Context, Result, ensure};
 use std::fmt::Write as _;
-use std::path::Path;
 use std::time::Instant;
 use tomograf_model::config::TrainConfig;
 use tomograf_model::data::Item;
-use tomograf_model::reconstruct::{Reference, reconstruct};
-use tomograf_model::{backend, checkpoint, data};
+use tomograf_model::reconstruct::reconstruct;
+use tomograf_model::{backend, checkpoint};
 
-use crate::bench_model::{median, tempfile_dir, trainer};
-
-/// A `lidc` data set of `phantoms` items, `size`³, in `dir`.
-fn phantoms(dir: &Path, phantoms: usize, size: usize, views: usize) -> Result<Vec<Item>> {
-    let cli = crate::demo::dataset_args(&[
-        "-o",
-        dir.to_str().context("temporary path")?,
-        "--phantoms",
-        &phantoms.to_string(),
-        "--size",
-        &size.to_string(),
-        "--views",
-        &views.to_string(),
-        "--profile",
-        "lidc",
-    ])?;
-    crate::dataset::run(cli)?;
-    Ok(data::load_dataset(dir, None)?)
-}
+use crate::bench_model::{self, median, phantoms, tempfile_dir, trainer};
 
 /// Seconds per step of `config` on each device, `steps` steps per measurement, `repeats`
 /// interleaved measurements (median), after one warm-up step each.
@@ -98,14 +79,7 @@ pub fn section(quick: bool, repeats: usize, name: &str) -> Result<String> {
     }
     // The same 1-view reconstruction on both.
     let item = &items[0];
-    let ap = item
-        .find_pose(tomograf_sim::Pose::AP)
-        .context("the bench data set has no AP view")?;
-    let refs = vec![Reference {
-        view: item.views[ap],
-        pose: item.poses[ap],
-        image: item.projection(ap).to_vec(),
-    }];
+    let refs = vec![bench_model::ap_reference(item)?];
     let truth = item.ct.as_ref().context("bench item has no CT")?;
     let mut rec_s: [Vec<f64>; 2] = [Vec::new(), Vec::new()];
     let mut recs = Vec::new();

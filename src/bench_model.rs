@@ -10,6 +10,7 @@
 
 use anyhow::{Context, Result};
 use std::fmt::Write as _;
+use std::path::Path;
 use std::time::Instant;
 use tomograf_model::baseline::{Baseline, MeanVolume, SartTv};
 use tomograf_model::config::TrainConfig;
@@ -52,21 +53,8 @@ pub(crate) fn trainer(
 pub fn section(quick: bool, repeats: usize) -> Result<String> {
     let tmp = tempfile_dir()?;
     let size = if quick { 16 } else { 64 };
-    let views = if quick { "10" } else { "36" };
-    let cli = crate::demo::dataset_args(&[
-        "-o",
-        tmp.to_str().context("temporary path")?,
-        "--phantoms",
-        "8",
-        "--size",
-        &size.to_string(),
-        "--views",
-        views,
-        "--profile",
-        "lidc",
-    ])?;
-    crate::dataset::run(cli)?;
-    let items = data::load_dataset(&tmp, None)?;
+    let views = if quick { 10 } else { 36 };
+    let items = phantoms(&tmp, 8, size, views)?;
     let device = backend::device(backend::default_name())?;
     // `--quick`: `tiny` against `tiny` trained as the paper does (random codes, hinge only).
     let (ca, cb) = if quick {
@@ -102,14 +90,7 @@ pub fn section(quick: bool, repeats: usize) -> Result<String> {
     let ck = tmp.join("checkpoint");
     checkpoint::save(&ta, items[0].scale, &ck)?;
     let item = &items[0];
-    let ap = item
-        .find_pose(tomograf_sim::Pose::AP)
-        .context("the bench data set has no AP view")?;
-    let refs = vec![Reference {
-        view: item.views[ap],
-        pose: item.poses[ap],
-        image: item.projection(ap).to_vec(),
-    }];
+    let refs = vec![ap_reference(item)?];
     let grid = item.ct.as_ref().context("bench item has no CT")?;
     let (mut ia, mut ib, mut iters) = (Vec::new(), Vec::new(), 0);
     let sart = SartTv::FROM_ZERO;
@@ -145,6 +126,41 @@ pub fn section(quick: bool, repeats: usize) -> Result<String> {
         mi / ms
     )?;
     Ok(md)
+}
+
+/// The AP view of a bench item, as a 1-view reconstruction's reference.
+pub(crate) fn ap_reference(item: &Item) -> Result<Reference> {
+    let ap = item
+        .find_pose(tomograf_sim::Pose::AP)
+        .context("the bench data set has no AP view")?;
+    Ok(Reference {
+        view: item.views[ap],
+        pose: item.poses[ap],
+        image: item.projection(ap).to_vec(),
+    })
+}
+
+/// A `lidc` data set of `phantoms` items, `size`³ with `views` views, made in `dir`.
+pub(crate) fn phantoms(
+    dir: &Path,
+    phantoms: usize,
+    size: usize,
+    views: usize,
+) -> Result<Vec<Item>> {
+    let cli = crate::demo::dataset_args(&[
+        "-o",
+        dir.to_str().context("temporary path")?,
+        "--phantoms",
+        &phantoms.to_string(),
+        "--size",
+        &size.to_string(),
+        "--views",
+        &views.to_string(),
+        "--profile",
+        "lidc",
+    ])?;
+    crate::dataset::run(cli)?;
+    Ok(data::load_dataset(dir, None)?)
 }
 
 pub(crate) fn tempfile_dir() -> Result<std::path::PathBuf> {
