@@ -25,11 +25,16 @@ def exit_voxel_contribution(mu, spacing, iso, sad, sid, n, pitch, row, col):
         t1, t2 = (0 - g0[a]) / gd[a], (dims[a] - g0[a]) / gd[a]
         lo, hi = max(lo, min(t1, t2)), min(hi, max(t1, t2))
         ts += list((np.arange(int(dims[a]) + 1) - g0[a]) / gd[a])
-    ts = np.array(sorted(t for t in ts if lo <= t <= hi))
+    # Distinct crossings: a ray leaving through an edge or corner crosses two planes at
+    # (nearly) the same t; merged, so that no rounding-sized last segment stands in for
+    # the exit voxel.
+    ts = np.sort(np.array([t for t in ts if lo <= t <= hi]))
+    if len(ts) > 1:
+        ts = ts[np.concatenate(([True], np.diff(ts) > 1e-12))]
     if len(ts) < 2:
         return 0.0
     a, b = ts[-2], ts[-1]
     mid = g0 + 0.5 * (a + b) * gd
-    i, j, k = np.floor(mid).astype(int)
+    i, j, k = np.clip(np.floor(mid).astype(int), 0, dims.astype(int) - 1)
     length = (b - a) * np.linalg.norm(px - src)
     return float(mu[i, j, k]) * length

@@ -21,6 +21,7 @@
 //! would need NIfTI-2) cannot be written.
 
 mod affine;
+mod inflate;
 
 use crate::atomic::write_atomic_to_path;
 use crate::error::{DatasetError, Result};
@@ -69,11 +70,24 @@ pub fn read_nifti(path: &Path) -> Result<Volume> {
         .fill_buf()
         .map_err(|e| DatasetError::io(path, "reading", e))?;
     let gz = head.starts_with(&[0x1f, 0x8b]);
-    // Multi-member aware (the crate's own reader decodes only the first gzip member).
-    let mut reader: Box<dyn Read> = if gz {
-        Box::new(MultiGzDecoder::new(buffered))
-    } else {
-        Box::new(buffered)
+    // A .nii.gz is read whole and, where its size is known, inflated in one go (`inflated`:
+    // header, extensions and voxels); otherwise streamed.
+    let (mut compressed, mut inflated) = (Vec::new(), None);
+    if gz {
+        compressed.reserve(file_len.map_or(0, |n| n as usize));
+        buffered
+            .read_to_end(&mut compressed)
+            .map_err(|e| DatasetError::io(path, "reading", e))?;
+        inflated = expected_size(&compressed, path).and_then(|n| inflate::whole(&compressed, n));
+        if inflated.is_some() {
+            compressed = Vec::new();
+        }
+    }
+    let mut reader: Box<dyn Read + '_> = match (&inflated, gz) {
+        (Some(bytes), _) => Box::new(&bytes[..]),
+        // Multi-member aware (the crate's own reader decodes only the first gzip member).
+        (None, true) => Box::new(MultiGzDecoder::new(&compressed[..])),
+        (None, false) => Box::new(buffered),
     };
 
     let mut h = read_header(&mut reader, path)?;
@@ -122,34 +136,61 @@ pub fn read_nifti(path: &Path) -> Result<Volume> {
     if !h.scl_inter.is_finite() {
         h.scl_inter = 0.0;
     }
-    let voxels =
-        InMemNiftiVolume::from_reader(&mut reader, &h).map_err(|e| voxel_error(path, e))?;
-    if gz {
-        // Decode to the end so that the gzip trailer (CRC-32 and length) is verified.
-        io::copy(&mut reader, &mut io::sink()).map_err(|e| read_error(path, e))?;
-    }
-    let data = match decode_parallel(
-        voxels.raw_data(),
-        dtype,
-        h.endianness,
-        h.scl_slope,
-        h.scl_inter,
-    ) {
+    // Inflated whole: the voxels are decoded where they lie (no copy).
+    let raw = inflated
+        .as_deref()
+        .and_then(|all| all.get(offset as usize..(offset + nbytes) as usize));
+    let direct =
+        raw.and_then(|raw| decode_parallel(raw, dtype, h.endianness, h.scl_slope, h.scl_inter));
+    let data = match direct {
         Some(data) if data.len() == count => data,
         _ => {
-            let array = voxels.into_ndarray::<f32>().map_err(|e| {
-                DatasetError::unsupported(
-                    path,
-                    format!("voxel type {dtype:?} cannot be decoded: {e}"),
-                )
-            })?;
-            i_fastest(array, dims).map_err(|e| DatasetError::corrupt(path, e))?
+            let voxels =
+                InMemNiftiVolume::from_reader(&mut reader, &h).map_err(|e| voxel_error(path, e))?;
+            if gz {
+                // Decode to the end so that the gzip trailer (CRC-32 and length) is verified.
+                io::copy(&mut reader, &mut io::sink()).map_err(|e| read_error(path, e))?;
+            }
+            match decode_parallel(
+                voxels.raw_data(),
+                dtype,
+                h.endianness,
+                h.scl_slope,
+                h.scl_inter,
+            ) {
+                Some(data) if data.len() == count => data,
+                _ => {
+                    let array = voxels.into_ndarray::<f32>().map_err(|e| {
+                        DatasetError::unsupported(
+                            path,
+                            format!("voxel type {dtype:?} cannot be decoded: {e}"),
+                        )
+                    })?;
+                    i_fastest(array, dims).map_err(|e| DatasetError::corrupt(path, e))?
+                }
+            }
         }
     };
+    drop(reader);
+    drop(inflated);
     Volume::new(dims, spacing, origin, direction, data).map_err(|source| DatasetError::Volume {
         path: path.to_owned(),
         source,
     })
+}
+
+/// The uncompressed size of a `.nii.gz` (header, extensions and voxels) as its header
+/// states it, inflating only the header; `None` where the header is not valid (the
+/// streaming read then reports why).
+fn expected_size(gz: &[u8], path: &Path) -> Option<u64> {
+    let h = read_header(&mut MultiGzDecoder::new(gz), path).ok()?;
+    let dims = volume_dims(&h, path).ok()?;
+    let dtype = voxel_type(&h, path).ok()?;
+    let offset = data_offset(&h, path).ok()?;
+    let count = dims
+        .iter()
+        .try_fold(1u64, |n, &d| n.checked_mul(d as u64))?;
+    offset.checked_add(count.checked_mul(dtype.size_of() as u64)?)
 }
 
 /// Reads the 348-byte header and parses it with the crate, with precise errors for empty,
@@ -561,88 +602,4 @@ fn header_for(volume: &Volume) -> NiftiHeader {
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-    use ndarray::{Array, IxDyn};
-
-    /// Whatever the memory order of the decoded array, voxels come out `i` fastest.
-    #[test]
-    fn parallel_decoding_equals_the_crates_bit_for_bit() {
-        use nifti::NiftiType;
-        // 3 × 5 × 20001 voxels: several of the parallel blocks, and a partial last one.
-        let dims = [3usize, 5, 20001];
-        let n: usize = dims.iter().product();
-        let mut state = 12345u64;
-        let mut bytes = vec![0u8; n * 4];
-        for b in bytes.iter_mut() {
-            state = state
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            *b = (state >> 33) as u8;
-        }
-        for dtype in [NiftiType::Int16, NiftiType::Uint16, NiftiType::Float32] {
-            let size = dtype.size_of();
-            for endianness in [Endianness::Little, Endianness::Big] {
-                let mut raw = bytes[..n * size].to_vec();
-                if dtype == NiftiType::Float32 {
-                    // Finite values only: clear the exponent's top bit (its byte by order).
-                    let top = if endianness == Endianness::Little {
-                        3
-                    } else {
-                        0
-                    };
-                    for c in raw.chunks_exact_mut(4) {
-                        c[top] &= 0x3f;
-                    }
-                }
-                for (slope, inter) in [(0.0f32, 0.0f32), (1.0, -1024.0), (0.37, 12.5)] {
-                    let fast = decode_parallel(&raw, dtype, endianness, slope, inter).unwrap();
-                    let h = NiftiHeader {
-                        dim: [3, 3, 5, 20001, 1, 1, 1, 1],
-                        datatype: dtype as i16,
-                        bitpix: (size * 8) as i16,
-                        scl_slope: slope,
-                        scl_inter: inter,
-                        endianness,
-                        ..NiftiHeader::default()
-                    };
-                    let array = InMemNiftiVolume::from_reader(&raw[..], &h)
-                        .unwrap()
-                        .into_ndarray::<f32>()
-                        .unwrap();
-                    let slow = i_fastest(array, dims).unwrap();
-                    assert_eq!(fast.len(), slow.len());
-                    for (i, (a, b)) in fast.iter().zip(&slow).enumerate() {
-                        assert_eq!(
-                            a.to_bits(),
-                            b.to_bits(),
-                            "{dtype:?} {endianness:?} slope {slope}: voxel {i}"
-                        );
-                    }
-                }
-            }
-        }
-        assert!(
-            decode_parallel(&bytes, NiftiType::Float64, Endianness::Little, 0.0, 0.0).is_none()
-        );
-    }
-
-    #[test]
-    fn i_fastest_follows_logical_indices_not_memory_order() {
-        let dims = [3, 2, 4];
-        let value = |i: usize, j: usize, k: usize| (100 * i + 10 * j + k) as f32;
-        let want: Vec<f32> = (0..4)
-            .flat_map(|k| (0..2).flat_map(move |j| (0..3).map(move |i| value(i, j, k))))
-            .collect();
-        let fortran = Array::from_shape_fn(IxDyn(&dims).f(), |ix| value(ix[0], ix[1], ix[2]));
-        let c_order = Array::from_shape_fn(IxDyn(&dims), |ix| value(ix[0], ix[1], ix[2]));
-        let four = Array::from_shape_fn(IxDyn(&[3, 2, 4, 1]), |ix| value(ix[0], ix[1], ix[2]));
-        for array in [fortran, c_order, four] {
-            assert_eq!(i_fastest(array, dims).unwrap(), want);
-        }
-        let two = Array::from_shape_fn(IxDyn(&[3, 2]).f(), |ix| value(ix[0], ix[1], 0));
-        assert_eq!(i_fastest(two, [3, 2, 1]).unwrap(), want[..6]);
-        let wrong = Array::zeros(IxDyn(&[3, 2, 4]));
-        assert!(i_fastest(wrong, [3, 4, 2]).unwrap_err().contains("shape"));
-    }
-}
+mod tests;

@@ -1,0 +1,126 @@
+//! Unit tests of the NIfTI reader's private parts (decoding, layout, inflate paths).
+
+use super::*;
+use ndarray::{Array, IxDyn};
+
+/// Whatever the memory order of the decoded array, voxels come out `i` fastest.
+#[test]
+fn parallel_decoding_equals_the_crates_bit_for_bit() {
+    use nifti::NiftiType;
+    // 3 × 5 × 20001 voxels: several of the parallel blocks, and a partial last one.
+    let dims = [3usize, 5, 20001];
+    let n: usize = dims.iter().product();
+    let mut state = 12345u64;
+    let mut bytes = vec![0u8; n * 4];
+    for b in bytes.iter_mut() {
+        state = state
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        *b = (state >> 33) as u8;
+    }
+    for dtype in [NiftiType::Int16, NiftiType::Uint16, NiftiType::Float32] {
+        let size = dtype.size_of();
+        for endianness in [Endianness::Little, Endianness::Big] {
+            let mut raw = bytes[..n * size].to_vec();
+            if dtype == NiftiType::Float32 {
+                // Finite values only: clear the exponent's top bit (its byte by order).
+                let top = if endianness == Endianness::Little {
+                    3
+                } else {
+                    0
+                };
+                for c in raw.chunks_exact_mut(4) {
+                    c[top] &= 0x3f;
+                }
+            }
+            for (slope, inter) in [(0.0f32, 0.0f32), (1.0, -1024.0), (0.37, 12.5)] {
+                let fast = decode_parallel(&raw, dtype, endianness, slope, inter).unwrap();
+                let h = NiftiHeader {
+                    dim: [3, 3, 5, 20001, 1, 1, 1, 1],
+                    datatype: dtype as i16,
+                    bitpix: (size * 8) as i16,
+                    scl_slope: slope,
+                    scl_inter: inter,
+                    endianness,
+                    ..NiftiHeader::default()
+                };
+                let array = InMemNiftiVolume::from_reader(&raw[..], &h)
+                    .unwrap()
+                    .into_ndarray::<f32>()
+                    .unwrap();
+                let slow = i_fastest(array, dims).unwrap();
+                assert_eq!(fast.len(), slow.len());
+                for (i, (a, b)) in fast.iter().zip(&slow).enumerate() {
+                    assert_eq!(
+                        a.to_bits(),
+                        b.to_bits(),
+                        "{dtype:?} {endianness:?} slope {slope}: voxel {i}"
+                    );
+                }
+            }
+        }
+    }
+    assert!(decode_parallel(&bytes, NiftiType::Float64, Endianness::Little, 0.0, 0.0).is_none());
+}
+
+#[test]
+fn i_fastest_follows_logical_indices_not_memory_order() {
+    let dims = [3, 2, 4];
+    let value = |i: usize, j: usize, k: usize| (100 * i + 10 * j + k) as f32;
+    let want: Vec<f32> = (0..4)
+        .flat_map(|k| (0..2).flat_map(move |j| (0..3).map(move |i| value(i, j, k))))
+        .collect();
+    let fortran = Array::from_shape_fn(IxDyn(&dims).f(), |ix| value(ix[0], ix[1], ix[2]));
+    let c_order = Array::from_shape_fn(IxDyn(&dims), |ix| value(ix[0], ix[1], ix[2]));
+    let four = Array::from_shape_fn(IxDyn(&[3, 2, 4, 1]), |ix| value(ix[0], ix[1], ix[2]));
+    for array in [fortran, c_order, four] {
+        assert_eq!(i_fastest(array, dims).unwrap(), want);
+    }
+    let two = Array::from_shape_fn(IxDyn(&[3, 2]).f(), |ix| value(ix[0], ix[1], 0));
+    assert_eq!(i_fastest(two, [3, 2, 1]).unwrap(), want[..6]);
+    let wrong = Array::zeros(IxDyn(&[3, 2, 4]));
+    assert!(i_fastest(wrong, [3, 4, 2]).unwrap_err().contains("shape"));
+}
+
+/// A single-member `.nii.gz` whose header and trailer agree on its size is inflated whole
+/// (libdeflate) and reads as the plain file does, extension bytes before the voxels
+/// included; the size is the header's, not a guess.
+#[test]
+fn a_single_member_nii_gz_is_inflated_whole_and_reads_as_the_plain_file() {
+    use flate2::write::GzEncoder;
+    use std::io::Write;
+    let dir = tempfile::tempdir().unwrap();
+    let dims = [7, 5, 3];
+    let data: Vec<f32> = (0..105).map(|i| i as f32 * 3.25 - 100.0).collect();
+    let v = Volume::new(
+        dims,
+        DVec3::new(0.7, 0.8, 2.5),
+        DVec3::new(-10.0, 4.0, 2.0),
+        DMat3::IDENTITY,
+        data,
+    )
+    .unwrap();
+    let plain = dir.path().join("v.nii");
+    write_nifti(&plain, &v).unwrap();
+    // The same file with a 16-byte extension before the voxels (vox_offset 368).
+    let mut bytes = std::fs::read(&plain).unwrap();
+    bytes[108..112].copy_from_slice(&368f32.to_le_bytes());
+    bytes[348] = 1;
+    let extension = [16i32.to_le_bytes(), 0i32.to_le_bytes(), [7; 4], [9; 4]].concat();
+    bytes.splice(352..352, extension);
+    std::fs::write(&plain, &bytes).unwrap();
+    let mut e = GzEncoder::new(Vec::new(), flate2::Compression::default());
+    e.write_all(&bytes).unwrap();
+    let gz = e.finish().unwrap();
+    let packed = dir.path().join("v.nii.gz");
+    std::fs::write(&packed, &gz).unwrap();
+
+    assert_eq!(expected_size(&gz, &packed), Some(bytes.len() as u64));
+    assert_eq!(
+        inflate::whole(&gz, bytes.len() as u64).as_deref(),
+        Some(&bytes[..])
+    );
+    let from_plain = read_nifti(&plain).unwrap();
+    assert_eq!(from_plain.data(), v.data());
+    assert_eq!(read_nifti(&packed).unwrap(), from_plain);
+}
