@@ -12,16 +12,16 @@
 //! renamed, so a killed run leaves no half-written file. `--shard i/n` takes items
 //! `i, i+n, i+2n, …`; items are independent, so shards produce the same bytes as one run.
 
-use crate::output::write_json;
 use crate::physics::{self, PhysicsArgs};
 use crate::project::load_volume_file;
 use anyhow::{Context, Result, bail};
 use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
-use serde::{Deserialize, Serialize};
+use serde::Serialize;
 use sha2::{Digest, Sha256};
 use std::path::{Path, PathBuf};
 use tomograf_datasets::anatomy::{self, AnatomySpec, Profile};
+use tomograf_datasets::item::{self, AcquisitionRecord, ItemRecord};
 use tomograf_datasets::preprocess::{HuWindow, crop_black_border, resample};
 use tomograf_datasets::{atomic, image, nifti};
 use tomograf_sim::attenuation::Attenuation;
@@ -89,26 +89,6 @@ pub struct DatasetArgs {
 enum Source {
     File { path: PathBuf },
     Phantom { spec: AnatomySpec },
-}
-
-/// The record `item.json` holds and `manifest.jsonl` lists.
-#[derive(Debug, Serialize, Deserialize)]
-struct ItemRecord {
-    index: usize,
-    id: String,
-    split: String,
-    source: serde_json::Value,
-    source_sha256: String,
-    hu_window: HuWindow,
-    energy_kev: f64,
-    ct: String,
-    ct_dims: [usize; 3],
-    projections: String,
-    projection_quantity: String,
-    #[serde(default)]
-    acquisition: serde_json::Value,
-    views: String,
-    angles_deg: Vec<[f64; 2]>,
 }
 
 /// Inputs expanded: files as given; a folder with DICOM files is one series, any other
@@ -224,7 +204,7 @@ pub fn run(args: DatasetArgs) -> Result<()> {
         bar.inc(1);
     }
     bar.finish_and_clear();
-    let listed = write_manifest(&args.output, sources.len())?;
+    let listed = item::write_manifest(&args.output, sources.len())?;
     eprintln!(
         "{made} item(s) made, {skipped} already finished (shard {shard}/{shards}); manifest lists {listed} of {} item(s): {}",
         sources.len(),
@@ -235,10 +215,7 @@ pub fn run(args: DatasetArgs) -> Result<()> {
 
 /// An item is finished when its `item.json` exists and parses (it is written last).
 fn finished(dir: &Path) -> bool {
-    std::fs::read(dir.join("item.json"))
-        .ok()
-        .and_then(|b| serde_json::from_slice::<ItemRecord>(&b).ok())
-        .is_some()
+    item::finished_record(dir).is_some()
 }
 
 fn make_item(
@@ -312,13 +289,7 @@ fn make_item(
         &stack,
         &[views.len(), args.size, args.size],
     )?;
-    let views_json = serde_json::json!({
-        "conventions": "World frame DICOM LPS, mm. Pixel (r, c) centre = detector_origin + c*u + r*v; cone rays run from source to pixel centre.",
-        "geometry": geometry,
-        "poses": poses,
-        "views": views,
-    });
-    write_json(&dir.join("views.json"), &views_json)?;
+    item::write_views(dir, &geometry, &poses, &views)?;
     let record = ItemRecord {
         index,
         id: format!("{index:05}"),
@@ -333,29 +304,16 @@ fn make_item(
         projection_quantity: quantity,
         acquisition: acquisition
             .as_ref()
-            .map(|(a, s)| serde_json::json!({"settings": a, "noise_seed": s}))
+            .map(|(a, s)| {
+                AcquisitionRecord {
+                    settings: a.clone(),
+                    noise_seed: *s,
+                }
+                .to_json()
+            })
             .unwrap_or(serde_json::Value::Null),
         views: "views.json".into(),
         angles_deg: poses.iter().map(|p| [p.theta_deg, p.phi_deg]).collect(),
     };
-    write_json(&dir.join("item.json"), &serde_json::to_value(&record)?)
-}
-
-/// Rewrites `manifest.jsonl` from the finished items, in item order; returns their count.
-fn write_manifest(out: &Path, items: usize) -> Result<usize> {
-    let mut lines = String::new();
-    let mut n = 0;
-    for index in 0..items {
-        let Ok(bytes) = std::fs::read(out.join(format!("{index:05}")).join("item.json")) else {
-            continue;
-        };
-        let record: ItemRecord = serde_json::from_slice(&bytes)?;
-        lines += &serde_json::to_string(&record)?;
-        lines.push('\n');
-        n += 1;
-    }
-    atomic::write_atomic(&out.join("manifest.jsonl"), |w| {
-        std::io::Write::write_all(w, lines.as_bytes())
-    })?;
-    Ok(n)
+    Ok(item::write_record(dir, &record)?)
 }

@@ -21,6 +21,7 @@ pub mod atomic;
 pub mod dicom;
 pub mod error;
 pub mod image;
+pub mod item;
 pub mod nifti;
 pub mod preprocess;
 

@@ -515,3 +515,29 @@ fn write_then_read_round_trips_geometry_and_whole_hu() {
     }
     assert!(write_dicom_series(dir.path(), &vol, "not a uid").is_err());
 }
+
+/// Slices are parsed and decoded in parallel; with several bad slices the error names the
+/// first in file order (headers) or slice order (pixels), whatever the thread count.
+#[test]
+fn the_first_bad_slice_is_reported_whatever_the_thread_count() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut specs = series_specs(1.0, uids::EXPLICIT_VR_LITTLE_ENDIAN);
+    specs[2].stored.truncate(12);
+    specs[4].stored.truncate(8);
+    write_series(dir.path(), &specs);
+    let message = |threads: usize| {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap();
+        pool.install(|| error_of(dir.path()).1)
+    };
+    let one = message(1);
+    assert!(
+        one.contains(&file_of(2)) && one.contains("PixelData holds 24 bytes"),
+        "{one}"
+    );
+    for threads in [2, 4, 7] {
+        assert_eq!(message(threads), one, "{threads} threads");
+    }
+}

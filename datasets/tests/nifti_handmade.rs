@@ -435,3 +435,19 @@ fn truncated_garbage_and_empty_files() {
         "{msg}"
     );
 }
+
+/// A `.nii.gz` whose header asks for more voxel bytes than its compressed size can hold
+/// (deflate expands at most 1032:1) is refused as truncated before anything that size is
+/// allocated (found by fuzzing: a 844-byte file asked for 3.5 GB).
+#[test]
+fn gzip_too_small_for_its_header_is_refused_before_allocation() {
+    // 2000 × 2000 × 400 int16: 3.2 GB of voxels, behind a header of a few hundred bytes.
+    let s = Spec::new([2000, 2000, 400], 4, 16);
+    let mut gz = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::default());
+    gz.write_all(&s.bytes(false, &[0u8; 64])).unwrap();
+    let msg = read_err("huge.nii.gz", &gz.finish().unwrap());
+    assert!(
+        msg.contains("truncated") && msg.contains("deflate expands at most 1032:1"),
+        "{msg}"
+    );
+}

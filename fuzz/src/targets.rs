@@ -86,6 +86,40 @@ pub fn spectrum(data: &[u8]) {
     let _ = tomograf_sim::spectrum::Spectrum::from_file(&p);
 }
 
+/// The marker that cuts an `item` input into the files of a data-set item.
+pub const FILE_MARKER: &[u8] = b"--file--";
+
+/// A data-set item and its manifest (`tomograf_datasets::item`): the input is cut at each
+/// [`FILE_MARKER`] into `manifest.jsonl`, `00000/item.json`, `00000/views.json` and
+/// `00000/projections.npy` (in that order; missing parts are missing files); the manifest
+/// and the item are read. (The item's CT is NIfTI: its own target.)
+pub fn item(data: &[u8]) {
+    let dir = scratch().join("dataset");
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(dir.join("00000")).expect("item folder");
+    let names = [
+        "manifest.jsonl",
+        "00000/item.json",
+        "00000/views.json",
+        "00000/projections.npy",
+    ];
+    let mut rest = data;
+    for name in names {
+        let cut = rest
+            .windows(FILE_MARKER.len())
+            .position(|w| w == FILE_MARKER);
+        let part = &rest[..cut.unwrap_or(rest.len())];
+        std::fs::write(dir.join(name), part).expect("item file");
+        match cut {
+            Some(k) => rest = &rest[k + FILE_MARKER.len()..],
+            None => break,
+        }
+    }
+    let _ = tomograf_datasets::item::read_manifest(&dir, None);
+    let _ = tomograf_datasets::item::read_manifest(&dir, Some("test"));
+    let _ = tomograf_datasets::item::read_item(&dir.join("00000"));
+}
+
 /// A target's body: parse one input.
 pub type Target = fn(&[u8]);
 
@@ -97,4 +131,5 @@ pub const TARGETS: &[(&str, Target)] = &[
     ("mesh_ply", |d| mesh("ply", d)),
     ("mesh_stl", |d| mesh("stl", d)),
     ("spectrum", spectrum),
+    ("item", item),
 ];

@@ -1,11 +1,11 @@
-//! Reading a data set made by `tomograf dataset`: `manifest.jsonl`, and per item
-//! `item.json`, `views.json` (geometry), `projections.npy` (line integrals, views × rows ×
-//! cols) and `ct.nii.gz` (the CT normalised to [0, 1] over the item's HU window).
+//! A data set made by `tomograf dataset`, as the model uses it: each item's files (read and
+//! checked by [`tomograf_datasets::item`], the format's one definition) with the density
+//! scale of its HU window.
 
 use crate::error::{ModelError, Result, ensure};
 use crate::render::DensityScale;
-use serde::Deserialize;
 use std::path::{Path, PathBuf};
+use tomograf_datasets::item;
 use tomograf_datasets::preprocess::HuWindow;
 use tomograf_sim::acquisition::Acquisition;
 use tomograf_sim::attenuation::mu_water_per_mm;
@@ -60,141 +60,47 @@ impl Item {
     }
 }
 
-#[derive(Deserialize)]
-struct ItemJson {
-    id: String,
-    hu_window: HuWindow,
-    energy_kev: f64,
-    ct: String,
-    projections: String,
-    views: String,
-    #[serde(default)]
-    acquisition: Option<AcquisitionJson>,
-}
-
-/// `item.json`'s `acquisition`: the settings and the noise seed.
-#[derive(Deserialize)]
-struct AcquisitionJson {
-    settings: Acquisition,
-}
-
-#[derive(Deserialize)]
-struct ViewsJson {
-    geometry: Option<Geometry>,
-    poses: Option<Vec<Pose>>,
-    views: Option<Vec<View>>,
-}
-
-fn read(path: &Path) -> Result<Vec<u8>> {
-    std::fs::read(path).map_err(|e| ModelError::file(path, e))
-}
-
-/// Loads one item folder.
+/// Loads one item folder (the format: [`tomograf_datasets::item`]).
 pub fn load_item(dir: &Path) -> Result<Item> {
-    let ij = dir.join("item.json");
-    let item: ItemJson =
-        serde_json::from_slice(&read(&ij)?).map_err(|e| ModelError::file(&ij, e))?;
-    let vp = dir.join(&item.views);
-    let vj: ViewsJson =
-        serde_json::from_slice(&read(&vp)?).map_err(|e| ModelError::file(&vp, e))?;
-    let (Some(geometry), Some(poses), Some(views)) = (vj.geometry, vj.poses, vj.views) else {
-        return Err(ModelError::file(
-            &vp,
-            "geometry missing: views.json needs 'geometry', 'poses' and 'views'",
-        ));
-    };
-    geometry.validate()?;
-    let pp = dir.join(&item.projections);
-    let bytes = read(&pp)?;
-    let npy = npyz::NpyFile::new(&bytes[..]).map_err(|e| ModelError::file(&pp, e))?;
-    let shape: Vec<u64> = npy.shape().to_vec();
-    let projections: Vec<f32> = npy.into_vec().map_err(|e| ModelError::file(&pp, e))?;
-    let [nv, rows, cols] = shape[..] else {
-        return Err(ModelError::file(
-            &pp,
-            format!("expected views × rows × cols, found shape {shape:?}"),
-        ));
-    };
-    let (nv, rows, cols) = (nv as usize, rows as usize, cols as usize);
-    ensure!(nv > 0, "{}: no projections (view count 0)", pp.display());
-    ensure!(
-        views.len() == nv && poses.len() == nv,
-        "{}: {} projections but {} views and {} poses in {}",
-        pp.display(),
-        nv,
-        views.len(),
-        poses.len(),
-        vp.display()
-    );
-    for v in &views {
-        v.validate()?;
-        ensure!(
-            v.rows == rows && v.cols == cols,
-            "{}: projections are {rows}×{cols} but a view's detector is {}×{}",
-            dir.display(),
-            v.rows,
-            v.cols
-        );
-    }
-    if let Some(i) = projections.iter().position(|x| !x.is_finite()) {
-        return Err(ModelError::file(&pp, format!("value {i} is not finite")));
-    }
-    let cp = dir.join(&item.ct);
-    let ct = if cp.exists() {
-        Some(tomograf_datasets::nifti::read_nifti(&cp).map_err(|e| ModelError::file(&cp, e))?)
-    } else {
-        None
-    };
-    let mu_w = mu_water_per_mm(item.energy_kev)?;
+    let files = item::read_item(dir)?;
+    let record = &files.record;
+    let acquisition = record
+        .acquisition()
+        .map_err(|e| ModelError::file(&dir.join(item::ITEM_JSON), e))?
+        .map(|a| a.settings);
+    let mu_w = mu_water_per_mm(record.energy_kev)?;
     let scale = DensityScale::from_window(
-        f64::from(item.hu_window.lo),
-        f64::from(item.hu_window.hi),
+        f64::from(record.hu_window.lo),
+        f64::from(record.hu_window.hi),
         mu_w,
     )?;
     Ok(Item {
-        id: item.id,
-        dir: dir.to_path_buf(),
-        ct,
-        projections,
-        rows,
-        cols,
-        geometry,
-        poses,
-        views,
-        window: item.hu_window,
+        id: record.id.clone(),
+        dir: files.dir,
+        ct: files.ct,
+        projections: files.projections,
+        rows: files.rows,
+        cols: files.cols,
+        geometry: files.geometry,
+        poses: files.poses,
+        views: files.views,
+        window: record.hu_window,
         scale,
-        acquisition: item.acquisition.map(|a| a.settings),
+        acquisition,
     })
-}
-
-#[derive(Deserialize)]
-struct ManifestLine {
-    id: String,
-    split: String,
 }
 
 /// Loads every item of a data set folder listed in its `manifest.jsonl` (optionally only
 /// those of `split`); errors if none is found.
 pub fn load_dataset(dir: &Path, split: Option<&str>) -> Result<Vec<Item>> {
-    let mp = dir.join("manifest.jsonl");
-    let text = String::from_utf8(read(&mp)?).map_err(|e| ModelError::file(&mp, e))?;
-    let mut items = Vec::new();
-    for (n, line) in text
-        .lines()
-        .enumerate()
-        .filter(|(_, l)| !l.trim().is_empty())
-    {
-        let m: ManifestLine = serde_json::from_str(line)
-            .map_err(|e| ModelError::file(&mp, format!("line {}: {e}", n + 1)))?;
-        if split.is_some_and(|s| s != m.split) {
-            continue;
-        }
-        items.push(load_item(&dir.join(&m.id))?);
-    }
+    let items = item::read_manifest(dir, split)?
+        .iter()
+        .map(|r| load_item(&dir.join(&r.id)))
+        .collect::<Result<Vec<_>>>()?;
     ensure!(
         !items.is_empty(),
         "{}: no items{}",
-        mp.display(),
+        dir.join(item::MANIFEST).display(),
         split
             .map(|s| format!(" in split '{s}'"))
             .unwrap_or_default()

@@ -11,6 +11,9 @@ pub enum ModelError {
     /// Geometry or volume problems reported by sim.
     #[error(transparent)]
     Sim(#[from] tomograf_sim::SimError),
+    /// Reading a data set's files failed (the error names the file).
+    #[error(transparent)]
+    Dataset(#[from] tomograf_datasets::DatasetError),
     /// Reading a data set, checkpoint or config failed.
     #[error("{path}: {message}")]
     File {

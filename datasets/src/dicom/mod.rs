@@ -35,6 +35,7 @@ pub use write::write_dicom_series;
 use crate::error::{DatasetError, Result};
 use dicom_dictionary_std::tags;
 use glam::{DMat3, DVec3};
+use rayon::prelude::*;
 use slice::{
     Slice, invalid, open_header, optional_str, optional_uint, parse_slice, read_pixels,
     required_str,
@@ -93,9 +94,12 @@ pub struct SeriesInfo {
 /// [`tomograf_sim::volume::MAX_VOXELS`] (checked before the voxels are allocated).
 pub fn read_dicom_series(dir: &Path, allow_non_ct: bool) -> Result<Volume> {
     let (files, subdirs) = list_dir(dir)?;
+    // Files are parsed in parallel; the first error in file order is the one reported,
+    // whatever the thread count.
+    let parsed: Vec<_> = files.par_iter().map(|path| open_header(path)).collect();
     let mut headers = Vec::new();
-    for path in &files {
-        if let Some(obj) = open_header(path)? {
+    for (path, obj) in files.iter().zip(parsed) {
+        if let Some(obj) = obj? {
             headers.push((path, obj));
         }
     }
@@ -177,9 +181,13 @@ pub fn read_dicom_series(dir: &Path, allow_non_ct: bool) -> Result<Volume> {
         slice.check_file_holds_pixels()?;
     }
     let mut data = vec![0.0f32; count];
-    for (slice, out) in slices.iter().zip(data.chunks_exact_mut(dims[0] * dims[1])) {
-        read_pixels(slice, out)?;
-    }
+    // Slices decoded in parallel, each into its own plane; first error in slice order.
+    let decoded: Vec<Result<()>> = slices
+        .par_iter()
+        .zip(data.par_chunks_exact_mut(dims[0] * dims[1]))
+        .map(|(slice, out)| read_pixels(slice, out))
+        .collect();
+    decoded.into_iter().collect::<Result<()>>()?;
     Volume::new(dims, spacing, origin, direction, data).map_err(|source| DatasetError::Volume {
         path: dir.to_owned(),
         source,

@@ -44,6 +44,9 @@ const NIFTI1_SIZE: usize = 348;
 const NIFTI2_SIZE: i32 = 540;
 /// Where the voxels start in the files we write: header + 4-byte (zero) extension flag.
 const WRITTEN_DATA_OFFSET: u64 = NIFTI1_SIZE as u64 + 4;
+/// The most a deflate stream can expand: 1032 output bytes per input byte (RFC 1951: a
+/// 258-byte match in as little as 2 bits, after the first).
+const MAX_DEFLATE_RATIO: u64 = 1032;
 /// Largest axis length a NIfTI-1 header can hold (`dim` is `int16`).
 const NIFTI1_MAX_DIM: usize = i16::MAX as usize;
 
@@ -72,12 +75,13 @@ pub fn read_nifti(path: &Path) -> Result<Volume> {
     let gz = head.starts_with(&[0x1f, 0x8b]);
     // A .nii.gz is read whole and, where its size is known, inflated in one go (`inflated`:
     // header, extensions and voxels); otherwise streamed.
-    let (mut compressed, mut inflated) = (Vec::new(), None);
+    let (mut compressed, mut inflated, mut compressed_len) = (Vec::new(), None, 0u64);
     if gz {
         compressed.reserve(file_len.map_or(0, |n| n as usize));
         buffered
             .read_to_end(&mut compressed)
             .map_err(|e| DatasetError::io(path, "reading", e))?;
+        compressed_len = compressed.len() as u64;
         inflated = expected_size(&compressed, path).and_then(|n| inflate::whole(&compressed, n));
         if inflated.is_some() {
             compressed = Vec::new();
@@ -113,6 +117,36 @@ pub fn read_nifti(path: &Path) -> Result<Volume> {
             ),
         ));
     }
+    // Deflate expands at most 1032:1, so a .nii.gz cannot hold more than 1032 bytes per
+    // compressed byte: a header asking for more is refused before any allocation.
+    if gz && offset + nbytes > MAX_DEFLATE_RATIO * compressed_len {
+        return Err(DatasetError::truncated(
+            path,
+            format!(
+                "{}×{}×{} {} voxels need {nbytes} bytes from byte {offset}, more than the                  {} compressed bytes can hold (deflate expands at most {MAX_DEFLATE_RATIO}:1)",
+                dims[0],
+                dims[1],
+                dims[2],
+                format!("{dtype:?}").to_lowercase(),
+                compressed_len
+            ),
+        ));
+    }
+    // The raw voxels and their f32 copy must fit in memory.
+    tomograf_sim::memory::check(
+        u128::from(nbytes) + 4 * count as u128,
+        &format!(
+            "reading {} ({}×{}×{} voxels)",
+            path.display(),
+            dims[0],
+            dims[1],
+            dims[2]
+        ),
+    )
+    .map_err(|e| DatasetError::TooLarge {
+        path: path.to_owned(),
+        detail: e.to_string(),
+    })?;
     // Extensions are not used: skip them up to the voxel data.
     let skip = offset - NIFTI1_SIZE as u64;
     let skipped = io::copy(&mut reader.by_ref().take(skip), &mut io::sink())
