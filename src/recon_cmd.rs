@@ -169,7 +169,7 @@ fn load(dir: &Path) -> Result<Input> {
     }
     let geometry: Option<Geometry> = serde_json::from_value(json["geometry"].clone()).ok();
     let views: Vec<View> = views.into_iter().map(|v| v.view).collect();
-    let (data, shape) = read_npy_f32(&npy)?;
+    let (data, shape) = tomograf_datasets::image::read_npy(&npy)?;
     ensure!(
         shape.len() == 3 && shape[0] == views.len(),
         "{} has shape {shape:?}, expected ({}, rows, cols)",
@@ -215,51 +215,6 @@ fn to_line_integral(q: Quantity, x: f32) -> Result<f32> {
             -(x / i0).ln()
         }
     } as f32)
-}
-
-/// Reads a little-endian float32, C-order `.npy` file: `(values, shape)`.
-fn read_npy_f32(path: &Path) -> Result<(Vec<f32>, Vec<usize>)> {
-    let bytes = std::fs::read(path).with_context(|| format!("reading {}", path.display()))?;
-    let bad = || anyhow::anyhow!("{} is not a float32 .npy array", path.display());
-    ensure!(bytes.len() >= 10 && &bytes[..6] == b"\x93NUMPY", bad());
-    let (len, start) = match bytes[6] {
-        1 => (u16::from_le_bytes([bytes[8], bytes[9]]) as usize, 10),
-        2 | 3 if bytes.len() >= 12 => (
-            u32::from_le_bytes([bytes[8], bytes[9], bytes[10], bytes[11]]) as usize,
-            12,
-        ),
-        _ => return Err(bad()),
-    };
-    let header = std::str::from_utf8(bytes.get(start..start + len).ok_or_else(bad)?)?;
-    ensure!(
-        header.contains("'descr': '<f4'") && header.contains("'fortran_order': False"),
-        "{}: only little-endian float32 in C order is read (header {header})",
-        path.display()
-    );
-    let shape_text = header
-        .split("'shape': (")
-        .nth(1)
-        .and_then(|s| s.split(')').next())
-        .ok_or_else(bad)?;
-    let shape: Vec<usize> = shape_text
-        .split(',')
-        .filter(|s| !s.trim().is_empty())
-        .map(|s| s.trim().parse())
-        .collect::<std::result::Result<_, _>>()?;
-    let body = &bytes[start + len..];
-    let n: usize = shape.iter().product();
-    ensure!(
-        body.len() == 4 * n,
-        "{}: {} data bytes for shape {shape:?}",
-        path.display(),
-        body.len()
-    );
-    Ok((
-        body.chunks_exact(4)
-            .map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]]))
-            .collect(),
-        shape,
-    ))
 }
 
 pub fn run(args: ReconArgs) -> Result<()> {

@@ -1,4 +1,5 @@
-//! Projection images → files (OpenEXR, TIFF, NPY, PNG), all written atomically.
+//! Projection images → files (OpenEXR, TIFF, NPY, PNG), all written atomically; and NPY
+//! stacks read back ([`read_npy`]).
 //!
 //! # Orientation
 //! A [`Projection`] is `rows × cols`, row-major, row 0 at the top. Every format here keeps
@@ -112,6 +113,36 @@ pub fn write_npy(path: &Path, data: &[f32], shape: &[usize]) -> Result<()> {
         writer.extend(data.iter().copied())?;
         writer.finish()
     })
+}
+
+/// Reads a NumPy `.npy` array of float32 (either byte order) in C order: `(values,
+/// shape)`. The shape must hold exactly the stored values; errors name the file.
+pub fn read_npy(path: &Path) -> Result<(Vec<f32>, Vec<usize>)> {
+    let bytes = std::fs::read(path).map_err(|e| DatasetError::io(path, "reading", e))?;
+    let bad = |e: &dyn std::fmt::Display| {
+        DatasetError::corrupt(path, format!("not a float32 .npy array: {e}"))
+    };
+    let npy = npyz::NpyFile::new(&bytes[..]).map_err(|e| bad(&e))?;
+    if npy.order() != npyz::Order::C {
+        return Err(DatasetError::unsupported(
+            path,
+            "Fortran-ordered .npy arrays are not read",
+        ));
+    }
+    let shape: Vec<usize> = npy
+        .shape()
+        .iter()
+        .map(|&n| usize::try_from(n).map_err(|e| bad(&e)))
+        .collect::<Result<_>>()?;
+    let values: Vec<f32> = npy.into_vec().map_err(|e| bad(&e))?;
+    let count = shape.iter().try_fold(1usize, |acc, &n| acc.checked_mul(n));
+    if count != Some(values.len()) {
+        return Err(DatasetError::truncated(
+            path,
+            format!("shape {shape:?} but {} values", values.len()),
+        ));
+    }
+    Ok((values, shape))
 }
 
 /// Writes `image` as an 8-bit greyscale PNG for viewing.

@@ -250,17 +250,13 @@ pub fn read_item(dir: &Path) -> Result<ItemFiles> {
     let invalid = |e: tomograf_sim::SimError| corrupt(&vp, e);
     geometry.validate().map_err(invalid)?;
     let pp = dir.join(&record.projections);
-    let bytes = read(&pp)?;
-    let npy = npyz::NpyFile::new(&bytes[..]).map_err(|e| corrupt(&pp, e))?;
-    let shape: Vec<u64> = npy.shape().to_vec();
+    let (projections, shape) = crate::image::read_npy(&pp)?;
     let [nv, rows, cols] = shape[..] else {
         return Err(corrupt(
             &pp,
             format!("expected views × rows × cols, found shape {shape:?}"),
         ));
     };
-    let (nv, rows, cols) = (nv as usize, rows as usize, cols as usize);
-    let projections: Vec<f32> = npy.into_vec().map_err(|e| corrupt(&pp, e))?;
     if nv == 0 {
         return Err(corrupt(&pp, "no projections (view count 0)"));
     }

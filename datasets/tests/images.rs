@@ -3,7 +3,7 @@
 
 use std::fs::File;
 use std::path::Path;
-use tomograf_datasets::image::{write_exr, write_npy, write_png, write_tiff};
+use tomograf_datasets::image::{read_npy, write_exr, write_npy, write_png, write_tiff};
 use tomograf_sim::Projection;
 
 const ROWS: usize = 3;
@@ -135,4 +135,36 @@ fn png_windowed_8bit_grey() {
         );
     }
     only_file(dir.path(), "p.png");
+}
+
+/// `read_npy` gives back what `write_npy` wrote (values and shape); a truncated file, a
+/// file that is not NPY and a float64 array are refused with the file named.
+#[test]
+fn npy_reads_back_and_refuses_what_it_cannot_read() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("stack.npy");
+    let data: Vec<f32> = (0..24).map(|i| i as f32 * 0.5 - 3.0).collect();
+    write_npy(&path, &data, &[2, 3, 4]).unwrap();
+    assert_eq!(read_npy(&path).unwrap(), (data.clone(), vec![2, 3, 4]));
+
+    let bytes = std::fs::read(&path).unwrap();
+    let cut = dir.path().join("cut.npy");
+    std::fs::write(&cut, &bytes[..bytes.len() - 5]).unwrap();
+    let text = dir.path().join("text.npy");
+    std::fs::write(&text, b"not an array").unwrap();
+    let f8 = dir.path().join("f8.npy");
+    use npyz::WriterBuilder;
+    let mut w = npyz::WriteOptions::<f64>::new()
+        .dtype(npyz::DType::Plain("<f8".parse().unwrap()))
+        .shape(&[2])
+        .writer(File::create(&f8).unwrap())
+        .begin_nd()
+        .unwrap();
+    w.extend([1.0f64, 2.0]).unwrap();
+    w.finish().unwrap();
+    for p in [&cut, &text, &f8] {
+        let msg = read_npy(p).unwrap_err().to_string();
+        let name = p.file_name().unwrap().to_str().unwrap();
+        assert!(msg.contains(name), "{msg}");
+    }
 }
