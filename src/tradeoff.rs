@@ -26,6 +26,10 @@ pub struct TradeoffArgs {
     /// Energy-bin counts to try (real physics only).
     #[arg(long, value_delimiter = ',', default_values_t = vec![64, 32, 16, 8, 4])]
     pub bins: Vec<usize>,
+    /// Fractions of the scene's scatter photons to try (scatter scenes only): each rung
+    /// is timed and compared against the scene's own photon count.
+    #[arg(long, value_delimiter = ',', default_values_t = vec![0.25, 0.0625])]
+    pub scatter_fractions: Vec<f64>,
     /// Renders per timing (the median is reported).
     #[arg(long, default_value_t = 3)]
     pub repeats: usize,
@@ -49,8 +53,8 @@ pub fn run(args: TradeoffArgs) -> Result<()> {
     let options = Options {
         steps: args.steps.clone(),
         bins: args.bins.clone(),
+        scatter_fractions: args.scatter_fractions.clone(),
         repeats: args.repeats.max(1),
-        ..Options::default()
     };
     let (vol, job) = match &acquisition {
         None => {

@@ -140,6 +140,8 @@ fn scatter_rungs_are_measured_against_the_full_reference() {
             "monte-carlo",
             "--scatter-photons",
             "4000",
+            "--scatter-fractions",
+            "0.5,0.125",
             "--steps",
             "1",
             "--bins",
@@ -147,10 +149,12 @@ fn scatter_rungs_are_measured_against_the_full_reference() {
         ],
     );
     assert!(csv.contains("\"reference without scatter\""), "{csv}");
-    let (r1000, _) = row(&csv, "scatter Monte Carlo, 1000 photons");
-    let (r250, _) = row(&csv, "scatter Monte Carlo, 250 photons");
+    // The fractions asked for (not the defaults, ¼ and 1/16).
+    let (r2000, _) = row(&csv, "scatter Monte Carlo, 2000 photons");
+    let (r500, _) = row(&csv, "scatter Monte Carlo, 500 photons");
+    assert!(!csv.contains("1000 photons"), "{csv}");
     let (est, _) = row(&csv, "scatter estimate, 5000 photons");
     // Fewer histories, more Monte Carlo noise against the same 4000-history reference.
-    assert!(r250 > r1000 && r1000 > 0.0, "250: {r250}, 1000: {r1000}");
+    assert!(r500 > r2000 && r2000 > 0.0, "500: {r500}, 2000: {r2000}");
     assert!(est > 0.0);
 }
