@@ -112,20 +112,24 @@ def compare(exe, w, label, mu, mu_path, aff, iso_lps, threads, repeats, spacing=
         sys.exit(f"{label}: line integrals disagree: median rel {med:.2e}, unexplained pixels "
                  f"(row, col, tomograf, plastimatch, exit voxel, sensitivity) {unexplained[:10]}")
 
-    # Times.
-    plm_total, plm_wall, tg_render, tg_wall = [], [], [], []
+    return dict(label=label, pixels=int(inside.sum()), med=med, p99=np.percentile(rel[inside], 99),
+                max=rel.max(), big=len(big), exit=by_exit_voxel, precision=by_precision,
+                max_abs=np.abs(tg - plm).max(), **times(plm_cmd, tg_cmd, env, repeats))
+
+
+def times(plm_cmd, tg_cmd, env, repeats):
+    """Both tools' render times (their own figures, ms) and whole-command wall times (s),
+    interleaved, medians of `repeats`."""
+    plm_render, plm_wall, tg_render, tg_wall = [], [], [], []
     for _ in range(repeats):
         wall, out = run(plm_cmd, env)
         plm_wall.append(wall)
-        plm_total.append(float(re.search(r"Total time:\s*([0-9.]+)", out).group(1)) * 1e3)
+        plm_render.append(float(re.search(r"Total time:\s*([0-9.]+)", out).group(1)) * 1e3)
         wall, out = run(tg_cmd)
         tg_wall.append(wall)
         tg_render.append(float(re.search(r"rendered \d+ view\(s\) of \S+ in ([0-9.]+) ms", out).group(1)))
     m = lambda xs: float(np.median(xs))
-    return dict(label=label, pixels=int(inside.sum()), med=med, p99=np.percentile(rel[inside], 99),
-                max=rel.max(), big=len(big), exit=by_exit_voxel, precision=by_precision,
-                max_abs=np.abs(tg - plm).max(), plm_render=m(plm_total), plm_wall=m(plm_wall),
-                tg_render=m(tg_render), tg_wall=m(tg_wall))
+    return dict(plm_render=m(plm_render), plm_wall=m(plm_wall), tg_render=m(tg_render), tg_wall=m(tg_wall))
 
 
 def lps_mu(ct_path):
@@ -155,16 +159,7 @@ def whole_command(exe, w, ct_path, iso_lps, threads, repeats):
               "--pitch", str(PITCH), "--view", "ap", "--format", "npy", "-o", w / "tg", "--prefix", "ct"]
     run(plm_cmd, env)
     run(tg_cmd)
-    plm_wall, tg_wall, plm_render, tg_render = [], [], [], []
-    for _ in range(repeats):
-        wall, out = run(plm_cmd, env)
-        plm_wall.append(wall)
-        plm_render.append(float(re.search(r"Total time:\s*([0-9.]+)", out).group(1)) * 1e3)
-        wall, out = run(tg_cmd)
-        tg_wall.append(wall)
-        tg_render.append(float(re.search(r"rendered \d+ view\(s\) of \S+ in ([0-9.]+) ms", out).group(1)))
-    m = lambda xs: float(np.median(xs))
-    return dict(plm_wall=m(plm_wall), tg_wall=m(tg_wall), plm_render=m(plm_render), tg_render=m(tg_render))
+    return times(plm_cmd, tg_cmd, env, repeats)
 
 
 def shipped_text(r, ct):

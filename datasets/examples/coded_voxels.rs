@@ -13,6 +13,9 @@
 //!
 //! `cargo run --release -p tomograf-datasets --example coded_voxels -- CT.nii.gz [θ°]`
 
+#[path = "common/timing.rs"]
+mod timing;
+
 use rayon::prelude::*;
 use std::time::Instant;
 use tomograf_sim::attenuation::{Attenuation, hu_to_mu};
@@ -63,18 +66,8 @@ impl PathAccumulator for Coded<'_> {
     }
 }
 
-fn median(mut v: Vec<f64>) -> f64 {
-    v.sort_by(f64::total_cmp);
-    v[v.len() / 2]
-}
-
 fn main() {
-    let path = std::env::args()
-        .nth(1)
-        .expect("usage: coded_voxels CT.nii.gz [θ°]");
-    let theta: f64 = std::env::args()
-        .nth(2)
-        .map_or(0.0, |s| s.parse().expect("θ in degrees"));
+    let (path, theta): (String, f64) = timing::args("coded_voxels CT.nii.gz [θ°]", 0.0);
     let hu = tomograf_datasets::nifti::read_nifti(std::path::Path::new(&path)).expect("reads");
     assert!(
         hu.data().iter().all(|v| v.fract() == 0.0),
@@ -171,7 +164,7 @@ fn main() {
             t.push(start.elapsed().as_secs_f64() * 1e3);
         }
     }
-    let [a, b, c] = times.map(median);
+    let [a, b, c] = times.map(timing::median);
     println!(
         "{path}: {:?} voxels, {} distinct values; θ = {theta}°, 256² rays, {} threads; \
          median of 21 (ms): f32 {a:.1} | u16 codes {b:.1} ({:.2}×) | padded rows {c:.1} ({:.2}×); \

@@ -6,21 +6,14 @@
 //!
 //! `cargo run --release -p tomograf-datasets --example dicom_speed -- CT.nii.gz [repeats]`
 
+#[path = "common/timing.rs"]
+mod timing;
+
 use std::time::Instant;
 use tomograf_datasets::dicom::{read_dicom_series, write_dicom_series};
 
-fn median(mut v: Vec<f64>) -> f64 {
-    v.sort_by(f64::total_cmp);
-    v[v.len() / 2]
-}
-
 fn main() {
-    let path = std::env::args()
-        .nth(1)
-        .expect("usage: dicom_speed CT.nii.gz [repeats]");
-    let repeats: usize = std::env::args()
-        .nth(2)
-        .map_or(7, |s| s.parse().expect("repeats: a number"));
+    let (path, repeats): (String, usize) = timing::args("dicom_speed CT.nii.gz [repeats]", 7);
     let ct = tomograf_datasets::nifti::read_nifti(std::path::Path::new(&path)).expect("reads");
     let dir = tempfile::tempdir().expect("a temporary folder");
     write_dicom_series(dir.path(), &ct, "1.2.826.0.1.3680043.8.498.1").expect("writes");
@@ -42,7 +35,7 @@ fn main() {
         b.push(t.elapsed().as_secs_f64());
         assert!(v == reference, "the same volume whatever the thread count");
     }
-    let (a, b) = (median(a), median(b));
+    let (a, b) = (timing::median(a), timing::median(b));
     println!(
         "{path} as {} DICOM slices of {}×{}: read_dicom_series, median of {repeats}: \
          1 thread {:.0} ms | {threads} threads {:.0} ms | speed-up {:.2}×",

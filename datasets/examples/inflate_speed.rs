@@ -5,21 +5,14 @@
 //!
 //! `cargo run --release -p tomograf-datasets --example inflate_speed -- CT.nii.gz [repeats]`
 
+#[path = "common/timing.rs"]
+mod timing;
+
 use std::io::Read;
 use std::time::Instant;
 
-fn median(mut v: Vec<f64>) -> f64 {
-    v.sort_by(f64::total_cmp);
-    v[v.len() / 2]
-}
-
 fn main() {
-    let path = std::env::args()
-        .nth(1)
-        .expect("usage: inflate_speed CT.nii.gz [repeats]");
-    let repeats: usize = std::env::args()
-        .nth(2)
-        .map_or(7, |s| s.parse().expect("repeats: a number"));
+    let (path, repeats): (String, usize) = timing::args("inflate_speed CT.nii.gz [repeats]", 7);
     let gz = std::fs::read(&path).expect("readable file");
     // The raw deflate stream: after the 10-byte gzip header (and the optional fields the
     // FLG byte announces), before the 8-byte trailer.
@@ -63,7 +56,12 @@ fn main() {
         c.push(t.elapsed().as_secs_f64());
         std::hint::black_box(v);
     }
-    let (a, b, c, d) = (median(a), median(b), median(c), median(d));
+    let (a, b, c, d) = (
+        timing::median(a),
+        timing::median(b),
+        timing::median(c),
+        timing::median(d),
+    );
     println!(
         "{path}: {:.1} MB compressed, {:.1} MB inflated; median of {repeats}:\n\
          libdeflate {:.0} ms ({:.0} MB/s) | flate2 (zlib-rs) ÷ libdeflate {:.2}\n\
