@@ -152,11 +152,7 @@ impl Outputs {
 
 /// Writes pretty JSON (and a final newline) atomically.
 pub fn write_json(path: &Path, value: &serde_json::Value) -> Result<()> {
-    atomic::write_atomic(path, |w| {
-        serde_json::to_writer_pretty(&mut *w, value).map_err(std::io::Error::other)?;
-        std::io::Write::write_all(w, b"\n")
-    })?;
-    Ok(())
+    Ok(atomic::write_json(path, value)?)
 }
 
 /// Min..max of an image (or [v, v+1] for a constant image).

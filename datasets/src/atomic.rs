@@ -40,6 +40,14 @@ pub fn write_atomic(
     commit(path, &dir, file, guard)
 }
 
+/// Writes `value` as pretty JSON with a final newline, atomically (as [`write_atomic`]).
+pub fn write_json(path: &Path, value: &impl serde::Serialize) -> Result<()> {
+    write_atomic(path, |w| {
+        serde_json::to_writer_pretty(&mut *w, value).map_err(io::Error::other)?;
+        io::Write::write_all(w, b"\n")
+    })
+}
+
 /// Writes a file atomically through a writer that needs a *path* rather than a stream
 /// (e.g. one that picks compression from the file name).
 ///

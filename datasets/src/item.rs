@@ -15,7 +15,7 @@
 //! Every file is written atomically ([`crate::atomic`]). Reading ([`read_item`]) checks that
 //! the files agree (view counts, detector sizes, finite values) and names the file at fault.
 
-use crate::atomic::write_atomic;
+use crate::atomic::{write_atomic, write_json};
 use crate::error::{DatasetError, Result};
 use crate::preprocess::HuWindow;
 use serde::{Deserialize, Serialize};
@@ -146,14 +146,6 @@ fn corrupt(path: &Path, reason: impl std::fmt::Display) -> DatasetError {
 
 fn read(path: &Path) -> Result<Vec<u8>> {
     std::fs::read(path).map_err(|e| DatasetError::io(path, "reading", e))
-}
-
-/// Writes `value` as pretty JSON (with a final newline), atomically.
-fn write_json(path: &Path, value: &impl Serialize) -> Result<()> {
-    write_atomic(path, |w| {
-        serde_json::to_writer_pretty(&mut *w, value).map_err(std::io::Error::other)?;
-        std::io::Write::write_all(w, b"\n")
-    })
 }
 
 /// Writes `views.json` into the item folder `dir`.
