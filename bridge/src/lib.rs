@@ -3,7 +3,8 @@
 //! PyO3 bindings of tomograf: volumes (NIfTI/DICOM in, numpy in and out), HU → mu,
 //! geometry (poses, detectors, cone/parallel set-ups, general-form views), exact Siddon
 //! and trilinear projections (GIL released), and the phantoms. Built with maturin
-//! (`bridge/pyproject.toml`); type stubs in `bridge/tomograf.pyi`; tests in
+//! (`bridge/pyproject.toml`) as `tomograf._native`, re-exported by the package
+//! `bridge/python/tomograf/`; type stubs in `bridge/python/tomograf/_native.pyi`; tests in
 //! `bridge/tests/` (pytest). Conventions and units: `docs/python.md`.
 //!
 //! Arrays: volumes are numpy `[k, j, i]` (z, y, x for an axial CT, i fastest), images
@@ -18,7 +19,7 @@
 //! `detector_response.rs`, `scatter.rs`, …) with `#[pyclass]`/`#[pyfunction]` items
 //! that convert errors through [`errors`] and release the GIL with `py.detach` around
 //! the heavy work, register it in [`tomograf_py`] below under the matching comment, and add
-//! its signatures to `tomograf.pyi` and a test to `bridge/tests/`.
+//! its signatures to `_native.pyi` and a test to `bridge/tests/`.
 
 pub mod errors;
 pub mod geometry;
@@ -34,7 +35,7 @@ use pyo3::prelude::*;
 /// tracing in cone- and parallel-beam geometry. Units: mm, mm⁻¹, keV, HU, degrees;
 /// world frame DICOM LPS. See docs/python.md.
 #[pymodule]
-#[pyo3(name = "tomograf")]
+#[pyo3(name = "_native")]
 fn tomograf_py(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     // Volumes and attenuation.

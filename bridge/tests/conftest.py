@@ -34,13 +34,20 @@ def centroid(img):
 
 
 @pytest.fixture(scope="session")
-def cli():
-    """The `tomograf` command line (TOMOGRAF_BIN, else target/release/tomograf)."""
+def cli_path():
+    """The path of the `tomograf` command line (TOMOGRAF_BIN, else target/release/tomograf)."""
     exe = os.environ.get("TOMOGRAF_BIN") or str(ROOT / "target" / "release" / "tomograf")
     if not Path(exe).exists():
         exe = shutil.which("tomograf") or exe
     if not Path(exe).exists():
         pytest.fail(f"tomograf CLI not found at {exe}: run `cargo build --release` or set TOMOGRAF_BIN")
+    return str(Path(exe).resolve())
+
+
+@pytest.fixture(scope="session")
+def cli(cli_path):
+    """Runs the `tomograf` command line; fails the test on a non-zero exit."""
+    exe = cli_path
 
     def run(*args):
         out = subprocess.run([exe, *map(str, args)], capture_output=True, text=True)

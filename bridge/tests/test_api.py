@@ -191,10 +191,13 @@ def test_type_stubs_cover_the_module():
     import ast
     from pathlib import Path
 
-    stub = ast.parse((Path(__file__).resolve().parents[1] / "tomograf.pyi").read_text())
+    stub_path = Path(__file__).resolve().parents[1] / "python" / "tomograf" / "_native.pyi"
+    stub = ast.parse(stub_path.read_text())
     declared = {n.name for n in stub.body if isinstance(n, (ast.FunctionDef, ast.ClassDef))}
-    public = {n for n in dir(tg) if not n.startswith("_") and n != "tomograf"}
+    public = {n for n in dir(tg._native) if not n.startswith("_")}
     assert declared == public
+    # The package re-exports every public name of the compiled core.
+    assert all(getattr(tg, n) is getattr(tg._native, n) for n in public)
     classes = {n.name: n for n in stub.body if isinstance(n, ast.ClassDef)}
     for name, node in classes.items():
         members = {m.name for m in node.body if isinstance(m, ast.FunctionDef)} - {"__init__"}

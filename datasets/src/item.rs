@@ -186,7 +186,36 @@ pub fn finished_record(dir: &Path) -> Option<ItemRecord> {
 
 /// Rewrites `manifest.jsonl` in the data-set folder `out` from the finished items among
 /// the first `items` (folders `00000`, …), in item order; returns their count.
+///
+/// Shards of one data set call this concurrently, each after its own items. A shard could
+/// list the items, then another shard finish its last item and write its manifest, then
+/// the first shard's older listing land last, leaving an incomplete manifest for good.
+/// So the folder is listed again after each write and the manifest rewritten until the
+/// listing is stable: the last write is then always checked against every item finished
+/// before it (items only ever get finished, so this ends).
 pub fn write_manifest(out: &Path, items: usize) -> Result<usize> {
+    write_manifest_checked(out, items, || {})
+}
+
+/// [`write_manifest`], calling `between` once between the first listing and its write
+/// (the tests finish another shard's item there).
+fn write_manifest_checked(out: &Path, items: usize, between: impl FnOnce()) -> Result<usize> {
+    let (mut lines, mut n) = list_finished(out, items)?;
+    between();
+    loop {
+        write_atomic(&out.join(MANIFEST), |w| {
+            std::io::Write::write_all(w, lines.as_bytes())
+        })?;
+        let (again, m) = list_finished(out, items)?;
+        if again == lines {
+            return Ok(n);
+        }
+        (lines, n) = (again, m);
+    }
+}
+
+/// The manifest's text for the finished items among the first `items`, and their count.
+fn list_finished(out: &Path, items: usize) -> Result<(String, usize)> {
     let mut lines = String::new();
     let mut n = 0;
     for index in 0..items {
@@ -199,10 +228,7 @@ pub fn write_manifest(out: &Path, items: usize) -> Result<usize> {
         lines.push('\n');
         n += 1;
     }
-    write_atomic(&out.join(MANIFEST), |w| {
-        std::io::Write::write_all(w, lines.as_bytes())
-    })?;
-    Ok(n)
+    Ok((lines, n))
 }
 
 /// The records `manifest.jsonl` of the data-set folder `dir` lists (blank lines skipped),
@@ -296,4 +322,51 @@ pub fn read_item(dir: &Path) -> Result<ItemFiles> {
         cols,
         ct,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A finished item `index` under `out` (only what the manifest needs).
+    fn finish(out: &Path, index: usize) {
+        let dir = out.join(format!("{index:05}"));
+        std::fs::create_dir_all(&dir).unwrap();
+        let record = serde_json::json!({
+            "id": format!("{index:05}"), "hu_window": {"lo": -1024.0, "hi": 2048.0},
+            "energy_kev": 60.0, "ct": "ct.nii.gz", "projections": "projections.npy",
+            "views": "views.json",
+        });
+        std::fs::write(dir.join(ITEM_JSON), record.to_string()).unwrap();
+    }
+
+    fn listed(out: &Path) -> Vec<String> {
+        read_manifest(out, None)
+            .unwrap()
+            .into_iter()
+            .map(|r| r.id)
+            .collect()
+    }
+
+    #[test]
+    fn a_shard_finishing_between_anothers_listing_and_write_stays_listed() {
+        let out = tempfile::tempdir().unwrap();
+        let out = out.path();
+        // Shard 0 has finished item 0 and lists the folder; meanwhile shard 1 finishes
+        // item 1 and writes its manifest (both items); then shard 0 writes its listing.
+        finish(out, 0);
+        let n = write_manifest_checked(out, 2, || {
+            finish(out, 1);
+            assert_eq!(write_manifest(out, 2).unwrap(), 2);
+        })
+        .unwrap();
+        assert_eq!(listed(out), ["00000", "00001"], "the older listing won");
+        assert_eq!(n, 2);
+        // No temporary file is left behind by the rewrites.
+        let names: Vec<_> = std::fs::read_dir(out)
+            .unwrap()
+            .map(|e| e.unwrap().file_name().into_string().unwrap())
+            .collect();
+        assert!(names.iter().all(|n| !n.ends_with(".tmp")), "{names:?}");
+    }
 }
