@@ -6,12 +6,11 @@
     .venv/bin/python scripts/scale_out_bench.py --scale small --repeats 1 --out docs/scale-out-timings-small.md
 
 Jobs (`tiny`: the CI sizes; `small`: the studies' real sizes):
-  * dataset  — `tomograf dataset`: tiny 16 phantoms at 16³ with 8 views per rotation;
-               small 32 phantoms at 64³ with 36 views (the `small` studies' training set);
-  * evaluate — `tomograf evaluate` of the shipped demo checkpoint (the `small` model) with
-               every baseline, on tiny 2 / small 4 held-out `lidc` phantoms, from 1 view;
-  * study    — tiny only: `tomograf study realism-gap --scale tiny` (4 levels: data, train,
-               evaluate, report).
+  * tiny  — `dataset`: 16 phantoms at 16³, 8 views per rotation; `study`: `tomograf study
+            realism-gap --scale tiny` (4 levels: data, train, evaluate, report);
+  * small — `dataset`: 32 phantoms at 64³, 36 views (the `small` studies' training set);
+            `evaluate`: the shipped demo checkpoint (the `small` model) with every baseline
+            on 4 held-out `lidc` phantoms, from 1 view.
 Ways: `1 process` (`tomograf --threads 1`), `1 process, 2 threads` (`--threads 2`), `Ray, 1
 worker` and `Ray, 2 workers` (`ray.init(num_cpus=k)`, 1 thread per task, `tomograf.distributed`
 with as many shards as workers × 2; the Ray start-up is timed apart). Every run writes into a
@@ -45,19 +44,20 @@ def cpu_model() -> str:
 def jobs(scale: str, work: Path):
     """name → (command builder for an output folder, setup run once)."""
     ck = str(ROOT / "model/checkpoints/demo")
+    test_dir = work / "test"
     if scale == "tiny":
         data = ["--phantoms", "16", "--size", "16", "--views", "8"]
-        test = ["--phantoms", "2", "--seed", "50000", "--size", "64", "--views", "10", "--split", "test"]
-    else:
-        data = ["--phantoms", "32", "--size", "64", "--views", "36"]
-        test = ["--phantoms", "4", "--seed", "50000", "--size", "64", "--views", "10", "--split", "test"]
-    test_dir = work / "test"
+        out = {
+            "dataset": lambda o: ("dataset", [o, *data]),
+            "study": lambda o: ("study", ["realism-gap", o, "--scale", "tiny", "--seed", "0"]),
+        }
+        return out, None
+    data = ["--phantoms", "32", "--size", "64", "--views", "36"]
+    test = ["--phantoms", "4", "--seed", "50000", "--size", "64", "--views", "10", "--split", "test"]
     out = {
         "dataset": lambda o: ("dataset", [o, *data]),
         "evaluate": lambda o: ("evaluate", [str(test_dir), o, "--checkpoint", ck, "--views", "1", "--seed", "0"]),
     }
-    if scale == "tiny":
-        out["study"] = lambda o: ("study", ["realism-gap", o, "--scale", "tiny", "--seed", "0"])
     return out, ["dataset", "-o", str(test_dir), *test]
 
 
@@ -97,7 +97,8 @@ def main() -> int:
     work = Path(tempfile.mkdtemp(prefix="tomograf-scale-out-"))
     try:
         table, setup = jobs(a.scale, work)
-        subprocess.run([exe, *setup], check=True, capture_output=True)
+        if setup:
+            subprocess.run([exe, *setup], check=True, capture_output=True)
         names = [j for j in table if not a.jobs or j in a.jobs.split(",")]
         ways = ["1 process", "1 process, 2 threads", "Ray, 1 worker", "Ray, 2 workers"]
         times = {(j, w): [] for j in names for w in ways}
@@ -129,7 +130,9 @@ def main() -> int:
         lines = [
             f"# Scale-out wall times, `{a.scale}` jobs",
             "",
-            f"`.venv/bin/python scripts/scale_out_bench.py --scale {a.scale} --repeats {a.repeats}` on "
+            f"`.venv/bin/python scripts/scale_out_bench.py --scale {a.scale} --repeats {a.repeats}"
+            + (f" --jobs {a.jobs}" if a.jobs else "")
+            + f"` on "
             f"{cpu_model()} ({os.cpu_count()} CPUs), {time.strftime('%Y-%m-%d')}: median of {a.repeats} "
             "run(s) per cell, seconds of wall time (the ways interleaved per repeat). Ray: a local "
             "cluster, `tomograf.distributed` with 2 shards per worker, 1 thread per task; its "

@@ -162,13 +162,36 @@ def test_a_failing_shard_is_named_and_a_second_call_resumes(cluster, cli_path, t
     assert_same_tree(tmp_path / "one", out)
 
 
-def test_sharded_study_matches_one_process(cluster, cli_path, tmp_path):
-    args = ["--scale", "tiny", "--seed", "0", "--levels", "ideal-drr,noise-blur"]
-    run(cli_path, "study", "realism-gap", "-o", str(tmp_path / "one"), *args)
-    results = td.study("realism-gap", tmp_path / "ray", *args, binary=cli_path, progress=None,
+STUDY = ["--scale", "tiny", "--seed", "0", "--levels", "ideal-drr,noise-blur"]
+
+
+@pytest.fixture(scope="module")
+def study_reference(cli_path, tmp_path_factory):
+    """A tiny realism-gap study (2 levels) in one process."""
+    out = tmp_path_factory.mktemp("study") / "one"
+    run(cli_path, "study", "realism-gap", "-o", str(out), *STUDY)
+    return out
+
+
+def test_sharded_study_matches_one_process(cluster, cli_path, study_reference, tmp_path):
+    results = td.study("realism-gap", tmp_path / "ray", *STUDY, binary=cli_path, progress=None,
                        shards={"data": 4, "train": 2, "evaluate": 4})
     assert [r.stage for r in results].count("study train") == 2
-    assert_same_tree(tmp_path / "one", tmp_path / "ray")
+    assert_same_tree(study_reference, tmp_path / "ray")
+
+
+def test_the_slurm_array_script_gives_the_same_study(cli_path, study_reference, tmp_path):
+    """scripts/slurm/study.sbatch run as SLURM would run its array tasks (the variables
+    SLURM sets, one task after another; a real one-node SLURM run is in docs/scale-out.md)."""
+    script = Path(__file__).resolve().parents[2] / "scripts/slurm/study.sbatch"
+    out = tmp_path / "slurm"
+    env = {**os.environ, "TOMOGRAF_BIN": cli_path}
+    for stage, tasks in [("data", 3), ("train", 2), ("evaluate", 3), ("report", 0)]:
+        for task in range(tasks) if tasks else [None]:
+            array = {} if task is None else {"SLURM_ARRAY_TASK_ID": str(task), "SLURM_ARRAY_TASK_COUNT": str(tasks)}
+            subprocess.run(["bash", str(script), stage, str(out), "realism-gap", *STUDY],
+                           env={**env, **array}, check=True, capture_output=True)
+    assert_same_tree(study_reference, out)
 
 
 def test_bad_arguments_are_named(tmp_path):

@@ -54,6 +54,7 @@ __all__ = [
     "ShardFailed",
     "ShardKilled",
     "ShardResult",
+    "print_progress",
     "find_binary",
     "run_shards",
     "run_once",

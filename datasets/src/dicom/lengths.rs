@@ -26,6 +26,10 @@ const SHORT_VRS: &[&[u8; 2]] = &[
     b"SH", b"SL", b"SS", b"ST", b"TM", b"UI", b"UL", b"US",
 ];
 const UNDEFINED: u32 = 0xFFFF_FFFF;
+const ITEM: (u16, u16) = (0xFFFE, 0xE000);
+const ITEM_END: (u16, u16) = (0xFFFE, 0xE00D);
+const SEQUENCE_END: (u16, u16) = (0xFFFE, 0xE0DD);
+const PIXEL_DATA: (u16, u16) = (0x7FE0, 0x0010);
 /// Sequences nested deeper than this are not followed (nothing legitimate nests so deep).
 const MAX_DEPTH: usize = 32;
 
@@ -45,29 +49,37 @@ pub(super) fn check(path: &Path, bytes: &[u8]) -> Result<()> {
         explicit: true,
         big_endian: false,
     };
-    // The file meta group: explicit VR little endian, elements of group 0002. When it
-    // starts with its group length (0002,0000), as the standard requires, the data set
-    // starts where that says — as the parser reads it — whatever the elements in between.
-    let mut at = 132;
-    let mut meta_end = None;
-    if at + 12 <= bytes.len()
-        && let Some(e) = element(bytes, at, le)
-        && e.tag == (0x0002, 0x0000)
-        && e.length == 4
-        && e.value + 4 <= bytes.len()
-    {
-        meta_end = Some(e.value + 4 + u32_at(bytes, e.value, false) as usize);
-        at = e.value + 4;
+    // The file meta group, read exactly as `dicom-object` reads it (`FileMetaTable`): it
+    // must start with its group length (0002,0000) of 4 bytes (else the parser refuses the
+    // file, and there is nothing to check); then whole elements (explicit VR little endian,
+    // of any group) are read while the bytes read so far are fewer than that length, so the
+    // data set starts after the last element begun inside it — not where the group length
+    // alone says. Following the stated length instead put the walk out of step with the
+    // parser on a file whose meta group was malformed in its middle, and a 4 GB claim
+    // reached the parser (docs/reliability.md).
+    if bytes.len() < 132 + 12 {
+        return Ok(()); // too short for the group length: the parser reports it
     }
-    let limit = meta_end.unwrap_or(bytes.len()).min(bytes.len());
+    let Some(first) = element(bytes, 132, le) else {
+        return Ok(());
+    };
+    if first.tag != (0x0002, 0x0000) || first.length != 4 || first.value + 4 > bytes.len() {
+        return Ok(());
+    }
+    let group_length = u64::from(u32_at(bytes, first.value, false));
+    let mut at = first.value + 4;
+    let mut read = 0u64;
     let mut syntax_uid = String::new();
-    while at + 8 <= limit && u16_at(bytes, at, false) == 0x0002 {
+    while read < group_length {
+        if at + 8 > bytes.len() {
+            return Ok(()); // the parser reports the meta group as truncated
+        }
         let Some(e) = element(bytes, at, le) else {
-            break;
+            return Ok(());
         };
         e.fits(path, bytes.len())?;
         if e.length == UNDEFINED {
-            return Ok(());
+            return Ok(()); // the parser refuses an undefined length in the meta group
         }
         if e.tag == (0x0002, 0x0010) {
             let v = &bytes[e.value..e.value + e.length as usize];
@@ -75,13 +87,8 @@ pub(super) fn check(path: &Path, bytes: &[u8]) -> Result<()> {
                 .trim_end_matches(['\0', ' '])
                 .to_string();
         }
+        read += (e.value - at) as u64 + u64::from(e.length);
         at = e.value + e.length as usize;
-    }
-    if let Some(end) = meta_end {
-        if end > bytes.len() {
-            return Ok(()); // the parser reports the meta group as truncated
-        }
-        at = end;
     }
     if DEFLATED.contains(&syntax_uid.as_str()) {
         return Ok(());
@@ -90,11 +97,13 @@ pub(super) fn check(path: &Path, bytes: &[u8]) -> Result<()> {
         explicit: syntax_uid != IMPLICIT_LE,
         big_endian: syntax_uid == EXPLICIT_BE,
     };
-    walk(path, bytes, at, bytes.len(), syntax, 0).map(|_| ())
+    walk(path, bytes, at, bytes.len(), syntax, 0, false).map(|_| ())
 }
 
-/// Walks the elements in `bytes[at..end]`; returns false when it stopped at an undefined
-/// length (nothing after it is checked).
+/// Walks the elements in `bytes[at..end]` as `dicom-parser` reads them. With `in_item`,
+/// the elements are those of an item of undefined length, which end at an item
+/// delimitation (FFFE,E00D). Returns where the walk ended (after the delimiter, or `end`),
+/// or `None` when it met a structure it does not follow (nothing after it is checked).
 fn walk(
     path: &Path,
     bytes: &[u8],
@@ -102,28 +111,53 @@ fn walk(
     end: usize,
     s: Syntax,
     depth: usize,
-) -> Result<bool> {
+    in_item: bool,
+) -> Result<Option<usize>> {
     while at + 8 <= end {
         let Some(e) = element(bytes, at, s) else {
-            return Ok(true);
+            return Ok(Some(end));
         };
+        match e.tag {
+            ITEM_END if in_item => return Ok(Some(e.value)),
+            // The parser skips an item delimiter outside a sequence.
+            ITEM_END => {
+                at = e.value;
+                continue;
+            }
+            (0xFFFE, _) => return Ok(None),
+            _ => {}
+        }
         e.fits(path, end)?;
         if e.length == UNDEFINED {
-            return Ok(false);
+            // The parser reads encapsulated pixel data as fragments, and every other element
+            // of undefined length — whatever its VR — as a sequence of items.
+            if depth >= MAX_DEPTH {
+                return Ok(None);
+            }
+            let next = if e.tag == PIXEL_DATA {
+                fragments(path, bytes, e.value, s)?
+            } else {
+                items(path, bytes, e.value, bytes.len(), s, depth + 1, true)?
+            };
+            match next {
+                Some(next) => at = next,
+                None => return Ok(None),
+            }
+            continue;
         }
         let value_end = e.value + e.length as usize;
-        if e.is_sequence
-            && depth < MAX_DEPTH
-            && !items(path, bytes, e.value, value_end, s, depth + 1)?
-        {
-            return Ok(false);
+        if e.is_sequence && depth < MAX_DEPTH {
+            items(path, bytes, e.value, value_end, s, depth + 1, false)?;
         }
         at = value_end;
     }
-    Ok(true)
+    Ok(Some(end))
 }
 
-/// The items (FFFE,E000) of a sequence value in `bytes[at..end]`, each walked as a data set.
+/// The items (FFFE,E000) of a sequence value starting at `at`: of defined length (ending
+/// at `end`) or, with `undefined`, ending at a sequence delimitation (FFFE,E0DD). Each item
+/// is walked as a data set, of defined or undefined length. Returns where the sequence
+/// ended, or `None` when the walk stopped.
 fn items(
     path: &Path,
     bytes: &[u8],
@@ -131,30 +165,56 @@ fn items(
     end: usize,
     s: Syntax,
     depth: usize,
-) -> Result<bool> {
+    undefined: bool,
+) -> Result<Option<usize>> {
     while at + 8 <= end {
-        let tag = (
-            u16_at(bytes, at, s.big_endian),
-            u16_at(bytes, at + 2, s.big_endian),
-        );
-        let length = u32_at(bytes, at + 4, s.big_endian);
-        if tag != (0xFFFE, 0xE000) || length == UNDEFINED {
-            return Ok(false);
-        }
+        let (tag, length) = item_header(bytes, at, s);
         let value = at + 8;
-        Element {
-            tag,
-            value,
-            length,
-            is_sequence: false,
+        match tag {
+            SEQUENCE_END if undefined => return Ok(Some(value)),
+            ITEM if length == UNDEFINED => {
+                match walk(path, bytes, value, bytes.len(), s, depth, true)? {
+                    Some(next) => at = next,
+                    None => return Ok(None),
+                }
+            }
+            ITEM => {
+                Element::item(tag, value, length).fits(path, end)?;
+                if walk(path, bytes, value, value + length as usize, s, depth, false)?.is_none() {
+                    return Ok(None);
+                }
+                at = value + length as usize;
+            }
+            _ => return Ok(None),
         }
-        .fits(path, end)?;
-        if !walk(path, bytes, value, value + length as usize, s, depth)? {
-            return Ok(false);
-        }
-        at = value + length as usize;
     }
-    Ok(true)
+    Ok(if undefined { None } else { Some(end) })
+}
+
+/// The fragments of encapsulated pixel data from `at`: items of defined length up to the
+/// sequence delimitation, each of which the parser reads whole.
+fn fragments(path: &Path, bytes: &[u8], mut at: usize, s: Syntax) -> Result<Option<usize>> {
+    while at + 8 <= bytes.len() {
+        let (tag, length) = item_header(bytes, at, s);
+        match tag {
+            SEQUENCE_END => return Ok(Some(at + 8)),
+            ITEM if length != UNDEFINED => {
+                Element::item(tag, at + 8, length).fits(path, bytes.len())?;
+                at += 8 + length as usize;
+            }
+            _ => return Ok(None),
+        }
+    }
+    Ok(None)
+}
+
+/// Tag and length of an item or delimiter header at `at` (`at + 8` must be in bounds).
+fn item_header(bytes: &[u8], at: usize, s: Syntax) -> ((u16, u16), u32) {
+    let tag = (
+        u16_at(bytes, at, s.big_endian),
+        u16_at(bytes, at + 2, s.big_endian),
+    );
+    (tag, u32_at(bytes, at + 4, s.big_endian))
 }
 
 struct Element {
@@ -166,6 +226,15 @@ struct Element {
 }
 
 impl Element {
+    fn item(tag: (u16, u16), value: usize, length: u32) -> Self {
+        Element {
+            tag,
+            value,
+            length,
+            is_sequence: false,
+        }
+    }
+
     /// Errors when the value runs past `end`.
     fn fits(&self, path: &Path, end: usize) -> Result<()> {
         let left = end.saturating_sub(self.value);
@@ -249,6 +318,9 @@ mod tests {
         if uid.len() % 2 == 1 {
             uid.push(0);
         }
+        let group = 8 + uid.len() as u32;
+        b.extend([0x02, 0x00, 0x00, 0x00, b'U', b'L', 4, 0]);
+        b.extend(group.to_le_bytes());
         b.extend([0x02, 0x00, 0x10, 0x00, b'U', b'I']);
         b.extend((uid.len() as u16).to_le_bytes());
         b.extend(uid);
@@ -269,6 +341,77 @@ mod tests {
         }
         b.extend(value);
         b
+    }
+
+    /// An item (FFFE,E000) of `len` bytes (or undefined) holding `body`.
+    fn item(len: u32, body: &[u8]) -> Vec<u8> {
+        let mut b = vec![0xFE, 0xFF, 0x00, 0xE0];
+        b.extend(len.to_le_bytes());
+        b.extend(body);
+        b
+    }
+
+    const ITEM_DELIMITER: [u8; 8] = [0xFE, 0xFF, 0x0D, 0xE0, 0, 0, 0, 0];
+    const SEQUENCE_DELIMITER: [u8; 8] = [0xFE, 0xFF, 0xDD, 0xE0, 0, 0, 0, 0];
+
+    #[test]
+    fn undefined_length_sequences_are_walked_as_the_parser_reads_them() {
+        let p = Path::new("x.dcm");
+        let ts = "1.2.840.10008.1.2.1";
+        let name = explicit((0x0010, 0x0010), b"PN", 4, b"A^B ");
+        // SQ of undefined length: an undefined item (ends at its delimiter) and a defined
+        // one, then the sequence delimiter; then the data set goes on.
+        let mut body = explicit((0x0008, 0x1140), b"SQ", UNDEFINED, b"");
+        let mut inner = name.clone();
+        inner.extend(ITEM_DELIMITER);
+        body.extend(item(UNDEFINED, &inner));
+        body.extend(item(name.len() as u32, &name));
+        body.extend(SEQUENCE_DELIMITER);
+        let good = [body.clone(), name.clone()].concat();
+        assert!(check(p, &file(ts, &good)).is_ok());
+        // The same, with a 4 GB claim after the sequence: found (the walk used to stop at
+        // the undefined length).
+        let big = explicit((0x0009, 0x0010), b"OB", 0xF000_0000, b"xx");
+        let e = check(p, &file(ts, &[body.clone(), big.clone()].concat()))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("(0009,0010)"), "{e}");
+        // Inside an item of undefined length.
+        let mut deep = explicit((0x0008, 0x1140), b"SQ", UNDEFINED, b"");
+        deep.extend(item(UNDEFINED, &big));
+        assert!(check(p, &file(ts, &deep)).is_err());
+        // What the fuzzer found (fuzz/seeds/dicom_series/malformed-meta-4GB): an element of
+        // an unknown VR and undefined length, which the parser reads as a sequence, whose
+        // item holds a 4 GB claim.
+        let mut un = explicit((0x0000, 0x0000), b"\0\0", UNDEFINED, b"");
+        un.extend(item(UNDEFINED, &big));
+        assert!(check(p, &file(ts, &un)).is_err());
+        // Delimiters where the parser skips them (outside any sequence) are skipped.
+        let stray = [ITEM_DELIMITER.to_vec(), big].concat();
+        assert!(check(p, &file(ts, &stray)).is_err());
+    }
+
+    #[test]
+    fn the_meta_group_ends_where_the_parser_ends_it() {
+        // The parser reads whole elements while fewer bytes than the group length have been
+        // read: here the group length (10) ends inside the transfer syntax element (28
+        // bytes), so the data set starts after that element, not 10 bytes in.
+        let p = Path::new("x.dcm");
+        let uid = b"1.2.840.10008.1.2.1\0";
+        let mut b = vec![0u8; 128];
+        b.extend(b"DICM");
+        b.extend([0x02, 0x00, 0x00, 0x00, b'U', b'L', 4, 0]);
+        b.extend(10u32.to_le_bytes());
+        b.extend(explicit((0x0002, 0x0010), b"UI", uid.len() as u32, uid));
+        b.extend(explicit((0x0009, 0x0010), b"OB", 0xF000_0000, b"xx"));
+        let e = check(p, &b).unwrap_err().to_string();
+        assert!(e.contains("(0009,0010)"), "{e}");
+        // Without the group length the parser refuses the file itself: nothing to check.
+        let mut no_group = vec![0u8; 128];
+        no_group.extend(b"DICM");
+        no_group.extend(explicit((0x0002, 0x0010), b"UI", uid.len() as u32, uid));
+        no_group.extend(explicit((0x0009, 0x0010), b"OB", 0xF000_0000, b"xx"));
+        assert!(check(p, &no_group).is_ok());
     }
 
     #[test]
@@ -300,9 +443,22 @@ mod tests {
         // An unknown VR is read with a 4-byte length, as the parser reads it.
         let odd = explicit((0x543E, 0x0008), b"\x10O", 1_869_442_932, b"tomograf");
         assert!(check(p, &file("1.2.840.10008.1.2.1", &odd)).is_err());
-        // Undefined length: the walk stops there (the parser reads it item by item).
-        let und = explicit((0x7FE0, 0x0010), b"OB", UNDEFINED, b"");
-        assert!(check(p, &file("1.2.840.10008.1.2.4.50", &und)).is_ok());
+        // Encapsulated pixel data (undefined length): its fragments are checked, up to the
+        // sequence delimitation.
+        let fragment = |len: u32, data: &[u8]| {
+            let mut b = vec![0xFE, 0xFF, 0x00, 0xE0];
+            b.extend(len.to_le_bytes());
+            b.extend(data);
+            b
+        };
+        let mut enc = explicit((0x7FE0, 0x0010), b"OB", UNDEFINED, b"");
+        enc.extend(fragment(0, b""));
+        enc.extend(fragment(4, b"JPEG"));
+        enc.extend([0xFE, 0xFF, 0xDD, 0xE0, 0, 0, 0, 0]);
+        assert!(check(p, &file("1.2.840.10008.1.2.4.50", &enc)).is_ok());
+        let mut enc = explicit((0x7FE0, 0x0010), b"OB", UNDEFINED, b"");
+        enc.extend(fragment(0x8000_0000, b"JPEG"));
+        assert!(check(p, &file("1.2.840.10008.1.2.4.50", &enc)).is_err());
         // Not a Part-10 file: nothing to check here; a file that ends right after the
         // marker or inside the group length ends in Ok or a truncation error, never a panic.
         assert!(check(p, b"not dicom").is_ok());

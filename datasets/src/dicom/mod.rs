@@ -46,6 +46,14 @@ use std::path::{Path, PathBuf};
 use tomograf_sim::Volume;
 use tomograf_sim::volume::checked_voxel_count;
 
+/// Checks the value lengths a DICOM Part-10 file declares against its size, as every read
+/// here does before the parser sees the file (a declared length the file cannot hold is
+/// refused before anything is allocated for it); `Ok` for a file that is not Part 10.
+pub fn check_value_lengths(path: &Path) -> Result<()> {
+    let bytes = std::fs::read(path).map_err(|e| DatasetError::io(path, "reading", e))?;
+    lengths::check(path, &bytes)
+}
+
 /// Largest difference between the orientation cosines of two slices of a series.
 const ORIENTATION_TOL: f64 = 1e-4;
 /// Largest angle (rad) between the slice normal and the line through the slice positions.
