@@ -12,6 +12,9 @@
 //! parser reads item by item) and in deflated data sets.
 
 use crate::error::{DatasetError, Result};
+use dicom_core::dictionary::{DataDictionary, DataDictionaryEntry};
+use dicom_core::{Tag, VR};
+use dicom_dictionary_std::StandardDataDictionary;
 use std::path::Path;
 
 /// Transfer syntaxes whose data set is implicit VR little endian, and explicit VR big
@@ -128,6 +131,7 @@ fn walk(
             _ => {}
         }
         e.fits(path, end)?;
+        e.whole(path)?;
         if e.length == UNDEFINED {
             // The parser reads encapsulated pixel data as fragments, and every other element
             // of undefined length — whatever its VR — as a sequence of items.
@@ -146,7 +150,7 @@ fn walk(
             continue;
         }
         let value_end = e.value + e.length as usize;
-        if e.is_sequence && depth < MAX_DEPTH {
+        if e.is_sequence() && depth < MAX_DEPTH {
             items(path, bytes, e.value, value_end, s, depth + 1, false)?;
         }
         at = value_end;
@@ -222,7 +226,8 @@ struct Element {
     /// Where the value starts.
     value: usize,
     length: u32,
-    is_sequence: bool,
+    /// As the parser reads it ([`element`]).
+    vr: VR,
 }
 
 impl Element {
@@ -231,8 +236,39 @@ impl Element {
             tag,
             value,
             length,
-            is_sequence: false,
+            vr: VR::UN,
         }
+    }
+
+    fn is_sequence(&self) -> bool {
+        self.vr == VR::SQ
+    }
+
+    /// Errors when a binary number VR's value is not a whole number of numbers: the
+    /// parser reads only the whole numbers but counts the declared length, and goes on
+    /// reading out of step with the file (how a 4 GB claim hid from this walk, found by
+    /// the fuzzer: an FL element of 26 bytes).
+    fn whole(&self, path: &Path) -> Result<()> {
+        let size = match self.vr {
+            VR::US | VR::OW | VR::SS => 2,
+            VR::FL | VR::OF | VR::SL | VR::OL | VR::UL | VR::AT => 4,
+            VR::FD | VR::OD | VR::SV | VR::OV | VR::UV => 8,
+            _ => 1,
+        };
+        if self.length != UNDEFINED && self.length % size != 0 {
+            return Err(DatasetError::corrupt(
+                path,
+                format!(
+                    "element ({:04X},{:04X}) of VR {} declares {} bytes, which is not a whole \
+                     number of its {size}-byte values",
+                    self.tag.0,
+                    self.tag.1,
+                    self.vr.to_string(),
+                    self.length
+                ),
+            ));
+        }
+        Ok(())
     }
 
     /// Errors when the value runs past `end`.
@@ -252,23 +288,41 @@ impl Element {
     }
 }
 
-/// The element header at `at`, or `None` when the bytes end inside it.
+/// The element header at `at`, or `None` when the bytes end inside it. Its VR is the one
+/// the parser gives it: the two bytes in explicit VR (an unknown pair is UN), the data
+/// dictionary's in implicit VR (`relaxed`: US for US-or-SS, OW for OB-or-OW; pixel and
+/// overlay data OW; a tag it does not know UN).
 fn element(bytes: &[u8], at: usize, s: Syntax) -> Option<Element> {
     let tag = (
         u16_at(bytes, at, s.big_endian),
         u16_at(bytes, at + 2, s.big_endian),
     );
     // Item and delimitation tags carry a 4-byte length and no VR in every syntax.
-    if !s.explicit || tag.0 == 0xFFFE {
+    if tag.0 == 0xFFFE {
+        return Some(Element::item(
+            tag,
+            at + 8,
+            u32_at(bytes, at + 4, s.big_endian),
+        ));
+    }
+    if !s.explicit {
+        let vr = if tag == PIXEL_DATA || (tag.0 >> 8 == 0x60 && tag.1 == 0x3000) {
+            VR::OW
+        } else {
+            StandardDataDictionary
+                .by_tag(Tag(tag.0, tag.1))
+                .map(|entry| entry.vr().relaxed())
+                .unwrap_or(VR::UN)
+        };
         return Some(Element {
             tag,
             value: at + 8,
             length: u32_at(bytes, at + 4, s.big_endian),
-            is_sequence: false,
+            vr,
         });
     }
-    let vr: &[u8; 2] = bytes.get(at + 4..at + 6)?.try_into().ok()?;
-    if !SHORT_VRS.contains(&vr) {
+    let code: &[u8; 2] = bytes.get(at + 4..at + 6)?.try_into().ok()?;
+    if !SHORT_VRS.contains(&code) {
         if at + 12 > bytes.len() {
             return None;
         }
@@ -276,14 +330,14 @@ fn element(bytes: &[u8], at: usize, s: Syntax) -> Option<Element> {
             tag,
             value: at + 12,
             length: u32_at(bytes, at + 8, s.big_endian),
-            is_sequence: vr == b"SQ",
+            vr: VR::from_binary(*code).unwrap_or(VR::UN),
         })
     } else {
         Some(Element {
             tag,
             value: at + 8,
             length: u32::from(u16_at(bytes, at + 6, s.big_endian)),
-            is_sequence: false,
+            vr: VR::from_binary(*code).unwrap_or(VR::UN),
         })
     }
 }
@@ -380,15 +434,41 @@ mod tests {
         let mut deep = explicit((0x0008, 0x1140), b"SQ", UNDEFINED, b"");
         deep.extend(item(UNDEFINED, &big));
         assert!(check(p, &file(ts, &deep)).is_err());
-        // What the fuzzer found (fuzz/seeds/dicom_series/malformed-meta-4GB): an element of
-        // an unknown VR and undefined length, which the parser reads as a sequence, whose
-        // item holds a 4 GB claim.
+        // An element of an unknown VR and undefined length, which the parser reads as a
+        // sequence, whose item holds a 4 GB claim.
         let mut un = explicit((0x0000, 0x0000), b"\0\0", UNDEFINED, b"");
         un.extend(item(UNDEFINED, &big));
         assert!(check(p, &file(ts, &un)).is_err());
         // Delimiters where the parser skips them (outside any sequence) are skipped.
         let stray = [ITEM_DELIMITER.to_vec(), big].concat();
         assert!(check(p, &file(ts, &stray)).is_err());
+    }
+
+    #[test]
+    fn a_number_value_of_a_broken_length_is_refused() {
+        // What the fuzzer found (fuzz/seeds/dicom_series/malformed-meta-4GB): an FL element
+        // of 26 bytes, of which the parser reads 24 (six floats) while counting 26; it then
+        // read the next header 2 bytes early, where a length of 4 GB stood.
+        let p = Path::new("x.dcm");
+        let ts = "1.2.840.10008.1.2.1";
+        let fl = explicit((0x0008, 0x0016), b"FL", 26, &[0; 26]);
+        let e = check(p, &file(ts, &fl)).unwrap_err().to_string();
+        assert!(e.contains("(0008,0016) of VR FL declares 26 bytes"), "{e}");
+        assert!(
+            check(
+                p,
+                &file(ts, &explicit((0x0008, 0x0016), b"FL", 24, &[0; 24]))
+            )
+            .is_ok()
+        );
+        // In implicit VR the VR is the dictionary's: Rows (0028,0010) is US.
+        let mut rows = vec![0x28, 0x00, 0x10, 0x00];
+        rows.extend(3u32.to_le_bytes());
+        rows.extend([1, 2, 3]);
+        let e = check(p, &file("1.2.840.10008.1.2", &rows))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("(0028,0010) of VR US"), "{e}");
     }
 
     #[test]
