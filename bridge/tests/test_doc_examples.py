@@ -14,7 +14,8 @@ from conftest import ROOT
 
 # Blocks that are compiled but not run, and why (matched against the block's text).
 NOT_RUN = {
-    "import subprocess, ray": "drives a Ray cluster (ray is not a test dependency)",
+    'ray.init(address="auto")': "joins a running Ray cluster and writes to /shared (the same "
+    "calls run on a local cluster in test_distributed.py)",
 }
 
 
@@ -38,7 +39,7 @@ def test_the_documents_have_python_examples():
 def test_python_example_runs(code, tmp_path):
     compiled = compile(code, "<doc example>", "exec")
     for marker, why in NOT_RUN.items():
-        if code.startswith(marker):
+        if marker in code:
             pytest.skip(f"compiled, not run: {why}")
     cwd = os.getcwd()
     os.chdir(tmp_path)
