@@ -214,12 +214,7 @@ pub fn acquisition(scene: &Scene) -> Result<Option<(Acquisition, u64)>> {
         bail!("thresholds_kev applies to the photon-counting detector model only");
     }
     if let Some(s) = &a.signal {
-        acq.output = match s.as_str() {
-            "raw" => Output::Raw,
-            "flat-field" => Output::FlatField,
-            "log-line-integral" => Output::LogLineIntegral,
-            other => bail!("unknown signal '{other}': use raw, flat-field or log-line-integral"),
-        };
+        acq.output = Output::from_name(s)?;
     }
     if let Some(s) = &scene.scatter {
         s.validate()?;

@@ -51,15 +51,7 @@ pub fn acquire<'py>(
     projector: &str,
     detector: Option<&str>,
 ) -> PyResult<Bound<'py, PyArrayDyn<f32>>> {
-    let proj = match projector {
-        "siddon" => Projector::Siddon,
-        "trilinear" => Projector::Trilinear { step_voxels: 0.5 },
-        other => {
-            return Err(errors::value(format!(
-                "unknown projector '{other}': expected 'siddon' or 'trilinear'"
-            )));
-        }
-    };
+    let proj = Projector::from_name(projector, 0.5).map_err(errors::sim)?;
     let mut acq = acquisition(preset, kvp, mas)?;
     if energy_bins.is_some() {
         acq.spectrum.bins = energy_bins;
@@ -68,16 +60,7 @@ pub fn acquire<'py>(
         acq.detector = DetectorModel::by_name(d, None).map_err(errors::sim)?;
     }
     if let Some(s) = signal {
-        acq.output = match s {
-            "raw" => Output::Raw,
-            "flat-field" => Output::FlatField,
-            "log-line-integral" => Output::LogLineIntegral,
-            other => {
-                return Err(errors::value(format!(
-                    "unknown signal '{other}': expected 'raw', 'flat-field' or 'log-line-integral'"
-                )));
-            }
-        };
+        acq.output = Output::from_name(s).map_err(errors::sim)?;
     }
     let (list, single) = crate::render::view_list(views)?;
     let (rows, cols) = (list[0].rows, list[0].cols);

@@ -9,31 +9,14 @@ use pyo3::prelude::*;
 use rayon::prelude::*;
 use tomograf_sim::{Projector, Quantity, Ray, Renderer, View, Volume};
 
-/// Parses the projector name.
+/// Parses the projector name (the one table: [`Projector::from_name`]).
 fn projector(name: &str, step_voxels: f64) -> PyResult<Projector> {
-    match name.to_ascii_lowercase().as_str() {
-        "siddon" => Ok(Projector::Siddon),
-        "trilinear" => Ok(Projector::Trilinear { step_voxels }),
-        other => Err(errors::value(format!(
-            "unknown projector '{other}': expected 'siddon' or 'trilinear'"
-        ))),
-    }
+    Projector::from_name(name, step_voxels).map_err(errors::sim)
 }
 
-/// Parses the output quantity name.
+/// Parses the output quantity name (the one table: [`Quantity::from_name`]; checked).
 fn quantity(name: &str, i0: f64) -> PyResult<Quantity> {
-    let q = match name.to_ascii_lowercase().replace('_', "-").as_str() {
-        "line-integral" => Quantity::LineIntegral,
-        "transmission" => Quantity::Transmission,
-        "intensity" => Quantity::Intensity { i0 },
-        other => {
-            return Err(errors::value(format!(
-                "unknown quantity '{other}': expected 'line-integral', 'transmission' or 'intensity'"
-            )));
-        }
-    };
-    q.validate().map_err(errors::sim)?;
-    Ok(q)
+    Quantity::from_name(name, i0).map_err(errors::sim)
 }
 
 /// The projectors integrate mm⁻¹: a negative voxel means HU were passed by mistake.

@@ -42,6 +42,27 @@ pub enum SimError {
     /// A data table shipped with the crate failed to parse (a build or packaging fault).
     #[error("corrupt built-in data table: {0}")]
     DataTable(String),
+    /// A name (of a projector, quantity, signal …) that is not one of `choices`.
+    #[error("unknown {what} '{name}': use {choices}")]
+    UnknownName {
+        /// What was named (`projector`, `quantity`, `signal`).
+        what: &'static str,
+        /// The name given.
+        name: String,
+        /// The names there are, in words.
+        choices: &'static str,
+    },
+}
+
+impl SimError {
+    /// An [`SimError::UnknownName`].
+    pub fn unknown_name(what: &'static str, name: &str, choices: &'static str) -> Self {
+        Self::UnknownName {
+            what,
+            name: name.to_string(),
+            choices,
+        }
+    }
 }
 
 /// Result alias for this crate.

@@ -82,31 +82,22 @@ pub fn resolve(scene: &Scene, mu: &Volume) -> Result<Job> {
     views.extend(explicit);
 
     let p = &scene.projector;
-    let projector = match p.kind.as_deref().unwrap_or("siddon") {
-        "siddon" => {
-            if p.step_voxels.is_some() {
-                bail!("--step applies to the trilinear projector only");
-            }
-            Projector::Siddon
-        }
-        "trilinear" => Projector::Trilinear {
-            step_voxels: p.step_voxels.unwrap_or(0.5),
-        },
-        other => bail!("unknown projector '{other}': use siddon or trilinear"),
-    };
+    let projector = Projector::from_name(
+        p.kind.as_deref().unwrap_or("siddon"),
+        p.step_voxels.unwrap_or(0.5),
+    )?;
+    if projector == Projector::Siddon && p.step_voxels.is_some() {
+        bail!("--step applies to the trilinear projector only");
+    }
     let skipping = p.empty_below_per_mm.map(|threshold| SkipOptions {
         threshold,
         ..SkipOptions::default()
     });
     let o = &scene.output;
-    let quantity = match o.quantity.as_deref().unwrap_or("line-integral") {
-        "line-integral" => Quantity::LineIntegral,
-        "transmission" => Quantity::Transmission,
-        "intensity" => Quantity::Intensity {
-            i0: o.i0.unwrap_or(1.0),
-        },
-        other => bail!("unknown quantity '{other}': use line-integral, transmission or intensity"),
-    };
+    let quantity = Quantity::from_name(
+        o.quantity.as_deref().unwrap_or("line-integral"),
+        o.i0.unwrap_or(1.0),
+    )?;
     if o.i0.is_some() && !matches!(quantity, Quantity::Intensity { .. }) {
         bail!("--i0 applies to --quantity intensity only");
     }

@@ -44,6 +44,21 @@ pub enum Output {
     LogLineIntegral,
 }
 
+impl Output {
+    /// The signal names scenes, the command line and Python accept.
+    pub const NAMES: &'static str = "raw, flat-field or log-line-integral";
+
+    /// The output called `name` (`raw`, `flat-field` or `log-line-integral`; any case).
+    pub fn from_name(name: &str) -> Result<Self> {
+        match name.trim().to_ascii_lowercase().as_str() {
+            "raw" => Ok(Self::Raw),
+            "flat-field" => Ok(Self::FlatField),
+            "log-line-integral" => Ok(Self::LogLineIntegral),
+            _ => Err(SimError::unknown_name("signal", name, Self::NAMES)),
+        }
+    }
+}
+
 /// Flat and dark fields, one image per channel, checked: same sizes, finite, and the flat
 /// above the dark everywhere.
 #[derive(Debug, Clone, PartialEq)]

@@ -36,6 +36,22 @@ pub enum Projector {
     },
 }
 
+impl Projector {
+    /// The projector names scenes, the command line and Python accept.
+    pub const NAMES: &'static str = "siddon or trilinear";
+
+    /// The projector called `name` (`siddon` or `trilinear`, any case); `step_voxels` is
+    /// the trilinear projector's step (voxels; unused by Siddon). The one name table of
+    /// the scene files, the CLI and the Python module.
+    pub fn from_name(name: &str, step_voxels: f64) -> Result<Self> {
+        match name.trim().to_ascii_lowercase().as_str() {
+            "siddon" => Ok(Self::Siddon),
+            "trilinear" => Ok(Self::Trilinear { step_voxels }),
+            _ => Err(SimError::unknown_name("projector", name, Self::NAMES)),
+        }
+    }
+}
+
 /// What a pixel records.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(tag = "kind", rename_all = "kebab-case")]
@@ -52,6 +68,23 @@ pub enum Quantity {
 }
 
 impl Quantity {
+    /// The quantity names scenes, the command line and Python accept.
+    pub const NAMES: &'static str = "line-integral, transmission or intensity";
+
+    /// The quantity called `name` (`line-integral`, `transmission` or `intensity`; any
+    /// case, `_` for `-`); `i0` is the intensity's unattenuated value (unused otherwise).
+    /// Checked ([`Quantity::validate`]).
+    pub fn from_name(name: &str, i0: f64) -> Result<Self> {
+        let q = match name.trim().to_ascii_lowercase().replace('_', "-").as_str() {
+            "line-integral" => Self::LineIntegral,
+            "transmission" => Self::Transmission,
+            "intensity" => Self::Intensity { i0 },
+            _ => return Err(SimError::unknown_name("quantity", name, Self::NAMES)),
+        };
+        q.validate()?;
+        Ok(q)
+    }
+
     /// Converts one line integral.
     #[inline]
     pub fn from_line_integral(&self, l: f64) -> f64 {
