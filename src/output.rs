@@ -9,8 +9,9 @@ use crate::scene::Scene;
 use anyhow::{Context, Result, bail};
 use serde::Serialize;
 use std::path::{Path, PathBuf};
+use tomograf_datasets::sidecar::{FilesRecord, PixelQuantity, Sidecar, ViewRecord};
 use tomograf_datasets::{atomic, image};
-use tomograf_sim::{Geometry, Pose, Projection, Projector, Quantity, View};
+use tomograf_sim::Projection;
 
 /// An output file format.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
@@ -27,6 +28,16 @@ pub enum Format {
 }
 
 impl Format {
+    /// The format's name, as `--format` takes it and the sidecar records it.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Exr => "exr",
+            Self::Tiff => "tiff",
+            Self::Npy => "npy",
+            Self::Png => "png",
+        }
+    }
+
     pub fn parse(name: &str) -> Result<Self> {
         Ok(match name.trim().to_ascii_lowercase().as_str() {
             "exr" => Self::Exr,
@@ -118,9 +129,9 @@ impl Outputs {
         }
     }
 
-    /// Writes the NPY stack and the sidecar (JSON of a [`Sidecar`], possibly extended);
-    /// returns the number of files written in all.
-    pub fn finish(&self, images: &[Projection], mut sidecar: serde_json::Value) -> Result<usize> {
+    /// Writes the NPY stack and the sidecar (with the files written); returns the number
+    /// of files written in all.
+    pub fn finish(&self, images: &[Projection], mut sidecar: Sidecar) -> Result<usize> {
         let per_view = self.formats.iter().filter(|f| **f != Format::Npy).count();
         let mut files = per_view * images.len();
         if self.formats.contains(&Format::Npy) && !images.is_empty() {
@@ -138,14 +149,18 @@ impl Outputs {
             )?;
             files += 1;
         }
-        sidecar["files"] = serde_json::json!({
-            "formats": self.formats,
-            "per_view": format!("{}_NNN.<ext> (NNN = view index)", self.prefix),
-            "npy_stack": self.formats.contains(&Format::Npy).then(|| format!("{}.npy", self.prefix)),
-            "png_window": self.window.map_or("per-image min..max".to_string(), |w| format!("{w:?}")),
+        sidecar.files = Some(FilesRecord {
+            formats: self.formats.iter().map(|f| f.name().to_string()).collect(),
+            per_view: format!("{}_NNN.<ext> (NNN = view index)", self.prefix),
+            npy_stack: self
+                .formats
+                .contains(&Format::Npy)
+                .then(|| format!("{}.npy", self.prefix)),
+            png_window: self
+                .window
+                .map_or("per-image min..max".to_string(), |w| format!("{w:?}")),
         });
-        let path = self.dir.join(format!("{}.json", self.prefix));
-        write_json(&path, &sidecar)?;
+        sidecar.write(&self.dir.join(format!("{}.json", self.prefix)))?;
         Ok(files + 1)
     }
 }
@@ -166,50 +181,30 @@ fn auto_window(img: &Projection) -> (f32, f32) {
     if hi > lo { (lo, hi) } else { (lo, lo + 1.0) }
 }
 
-/// The JSON sidecar: the full geometry of every view and how values were produced.
-#[derive(Debug, Serialize)]
-pub struct Sidecar<'a> {
-    pub tomograf_version: &'static str,
-    pub conventions: &'static str,
-    pub volume: &'a VolumeSource,
-    pub projector: Projector,
-    /// Empty-space skipping (`null`: off).
-    pub skipping: Option<tomograf_sim::accel::SkipOptions>,
-    pub quantity: Quantity,
-    pub geometry: Option<Geometry>,
-    pub views: Vec<SidecarView>,
-}
-
-#[derive(Debug, Serialize)]
-pub struct SidecarView {
-    pub index: usize,
-    pub pose: Option<Pose>,
-    #[serde(flatten)]
-    pub view: View,
-}
-
-impl<'a> Sidecar<'a> {
-    pub fn new(volume: &'a VolumeSource, job: &Job) -> Self {
-        Self {
-            tomograf_version: env!("CARGO_PKG_VERSION"),
-            conventions: "World frame DICOM LPS, mm. Pixel (row r, col c) centre = detector_origin + c*u + r*v; \
-                          pixel (0,0) is top-left in the beam's-eye view; images row-major. Cone rays run from \
-                          source to pixel centre; parallel rays are whole lines along direction.",
-            volume,
-            projector: job.projector,
-            skipping: job.skipping,
-            quantity: job.quantity,
-            geometry: job.geometry,
-            views: job
-                .views
-                .iter()
-                .enumerate()
-                .map(|(index, view)| SidecarView {
-                    index,
-                    pose: job.poses.get(index).copied(),
-                    view: *view,
-                })
-                .collect(),
-        }
+/// The sidecar of a `project` run (before its `files`), from the volume and the job.
+pub fn sidecar(volume: &VolumeSource, job: &Job) -> Sidecar {
+    Sidecar {
+        tomograf_version: env!("CARGO_PKG_VERSION").into(),
+        conventions: tomograf_datasets::sidecar::CONVENTIONS.into(),
+        volume: volume.clone(),
+        projector: job.projector,
+        skipping: job.skipping,
+        quantity: PixelQuantity::Ideal(job.quantity),
+        geometry: job.geometry,
+        views: job
+            .views
+            .iter()
+            .enumerate()
+            .map(|(index, view)| ViewRecord {
+                index,
+                pose: job.poses.get(index).copied(),
+                view: *view,
+            })
+            .collect(),
+        acquisition: None,
+        clipped_pixels: None,
+        saturated_pixels: None,
+        channel: None,
+        files: None,
     }
 }

@@ -4,11 +4,12 @@
 
 use anyhow::{Context, Result, bail, ensure};
 use clap::{Args, ValueEnum};
-use glam::{DMat3, DVec3};
+use glam::DVec3;
 use indicatif::{ProgressBar, ProgressStyle};
 use serde::Deserialize;
 use std::path::{Path, PathBuf};
 use tomograf_datasets::nifti;
+use tomograf_datasets::sidecar::{PixelQuantity, Sidecar};
 use tomograf_sim::recon::{self, AngularWeighting, FdkOptions, SartOptions, TvOptions, Window};
 use tomograf_sim::{Geometry, Pose, Projection, Quantity, View, Volume};
 
@@ -94,20 +95,12 @@ pub enum WeightingArg {
     Parker,
 }
 
-/// One view as drr.json and views.json store it.
+/// One view as views.json stores it (a data-set item's geometry).
 #[derive(Debug, Deserialize)]
-struct SidecarView {
+struct ItemView {
     pose: Option<Pose>,
     #[serde(flatten)]
     view: View,
-}
-
-#[derive(Debug, Deserialize)]
-struct SidecarGrid {
-    dims: [usize; 3],
-    spacing_mm: [f64; 3],
-    origin_mm: [f64; 3],
-    direction: [[f64; 3]; 3],
 }
 
 /// What the input folder holds.
@@ -126,26 +119,30 @@ fn read_json(path: &Path) -> Result<serde_json::Value> {
 }
 
 fn load(dir: &Path) -> Result<Input> {
-    let (json, npy, quantity, grid) = if dir.join("drr.json").is_file() {
-        let j = read_json(&dir.join("drr.json"))?;
-        let q: Quantity = serde_json::from_value(j["quantity"].clone())
-            .context("drr.json: reading `quantity`")?;
-        let grid = serde_json::from_value::<SidecarGrid>(j["volume"].clone())
-            .ok()
-            .map(|g| {
-                let d = g.direction;
-                let count = tomograf_sim::volume::checked_voxel_count(g.dims)
-                    .context("drr.json: the volume grid")?;
-                Ok::<_, anyhow::Error>(Volume::new(
-                    g.dims,
-                    DVec3::from(g.spacing_mm),
-                    DVec3::from(g.origin_mm),
-                    DMat3::from_cols_array_2d(&d),
-                    vec![0.0; count],
-                )?)
-            })
-            .transpose()?;
-        (j, dir.join("drr.npy"), q, grid)
+    let (views, poses, geometry, npy, quantity, grid) = if dir.join("drr.json").is_file() {
+        let path = dir.join("drr.json");
+        let sc = Sidecar::read(&path)?;
+        let quantity = match &sc.quantity {
+            PixelQuantity::Ideal(q) => *q,
+            PixelQuantity::Described(what) => bail!(
+                "{}: the images hold a {what}, which reconstruct-classical does not read: \
+                 it reconstructs ideal DRRs (line integrals, transmission or intensity)",
+                path.display()
+            ),
+        };
+        let grid = sc
+            .grid()
+            .with_context(|| format!("{}: the volume grid", path.display()))?;
+        let poses: Option<Vec<Pose>> = sc.views.iter().map(|v| v.pose).collect();
+        let views: Vec<View> = sc.views.iter().map(|v| v.view).collect();
+        (
+            views,
+            poses,
+            sc.geometry,
+            dir.join("drr.npy"),
+            quantity,
+            Some(grid),
+        )
     } else if dir.join("views.json").is_file() {
         let j = read_json(&dir.join("views.json"))?;
         let ct = dir.join("ct.nii.gz");
@@ -154,21 +151,22 @@ fn load(dir: &Path) -> Result<Input> {
         } else {
             None
         };
-        (j, dir.join("projections.npy"), Quantity::LineIntegral, grid)
+        let views: Vec<ItemView> =
+            serde_json::from_value(j["views"].clone()).context("reading the views' geometry")?;
+        let mut poses: Option<Vec<Pose>> = views.iter().map(|v| v.pose).collect();
+        if poses.is_none() {
+            poses = serde_json::from_value(j["poses"].clone()).ok();
+        }
+        let geometry: Option<Geometry> = serde_json::from_value(j["geometry"].clone()).ok();
+        let views: Vec<View> = views.into_iter().map(|v| v.view).collect();
+        let npy = dir.join("projections.npy");
+        (views, poses, geometry, npy, Quantity::LineIntegral, grid)
     } else {
         bail!(
             "{} holds neither drr.json (tomograf project) nor views.json (tomograf dataset)",
             dir.display()
         );
     };
-    let views: Vec<SidecarView> =
-        serde_json::from_value(json["views"].clone()).context("reading the views' geometry")?;
-    let mut poses: Option<Vec<Pose>> = views.iter().map(|v| v.pose).collect();
-    if poses.is_none() {
-        poses = serde_json::from_value(json["poses"].clone()).ok();
-    }
-    let geometry: Option<Geometry> = serde_json::from_value(json["geometry"].clone()).ok();
-    let views: Vec<View> = views.into_iter().map(|v| v.view).collect();
     let (data, shape) = tomograf_datasets::image::read_npy(&npy)?;
     ensure!(
         shape.len() == 3 && shape[0] == views.len(),

@@ -15,6 +15,7 @@ use crate::output::Outputs;
 use anyhow::{Result, bail};
 use serde::de::Error as _;
 use serde::{Deserialize, Deserializer, Serialize, Serializer};
+use tomograf_datasets::sidecar::{PixelQuantity, Sidecar};
 use tomograf_sim::Projection;
 use tomograf_sim::acquisition::{Acquired, add_into};
 use tomograf_sim::detector::ExpectedImage;
@@ -213,18 +214,18 @@ impl ScatterWriters {
 
     /// Writes the NPY stacks and sidecars (each `sidecar` plus what the image holds);
     /// returns the number of files written.
-    pub fn finish(&self, sidecar: &serde_json::Value) -> Result<usize> {
+    pub fn finish(&self, sidecar: &Sidecar) -> Result<usize> {
         let mut files = 0;
         for (kind, outs, stacks) in &self.sets {
             for (c, (out, stack)) in outs.iter().zip(stacks).enumerate() {
                 let mut sc = sidecar.clone();
-                sc["quantity"] = serde_json::json!(format!(
+                sc.quantity = PixelQuantity::Described(format!(
                     "expected detector signal (noiseless mean, raw signal units, before blur, \
                      gain and noise): {}",
                     kind.name()
                 ));
                 if outs.len() > 1 {
-                    sc["channel"] = serde_json::json!(c);
+                    sc.channel = Some(c);
                 }
                 files += out.finish(stack, sc)?;
             }

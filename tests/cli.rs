@@ -293,3 +293,58 @@ fn empty_space_skipping_from_the_command_line() {
         );
     }
 }
+
+/// `reconstruct-classical` reads what `project` wrote through the one sidecar definition:
+/// an ideal arc reconstructs; a real-detector folder is refused by name.
+#[test]
+fn reconstruct_classical_reads_the_projection_sidecar() {
+    let dir = tempfile::tempdir().unwrap();
+    let arc = dir.path().join("arc");
+    let mut args = vec![
+        "project",
+        "-o",
+        arc.to_str().unwrap(),
+        "--arc",
+        "0:10:36",
+        "--format",
+        "npy",
+    ];
+    args.extend(SMALL);
+    ok(&tomograf(&args));
+    let rec = dir.path().join("rec");
+    let out = tomograf(&[
+        "reconstruct-classical",
+        arc.to_str().unwrap(),
+        "-o",
+        rec.to_str().unwrap(),
+    ]);
+    ok(&out);
+    assert!(String::from_utf8_lossy(&out.stderr).contains("SART-TV from 36 views"));
+
+    let real = dir.path().join("real");
+    let mut args = vec![
+        "project",
+        "-o",
+        real.to_str().unwrap(),
+        "--view",
+        "ap",
+        "--format",
+        "npy",
+        "--preset",
+        "kv-flat-panel-120kvp",
+    ];
+    args.extend(SMALL);
+    ok(&tomograf(&args));
+    let out = tomograf(&[
+        "reconstruct-classical",
+        real.to_str().unwrap(),
+        "-o",
+        rec.to_str().unwrap(),
+    ]);
+    assert!(!out.status.success());
+    let e = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        e.contains("drr.json") && e.contains("detector signal") && e.contains("does not read"),
+        "{e}"
+    );
+}

@@ -24,5 +24,6 @@ pub mod image;
 pub mod item;
 pub mod nifti;
 pub mod preprocess;
+pub mod sidecar;
 
 pub use error::{DatasetError, Result};

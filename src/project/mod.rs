@@ -24,6 +24,7 @@ use indicatif::{ProgressBar, ProgressStyle};
 use std::path::PathBuf;
 use std::sync::Arc;
 use std::time::Instant;
+use tomograf_datasets::sidecar::{self, PixelQuantity};
 use tomograf_sim::acquisition::Acquired;
 use tomograf_sim::attenuation::Attenuation;
 use tomograf_sim::mesh::MeshScene;
@@ -368,16 +369,12 @@ pub fn run(args: ProjectArgs) -> Result<()> {
         bar.inc(1);
     }
     bar.finish_and_clear();
-    let mut sidecar = serde_json::to_value(output::Sidecar::new(&source, &job))?;
+    let mut sidecar = output::sidecar(&source, &job);
     if let Some((acq, seed)) = &acquisition {
-        sidecar["quantity"] = serde_json::json!("detector signal (see acquisition)");
-        sidecar["acquisition"] = serde_json::to_value(acq)?;
-        sidecar["acquisition"]["seed"] = serde_json::json!(seed);
-        sidecar["acquisition"]["frame_seeds"] = serde_json::json!(
-            "view i: SplitMix64(seed ^ (i+1)·0x9E3779B97F4A7C15); calibration: frame 0"
-        );
-        sidecar["clipped_pixels"] = serde_json::json!(clipping.clipped);
-        sidecar["saturated_pixels"] = serde_json::json!(clipping.saturated);
+        sidecar.quantity = PixelQuantity::Described("detector signal (see acquisition)".into());
+        sidecar.acquisition = Some(sidecar::acquisition_record(acq, *seed)?);
+        sidecar.clipped_pixels = Some(clipping.clipped as u64);
+        sidecar.saturated_pixels = Some(clipping.saturated as u64);
         if let Some(w) = clipping.warning(acq.spectrum.mas, "[spectrum] mas or --mas") {
             eprintln!("{w}");
         }
@@ -386,7 +383,7 @@ pub fn run(args: ProjectArgs) -> Result<()> {
     for (c, (out, images)) in channel_outputs.iter().zip(&channels).enumerate() {
         let mut sc = sidecar.clone();
         if channel_outputs.len() > 1 {
-            sc["channel"] = serde_json::json!(c);
+            sc.channel = Some(c);
         }
         files += out.finish(images, sc)?;
     }

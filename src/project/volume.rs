@@ -3,7 +3,6 @@
 use crate::scene::Scene;
 use anyhow::{Result, bail};
 use glam::DVec3;
-use std::path::PathBuf;
 use tomograf_sim::Volume;
 use tomograf_sim::attenuation::Attenuation;
 use tomograf_sim::phantom::Phantom;
@@ -19,18 +18,8 @@ pub fn phantom_volume(dims: [usize; 3], spacing: [f64; 3]) -> Result<Volume> {
     Ok(Phantom::thorax().voxelize(dims, DVec3::from(spacing), DVec3::ZERO)?)
 }
 
-/// Where the volume came from, for the sidecar.
-#[derive(Debug, Clone, serde::Serialize)]
-pub struct VolumeSource {
-    pub path: Option<PathBuf>,
-    pub phantom: Option<&'static str>,
-    pub units: String,
-    pub attenuation: Attenuation,
-    pub dims: [usize; 3],
-    pub spacing_mm: [f64; 3],
-    pub origin_mm: [f64; 3],
-    pub direction: [[f64; 3]; 3],
-}
+/// Where the volume came from and its grid, as the sidecar records it.
+pub use tomograf_datasets::sidecar::VolumeRecord as VolumeSource;
 
 /// Effective energy (keV) of the HU → mu conversion of the ideal DRR when none is given.
 pub(super) const DEFAULT_ENERGY_KEV: f64 = 60.0;
@@ -70,7 +59,7 @@ fn load(scene: &Scene, keep_hu: Option<f64>) -> Result<(Volume, VolumeSource)> {
                 v.phantom_dims.unwrap_or(PHANTOM_DIMS),
                 v.phantom_spacing_mm.unwrap_or(PHANTOM_SPACING),
             )?,
-            Some("thorax"),
+            Some("thorax".to_string()),
         ),
     };
     let attenuation = match (units.as_str(), keep_hu) {
