@@ -227,7 +227,7 @@ pub fn acquisition(scene: &Scene) -> Result<Option<(Acquisition, u64)>> {
 
 /// The noise seed of data-set item `index` from the run's noise seed.
 pub fn item_seed(seed: u64, index: usize) -> u64 {
-    tomograf_sim::acquisition::frame_seed(seed ^ 0xD47A_5E7D_A7A5_E7D0, index as u64)
+    tomograf_sim::seed::frame_seed(seed ^ 0xD47A_5E7D_A7A5_E7D0, index as u64)
 }
 
 #[cfg(test)]

@@ -140,7 +140,7 @@ pub fn correct_scatter(
             indices.len()
         );
     }
-    let seed = tomograf_sim::acquisition::frame_seed(seed, 0x5CA7);
+    let seed = tomograf_sim::seed::frame_seed(seed, 0x5CA7);
     Ok(Some(correct_item(item, &estimate, &indices, seed)?))
 }
 

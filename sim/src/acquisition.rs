@@ -21,6 +21,7 @@ use crate::render::{MassThickness, Projection, Projector, Renderer};
 use crate::scatter::{
     AntiScatterGrid, ScatterEngine, ScatterImages, ScatterModel, estimator, transport,
 };
+use crate::seed::frame_seed;
 use crate::spectrum::{Filter, FluenceUnit, Spectrum};
 use crate::tissue::TissueModel;
 use crate::volume::Volume;
@@ -561,12 +562,3 @@ pub fn add_into(a: &mut ExpectedImage, b: &ExpectedImage) {
 
 /// Mixed into the acquisition seed for the scatter's random streams (distinct from noise).
 const SCATTER_STREAM: u64 = 0x5CA7_7E2D_0000_0001;
-
-/// The noise seed of frame `frame` (0: calibration, i + 1: view i) from an acquisition seed:
-/// SplitMix64 of the pair, so neighbouring seeds and frames give unrelated streams.
-pub fn frame_seed(seed: u64, frame: u64) -> u64 {
-    let mut z = seed ^ frame.wrapping_mul(0x9E37_79B9_7F4A_7C15);
-    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-    z ^ (z >> 31)
-}

@@ -25,6 +25,7 @@ pub mod ray;
 pub mod recon;
 pub mod render;
 pub mod scatter;
+pub mod seed;
 pub mod spectrum;
 pub mod tissue;
 pub mod trace;

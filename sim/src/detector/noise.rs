@@ -35,13 +35,11 @@ pub(crate) fn stream(seed: u64, stage: Stage, channel: usize, row: usize) -> Cha
     rng
 }
 
-/// A seed for frame `frame` of a series started from `seed` (SplitMix64 finaliser), so
-/// frames averaged into a flat or dark field are independent of each other and of `seed`.
+/// A seed for frame `frame` of a series started from `seed` ([`crate::seed::frame_seed`]
+/// of `frame + 1`), so frames averaged into a flat or dark field are independent of each
+/// other and of `seed`.
 pub(crate) fn frame_seed(seed: u64, frame: u64) -> u64 {
-    let mut z = seed ^ frame.wrapping_add(1).wrapping_mul(0x9E37_79B9_7F4A_7C15);
-    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-    z ^ (z >> 31)
+    crate::seed::frame_seed(seed, frame.wrapping_add(1))
 }
 
 /// Draws the compound-Poisson signal of a row of pixels, `mean[i]` and second moment

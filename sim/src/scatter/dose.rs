@@ -8,9 +8,9 @@
 use super::energy_imparted::{BeamSpectrum, Estimate, TallySettings, dose_gy, simulate};
 use super::field::FieldSource;
 use super::transport::Medium;
-use crate::acquisition::frame_seed;
 use crate::error::{Result, SimError};
 use crate::geometry::{View, ViewBeam};
+use crate::seed::frame_seed;
 use crate::spectrum::Spectrum;
 use crate::volume::Volume;
 

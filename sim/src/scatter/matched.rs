@@ -18,9 +18,9 @@
 //! thread count.
 
 use super::transport::rotate;
-use crate::acquisition::frame_seed;
 use crate::error::{Result, SimError};
 use crate::geometry::{View, ViewBeam};
+use crate::seed::frame_seed;
 use glam::DVec3;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
