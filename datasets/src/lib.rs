@@ -7,6 +7,10 @@
 //!   lists the series of a patient/study/series folder tree.
 //! * [`image`]: projection images to OpenEXR, TIFF (32-bit float), NPY (`<f4`) and 8-bit
 //!   PNG (windowed, for viewing). Images are `rows × cols`, row 0 at the top.
+//! * [`item`]: the data-set item (`item.json`, `views.json`, `projections.npy`, `ct.nii.gz`)
+//!   and `manifest.jsonl`, written by `tomograf dataset` and read by the model.
+//! * [`sidecar`]: the projection sidecar (`<prefix>.json`) of `tomograf project`, read back
+//!   by `reconstruct-classical`.
 //! * [`atomic`]: every file is written atomically (through [`atomic::write_atomic`], or
 //!   its path-based variant for the NIfTI writer), so a failed or interrupted write never
 //!   leaves a half-written file behind.
