@@ -255,7 +255,7 @@ impl Element {
             VR::FD | VR::OD | VR::SV | VR::OV | VR::UV => 8,
             _ => 1,
         };
-        if self.length != UNDEFINED && self.length % size != 0 {
+        if self.length != UNDEFINED && !self.length.is_multiple_of(size) {
             return Err(DatasetError::corrupt(
                 path,
                 format!(
