@@ -127,7 +127,9 @@ fn walk(
                 at = e.value;
                 continue;
             }
-            (0xFFFE, _) => return Ok(None),
+            // Any other (FFFE,xxxx) tag in a data set, item and sequence delimiters
+            // included, the parser reads as an element of VR UN with that length: checked
+            // below like any element (the fuzzer's (FFFE,FFFF) claiming 4 GB).
             _ => {}
         }
         e.fits(path, end)?;
@@ -442,6 +444,15 @@ mod tests {
         // Delimiters where the parser skips them (outside any sequence) are skipped.
         let stray = [ITEM_DELIMITER.to_vec(), big].concat();
         assert!(check(p, &file(ts, &stray)).is_err());
+        // Any other (FFFE,xxxx) tag in a data set is an element to the parser: its length
+        // is checked (what the fuzzer found next: (FFFE,FFFF) claiming 4 GB).
+        let mut odd = vec![0xFE, 0xFF, 0xFF, 0xFF];
+        odd.extend(0xFEFF_FFFFu32.to_le_bytes());
+        odd.extend(b"xxxx");
+        let e = check(p, &file(ts, &[name.clone(), odd].concat()))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("(FFFE,FFFF)"), "{e}");
     }
 
     #[test]
