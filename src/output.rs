@@ -9,7 +9,7 @@ use crate::scene::Scene;
 use anyhow::{Context, Result, bail};
 use serde::Serialize;
 use std::path::{Path, PathBuf};
-use tomograf_datasets::sidecar::{FilesRecord, PixelQuantity, Sidecar, ViewRecord};
+use tomograf_datasets::sidecar::{FilesRecord, Sidecar, ViewRecord};
 use tomograf_datasets::{atomic, image};
 use tomograf_sim::Projection;
 
@@ -183,28 +183,22 @@ fn auto_window(img: &Projection) -> (f32, f32) {
 
 /// The sidecar of a `project` run (before its `files`), from the volume and the job.
 pub fn sidecar(volume: &VolumeSource, job: &Job) -> Sidecar {
-    Sidecar {
-        tomograf_version: env!("CARGO_PKG_VERSION").into(),
-        conventions: tomograf_datasets::sidecar::CONVENTIONS.into(),
-        volume: volume.clone(),
-        projector: job.projector,
-        skipping: job.skipping,
-        quantity: PixelQuantity::Ideal(job.quantity),
-        geometry: job.geometry,
-        views: job
-            .views
-            .iter()
-            .enumerate()
-            .map(|(index, view)| ViewRecord {
-                index,
-                pose: job.poses.get(index).copied(),
-                view: *view,
-            })
-            .collect(),
-        acquisition: None,
-        clipped_pixels: None,
-        saturated_pixels: None,
-        channel: None,
-        files: None,
-    }
+    let views = job
+        .views
+        .iter()
+        .enumerate()
+        .map(|(index, view)| ViewRecord {
+            index,
+            pose: job.poses.get(index).copied(),
+            view: *view,
+        })
+        .collect();
+    Sidecar::new(
+        volume.clone(),
+        job.projector,
+        job.skipping,
+        job.quantity,
+        job.geometry,
+        views,
+    )
 }

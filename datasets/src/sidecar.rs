@@ -120,6 +120,33 @@ pub struct FilesRecord {
 }
 
 impl Sidecar {
+    /// The sidecar of an ideal DRR written by this version of tomograf; the real-physics
+    /// fields (`acquisition`, pixel counts, `channel`) and `files` start empty.
+    pub fn new(
+        volume: VolumeRecord,
+        projector: Projector,
+        skipping: Option<SkipOptions>,
+        quantity: Quantity,
+        geometry: Option<Geometry>,
+        views: Vec<ViewRecord>,
+    ) -> Self {
+        Self {
+            tomograf_version: env!("CARGO_PKG_VERSION").into(),
+            conventions: CONVENTIONS.into(),
+            volume,
+            projector,
+            skipping,
+            quantity: PixelQuantity::Ideal(quantity),
+            geometry,
+            views,
+            acquisition: None,
+            clipped_pixels: None,
+            saturated_pixels: None,
+            channel: None,
+            files: None,
+        }
+    }
+
     /// Writes the sidecar atomically, keys in alphabetical order.
     pub fn write(&self, path: &Path) -> Result<()> {
         let value = serde_json::to_value(self)

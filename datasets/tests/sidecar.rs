@@ -3,7 +3,7 @@
 
 use std::path::PathBuf;
 use tomograf_datasets::sidecar::{
-    CONVENTIONS, PixelQuantity, Sidecar, ViewRecord, VolumeRecord, acquisition_record,
+    PixelQuantity, Sidecar, ViewRecord, VolumeRecord, acquisition_record,
 };
 use tomograf_sim::attenuation::Attenuation;
 use tomograf_sim::{Beam, Detector, Geometry, Pose, Projector, Quantity};
@@ -19,10 +19,8 @@ fn record() -> Sidecar {
     };
     let poses = [Pose::AP, Pose::LATERAL];
     let views = geometry.views(&poses).unwrap();
-    Sidecar {
-        tomograf_version: "0.1.0".into(),
-        conventions: CONVENTIONS.into(),
-        volume: VolumeRecord {
+    Sidecar::new(
+        VolumeRecord {
             path: Some(PathBuf::from("ct.nii.gz")),
             phantom: None,
             units: "hu".into(),
@@ -32,11 +30,11 @@ fn record() -> Sidecar {
             origin_mm: [-1.0, 0.0, 3.0],
             direction: [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]],
         },
-        projector: Projector::Trilinear { step_voxels: 0.25 },
-        skipping: None,
-        quantity: PixelQuantity::Ideal(Quantity::Intensity { i0: 1e4 }),
-        geometry: Some(geometry),
-        views: views
+        Projector::Trilinear { step_voxels: 0.25 },
+        None,
+        Quantity::Intensity { i0: 1e4 },
+        Some(geometry),
+        views
             .iter()
             .enumerate()
             .map(|(index, v)| ViewRecord {
@@ -45,12 +43,7 @@ fn record() -> Sidecar {
                 view: *v,
             })
             .collect(),
-        acquisition: None,
-        clipped_pixels: None,
-        saturated_pixels: None,
-        channel: None,
-        files: None,
-    }
+    )
 }
 
 #[test]
