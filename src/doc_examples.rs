@@ -18,9 +18,9 @@
 
 use crate::Cli;
 use crate::physics;
-use crate::scene::{MeshPhysics, Scene};
 use clap::Parser;
 use std::path::{Path, PathBuf};
+use tomograf_scene::scene::{MeshPhysics, Scene};
 
 /// One fenced block: file, first line, info string, body.
 struct Block {
@@ -78,9 +78,9 @@ fn blocks_of(text: &str, file: &Path, fence: &str) -> Vec<Block> {
     out
 }
 
-/// The scene examples in `scene.rs`'s module docs (`//! ```toml` blocks).
+/// The scene examples in `scene/src/scene.rs`'s module docs (`//! ```toml` blocks).
 fn scene_rs_blocks() -> Vec<Block> {
-    let file = root().join("src/scene.rs");
+    let file = root().join("scene/src/scene.rs");
     let text = std::fs::read_to_string(&file).expect("scene.rs");
     let docs: String = text
         .lines()

@@ -19,7 +19,6 @@ mod project;
 mod recon_cmd;
 mod reconstruct;
 mod scatter_images;
-mod scene;
 mod study;
 mod tradeoff;
 mod train;

@@ -4,13 +4,14 @@
 //! Every file is written to a temporary name and renamed into place, so an interrupted
 //! run never leaves a half-written file.
 
-use crate::project::{Job, VolumeSource};
-use crate::scene::Scene;
 use anyhow::{Context, Result, bail};
 use serde::Serialize;
 use std::path::{Path, PathBuf};
 use tomograf_datasets::sidecar::{FilesRecord, Sidecar, ViewRecord};
 use tomograf_datasets::{atomic, image};
+use tomograf_scene::job::Job;
+use tomograf_scene::scene::Scene;
+use tomograf_scene::volume::VolumeSource;
 use tomograf_sim::Projection;
 
 /// An output file format.

@@ -3,10 +3,10 @@
 //! with their materials, so that `tomograf project --scene DIR/scene.toml` traces them
 //! exactly instead of as voxels.
 
-use crate::scene::{MeshEntry, VolumeSection};
 use anyhow::{Context, Result};
 use std::path::{Path, PathBuf};
 use tomograf_datasets::anatomy::DeviceMesh;
+use tomograf_scene::scene::{MeshEntry, VolumeSection};
 use tomograf_sim::mesh::io;
 
 /// Writes `DIR/<device>.obj` for each device and `DIR/scene.toml` (a complete scene: the

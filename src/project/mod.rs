@@ -1,34 +1,28 @@
 //! `tomograf project` (render views of a volume), with the commands that share its
-//! volume handling: `tomograf phantom` and `tomograf scan`.
+//! volume handling: `tomograf phantom` and `tomograf scan`. The scene, its volume, views
+//! and physics are `tomograf_scene`'s; this module merges the flags into a scene, shows
+//! progress and writes the files.
 //!
-//! * [`volume`] — reading the input (NIfTI, DICOM, built-in phantom) as mu or HU.
-//! * [`job`] — the scene resolved against the volume: geometry, views, projector, output.
 //! * [`phantom`] — the `phantom` and `scan` commands.
 
-mod job;
 mod phantom;
-mod volume;
 
-pub use job::{Job, resolve};
 pub use phantom::{PhantomArgs, ScanArgs, scan, write_phantom};
-use volume::DEFAULT_ENERGY_KEV;
-pub use volume::{VolumeSource, load_hu, load_mu, load_volume_file};
+pub use tomograf_scene::job::resolve;
+pub use tomograf_scene::volume::{load_hu, load_mu, load_volume_file};
 
-use crate::output::{self, Format, Outputs};
-use crate::physics::{self, PhysicsArgs};
+use crate::output;
+use crate::output::{Format, Outputs};
+use crate::physics::PhysicsArgs;
 use crate::scatter_images::ScatterWriters;
-use crate::scene::{MeshPhysics, Scene};
 use anyhow::{Result, bail};
 use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
 use std::path::PathBuf;
-use std::sync::Arc;
 use std::time::Instant;
 use tomograf_datasets::sidecar::{self, PixelQuantity};
-use tomograf_sim::acquisition::Acquired;
-use tomograf_sim::attenuation::Attenuation;
-use tomograf_sim::mesh::MeshScene;
-use tomograf_sim::{Projection, Renderer, View};
+use tomograf_scene::scene::Scene;
+use tomograf_sim::Projection;
 
 #[derive(Debug, Args)]
 pub struct ProjectArgs {
@@ -208,122 +202,15 @@ pub(crate) fn merge(args: &ProjectArgs) -> Result<Scene> {
     Ok(s)
 }
 
-/// Renders view number `i`: one image per detector channel, and with real detector physics
-/// the parts (primary, scatter) it was made of.
-type RenderView<'a> = dyn Fn(usize, &View) -> Result<(Vec<Projection>, Option<Acquired>)> + 'a;
-
-/// Geometry that is legal but almost certainly not meant: a warning where the source or
-/// the detector sits inside the volume, or where some views miss it; an error where every
-/// view misses it and no mesh is in the scene (the images would be all zero).
-fn check_geometry(views: &[View], vol: &tomograf_sim::Volume, meshes: bool) -> Result<()> {
-    use tomograf_sim::geometry::coverage::coverage;
-    let c: Vec<_> = views.iter().map(|v| coverage(v, vol)).collect();
-    let list = |f: &dyn Fn(&tomograf_sim::geometry::coverage::Coverage) -> bool| {
-        let hits: Vec<String> = c
-            .iter()
-            .enumerate()
-            .filter(|(_, c)| f(c))
-            .map(|(i, _)| i.to_string())
-            .take(8)
-            .collect();
-        (!hits.is_empty()).then(|| hits.join(", "))
-    };
-    if let Some(v) = list(&|c| c.source_inside) {
-        eprintln!(
-            "warning: the source lies inside the volume (views {v}): only the part of the \
-             volume in front of the source is integrated; raise --sad if this is not meant"
-        );
-    }
-    if let Some(v) = list(&|c| c.detector_inside) {
-        eprintln!(
-            "warning: the detector cuts through the volume (views {v}): rays end at the \
-             detector, so the line integrals are truncated; raise --sid (it is at or just \
-             above --sad)"
-        );
-    }
-    if c.iter().all(|c| c.rays_hitting == 0) {
-        let msg = "no ray of any view meets the volume, so every image would hold zeros: \
-                   check --isocentre (default: the volume's centre), --offset, --sad and the \
-                   detector size";
-        if !meshes {
-            bail!("{msg}");
-        }
-        eprintln!("warning: {msg} (only the meshes are in the beam)");
-    } else if let Some(v) = list(&|c| c.rays_hitting == 0) {
-        eprintln!("warning: views {v} miss the volume entirely (images of zeros)");
-    }
-    Ok(())
-}
-
 pub fn run(args: ProjectArgs) -> Result<()> {
-    let t0 = Instant::now();
     let scene = merge(&args)?;
     let outputs = Outputs::from_scene(&scene)?;
-    let acquisition = physics::acquisition(&scene)?;
-    if let Some(d) = &scene.dose {
-        crate::dose::check(d, acquisition.as_ref(), !scene.mesh.is_empty())?;
+    let prepared = tomograf_scene::prepare(&scene)?;
+    for w in &prepared.warnings {
+        eprintln!("{w}");
     }
-    let (vol, source) = match &acquisition {
-        None => load_mu(&scene)?,
-        Some((acq, _)) => load_hu(&scene, acq.materials.calibration_kev)?,
-    };
-    let t_load = t0.elapsed();
-    let job = resolve(&scene, &vol)?;
-    let pixels: u128 = job
-        .views
-        .iter()
-        .map(|v| v.rows as u128 * v.cols as u128)
-        .sum();
-    tomograf_sim::memory::check(
-        pixels * 4,
-        &format!("{} views held as f32 images", job.views.len()),
-    )?;
-    check_geometry(&job.views, &vol, !scene.mesh.is_empty())?;
-    // One view → one image per detector channel.
-    let prepared;
-    let renderer;
-    let meshes = |physics| -> Result<Option<Arc<MeshScene>>> {
-        let mut objects = Vec::new();
-        for (i, m) in scene.mesh.iter().enumerate() {
-            objects.extend(m.build(i, physics)?);
-        }
-        Ok((!objects.is_empty()).then(|| Arc::new(MeshScene::new(objects))))
-    };
-    let render: Box<RenderView> = match &acquisition {
-        None => {
-            let mut r = Renderer::new(&vol, job.projector)?;
-            if job.skipping.is_some() {
-                r = r.with_skipping(job.skipping)?;
-            }
-            // The HU → mu energy, at which a mesh's material gives its mu.
-            let energy_kev = matches!(source.attenuation, Attenuation::Hounsfield { .. })
-                .then(|| scene.volume.energy_kev.unwrap_or(DEFAULT_ENERGY_KEV));
-            if let Some(m) = meshes(MeshPhysics::Monochromatic { energy_kev })? {
-                r = r.with_meshes(m)?;
-            }
-            renderer = r;
-            Box::new(|_, view| Ok((vec![renderer.render(view)?.to_quantity(job.quantity)], None)))
-        }
-        Some((acq, seed)) => {
-            if job.skipping.is_some() {
-                bail!(
-                    "--empty-below is for the ideal DRR; empty-space skipping of a material \
-                     composition (real detector physics) is not supported yet"
-                );
-            }
-            if scene.output.quantity.is_some() || scene.output.i0.is_some() {
-                bail!(
-                    "--quantity and --i0 are for the ideal DRR; with real detector physics the \
-                     image is the detector's --signal (raw, flat-field or log-line-integral)"
-                );
-            }
-            prepared = acq.prepare_with_meshes(&vol, *seed, meshes(MeshPhysics::Polychromatic)?)?;
-            Box::new(|i, view| {
-                let mut parts = prepared.acquire_with_parts(job.projector, view, i)?;
-                Ok((std::mem::take(&mut parts.images), Some(parts)))
-            })
-        }
-    };
+    let renderer = prepared.renderer()?;
+    let (job, acquisition) = (&prepared.job, &prepared.acquisition);
     outputs.prepare()?;
     let mut separate = ScatterWriters::new(
         &outputs,
@@ -346,7 +233,7 @@ pub fn run(args: ProjectArgs) -> Result<()> {
     let mut channel_outputs: Vec<Outputs> = Vec::new();
     for (i, view) in job.views.iter().enumerate() {
         let t = Instant::now();
-        let (images, parts) = render(i, view)?;
+        let tomograf_scene::Frame { images, parts } = renderer.render(i, view)?;
         render_time += t.elapsed();
         if let Some(parts) = &parts {
             separate.write_view(i, parts)?;
@@ -369,8 +256,8 @@ pub fn run(args: ProjectArgs) -> Result<()> {
         bar.inc(1);
     }
     bar.finish_and_clear();
-    let mut sidecar = output::sidecar(&source, &job);
-    if let Some((acq, seed)) = &acquisition {
+    let mut sidecar = output::sidecar(&prepared.source, job);
+    if let Some((acq, seed)) = acquisition {
         sidecar.quantity = PixelQuantity::Described("detector signal (see acquisition)".into());
         sidecar.acquisition = Some(sidecar::acquisition_record(acq, *seed)?);
         sidecar.clipped_pixels = Some(clipping.clipped as u64);
@@ -391,7 +278,13 @@ pub fn run(args: ProjectArgs) -> Result<()> {
         files += separate.finish(&sidecar)?;
     }
     if let Some(d) = &scene.dose {
-        files += crate::dose::write(d, acquisition.as_ref(), &vol, &job.views, &outputs)?;
+        files += crate::dose::write(
+            d,
+            acquisition.as_ref(),
+            &prepared.volume,
+            &job.views,
+            &outputs,
+        )?;
     }
     eprintln!(
         "rendered {} view(s) of {}×{} in {:.1} ms ({:.1} ms per view; loading {:.0} ms); wrote {} file(s) to {}",
@@ -400,7 +293,7 @@ pub fn run(args: ProjectArgs) -> Result<()> {
         job.views.first().map_or(0, |v| v.cols),
         render_time.as_secs_f64() * 1e3,
         render_time.as_secs_f64() * 1e3 / job.views.len().max(1) as f64,
-        t_load.as_secs_f64() * 1e3,
+        prepared.load_seconds * 1e3,
         files,
         outputs.dir.display()
     );

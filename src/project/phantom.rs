@@ -1,7 +1,7 @@
 //! `tomograf phantom` (write the built-in or a procedural phantom) and `tomograf scan`.
 
-use super::volume::{PHANTOM_DIMS, PHANTOM_SPACING, phantom_volume};
 use super::{grid_dims, parse3};
+use tomograf_scene::volume::{PHANTOM_DIMS, PHANTOM_SPACING, phantom_volume};
 
 use anyhow::{Context, Result, bail};
 use clap::Args;

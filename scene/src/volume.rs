@@ -1,6 +1,6 @@
 //! The input volume: a NIfTI file, a DICOM series or the built-in phantom, as mu or HU.
 
-use crate::scene::Scene;
+use crate::Scene;
 use anyhow::{Result, bail};
 use glam::DVec3;
 use tomograf_sim::Volume;
@@ -22,7 +22,7 @@ pub fn phantom_volume(dims: [usize; 3], spacing: [f64; 3]) -> Result<Volume> {
 pub use tomograf_datasets::sidecar::VolumeRecord as VolumeSource;
 
 /// Effective energy (keV) of the HU → mu conversion of the ideal DRR when none is given.
-pub(super) const DEFAULT_ENERGY_KEV: f64 = 60.0;
+pub const DEFAULT_ENERGY_KEV: f64 = 60.0;
 
 /// Loads the input volume (or phantom) and converts it to mu (mm⁻¹).
 pub fn load_mu(scene: &Scene) -> Result<(Volume, VolumeSource)> {

@@ -149,7 +149,7 @@ pub struct Scene {
     #[serde(default)]
     pub mesh: Vec<MeshEntry>,
     /// Scattered radiation (docs/scatter.md); absent = none.
-    pub scatter: Option<crate::scatter_images::ScatterSection>,
+    pub scatter: Option<crate::scatter::ScatterSection>,
     /// Absorbed dose (docs/scatter.md, "Dose"); absent = not computed.
     pub dose: Option<crate::dose::DoseSection>,
 }
@@ -497,13 +497,20 @@ pub struct OutputSection {
 }
 
 impl Scene {
-    /// Reads a scene file. Relative volume paths are resolved against the file's folder.
+    /// Reads a scene file. Relative volume, spectrum and mesh paths are resolved against
+    /// the file's folder.
     pub fn load(path: &Path) -> Result<Self> {
         let text = std::fs::read_to_string(path)
             .with_context(|| format!("cannot read scene file {}", path.display()))?;
-        let mut scene: Scene = toml::from_str(&text)
-            .with_context(|| format!("scene file {} is not valid", path.display()))?;
-        if let Some(dir) = path.parent() {
+        Self::from_toml(&text, path.parent())
+            .with_context(|| format!("scene file {} is not valid", path.display()))
+    }
+
+    /// Parses a scene from TOML text; relative paths in it are resolved against `dir`
+    /// when given (as [`Scene::load`] does with the file's folder).
+    pub fn from_toml(text: &str, dir: Option<&Path>) -> Result<Self> {
+        let mut scene: Scene = toml::from_str(text)?;
+        if let Some(dir) = dir {
             for p in [
                 scene.volume.path.as_mut(),
                 scene.spectrum.as_mut().and_then(|s| s.file.as_mut()),
@@ -515,12 +522,12 @@ impl Scene {
                     *p = dir.join(&*p);
                 }
             }
-        }
-        for m in &mut scene.mesh {
-            if let (Some(p), Some(dir)) = (&m.path, path.parent())
-                && p.is_relative()
-            {
-                m.path = Some(dir.join(p));
+            for m in &mut scene.mesh {
+                if let Some(p) = &m.path
+                    && p.is_relative()
+                {
+                    m.path = Some(dir.join(p));
+                }
             }
         }
         Ok(scene)

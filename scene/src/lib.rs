@@ -1,0 +1,21 @@
+//! Scenes as data (Mitsuba 3's idea): what `tomograf project` renders — the volume, the
+//! geometry and views, the projector, the detector physics (acquisition preset, spectrum,
+//! materials, detector model, scatter), meshes, dose and outputs — as one [`Scene`],
+//! loaded from TOML or built in code, and [`prepare`]d into something that renders view
+//! `i`. The command line merges its flags into a `Scene`; the Python bridge builds the
+//! same `Scene` from a TOML file, so both render the same bytes. docs/scene.md is the
+//! reference of every key; units are mm, keV, mm⁻¹ and HU throughout.
+//!
+//! Data flows one way: scene → volume and views ([`volume`], [`job`]) → the physics the
+//! scene asks for ([`physics`]) → [`prepare::SceneRenderer`] → images.
+
+pub mod dose;
+pub mod job;
+pub mod physics;
+pub mod prepare;
+pub mod scatter;
+pub mod scene;
+pub mod volume;
+
+pub use prepare::{Frame, Prepared, SceneRenderer, prepare};
+pub use scene::Scene;
