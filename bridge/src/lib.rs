@@ -27,6 +27,7 @@ pub mod phantom;
 mod physics;
 pub mod render;
 pub mod scatter;
+mod scene;
 pub mod volume;
 
 use pyo3::prelude::*;
@@ -63,6 +64,8 @@ fn tomograf_py(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(physics::detector_models, m)?)?;
     // Scatter.
     m.add_function(wrap_pyfunction!(scatter::scatter_matched, m)?)?;
+    // Scenes (the same files `tomograf project --scene` renders).
+    m.add_function(wrap_pyfunction!(scene::render_scene, m)?)?;
     // Meshes, reconstruction: register here.
     Ok(())
 }

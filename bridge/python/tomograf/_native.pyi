@@ -274,3 +274,13 @@ def scatter_matched(
     by forced detection at every pixel centre detector_origin + c·u + r·v (mm): (single,
     multiple, single_se, total_se), each (rows, cols), photons per pixel per unit source
     intensity (photons/sr). GIL released; seeded, thread-count independent."""
+
+def render_scene(scene: Union[str, "PathLike[str]", dict]) -> npt.NDArray[np.float32]:
+    """Renders every view of a scene — a TOML scene file (relative paths from its folder) or
+    a dict of the same tables (relative paths from the working directory; keys and units of
+    docs/scene.md) — as `tomograf project --scene` does, to the same bytes: float32
+    (views, rows, cols), the ideal DRR in the scene's output quantity or the detector's
+    signal with real physics; a photon-counting detector adds a channel axis after the
+    views axis. Output files are not written. UserWarning for geometry probably not meant
+    and for starved or saturated pixels; ValueError for a bad scene, FileNotFoundError for
+    a missing file."""
