@@ -6,10 +6,10 @@ use anyhow::{Context, Result, bail, ensure};
 use clap::{Args, ValueEnum};
 use glam::DVec3;
 use indicatif::{ProgressBar, ProgressStyle};
-use serde::Deserialize;
+
 use std::path::{Path, PathBuf};
-use tomograf_datasets::nifti;
 use tomograf_datasets::sidecar::{PixelQuantity, Sidecar};
+use tomograf_datasets::{item, nifti};
 use tomograf_sim::recon::{self, AngularWeighting, FdkOptions, SartOptions, TvOptions, Window};
 use tomograf_sim::{Geometry, Pose, Projection, Quantity, View, Volume};
 
@@ -95,14 +95,6 @@ pub enum WeightingArg {
     Parker,
 }
 
-/// One view as views.json stores it (a data-set item's geometry).
-#[derive(Debug, Deserialize)]
-struct ItemView {
-    pose: Option<Pose>,
-    #[serde(flatten)]
-    view: View,
-}
-
 /// What the input folder holds.
 struct Input {
     images: Vec<Projection>,
@@ -110,12 +102,6 @@ struct Input {
     poses: Option<Vec<Pose>>,
     geometry: Option<Geometry>,
     grid: Option<Volume>,
-}
-
-fn read_json(path: &Path) -> Result<serde_json::Value> {
-    let text =
-        std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
-    serde_json::from_str(&text).with_context(|| format!("parsing {}", path.display()))
 }
 
 fn load(dir: &Path) -> Result<Input> {
@@ -144,21 +130,14 @@ fn load(dir: &Path) -> Result<Input> {
             Some(grid),
         )
     } else if dir.join("views.json").is_file() {
-        let j = read_json(&dir.join("views.json"))?;
         let ct = dir.join("ct.nii.gz");
         let grid = if ct.is_file() {
             Some(nifti::read_nifti(&ct)?.map(|_| 0.0)?)
         } else {
             None
         };
-        let views: Vec<ItemView> =
-            serde_json::from_value(j["views"].clone()).context("reading the views' geometry")?;
-        let mut poses: Option<Vec<Pose>> = views.iter().map(|v| v.pose).collect();
-        if poses.is_none() {
-            poses = serde_json::from_value(j["poses"].clone()).ok();
-        }
-        let geometry: Option<Geometry> = serde_json::from_value(j["geometry"].clone()).ok();
-        let views: Vec<View> = views.into_iter().map(|v| v.view).collect();
+        let (geometry, poses, views) = item::read_views(&dir.join("views.json"))?;
+        let (poses, geometry) = (Some(poses), Some(geometry));
         let npy = dir.join("projections.npy");
         (views, poses, geometry, npy, Quantity::LineIntegral, grid)
     } else {

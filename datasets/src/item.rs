@@ -251,6 +251,20 @@ pub fn read_manifest(dir: &Path, split: Option<&str>) -> Result<Vec<ItemRecord>>
     Ok(records)
 }
 
+/// Reads an item's `views.json` (the file [`write_views`] writes): the set-up, and one
+/// pose and one view per projection, the set-up checked. Errors name the file.
+pub fn read_views(path: &Path) -> Result<(Geometry, Vec<Pose>, Vec<View>)> {
+    let vj: ViewsRecord = serde_json::from_slice(&read(path)?).map_err(|e| corrupt(path, e))?;
+    let (Some(geometry), Some(poses), Some(views)) = (vj.geometry, vj.poses, vj.views) else {
+        return Err(corrupt(
+            path,
+            "geometry missing: views.json needs 'geometry', 'poses' and 'views'",
+        ));
+    };
+    geometry.validate().map_err(|e| corrupt(path, e))?;
+    Ok((geometry, poses, views))
+}
+
 /// Reads the item folder `dir` and checks that its files agree: `views.json` has a geometry,
 /// poses and views, one per projection, each valid and of the projections' size; the
 /// projections are finite. The CT is read when its file exists.
@@ -258,15 +272,8 @@ pub fn read_item(dir: &Path) -> Result<ItemFiles> {
     let ij = dir.join(ITEM_JSON);
     let record: ItemRecord = serde_json::from_slice(&read(&ij)?).map_err(|e| corrupt(&ij, e))?;
     let vp = dir.join(&record.views);
-    let vj: ViewsRecord = serde_json::from_slice(&read(&vp)?).map_err(|e| corrupt(&vp, e))?;
-    let (Some(geometry), Some(poses), Some(views)) = (vj.geometry, vj.poses, vj.views) else {
-        return Err(corrupt(
-            &vp,
-            "geometry missing: views.json needs 'geometry', 'poses' and 'views'",
-        ));
-    };
+    let (geometry, poses, views) = read_views(&vp)?;
     let invalid = |e: tomograf_sim::SimError| corrupt(&vp, e);
-    geometry.validate().map_err(invalid)?;
     let pp = dir.join(&record.projections);
     let (projections, shape) = crate::image::read_npy(&pp)?;
     let [nv, rows, cols] = shape[..] else {
