@@ -123,6 +123,88 @@ pub fn item(data: &[u8]) {
 /// A target's body: parse one input.
 pub type Target = fn(&[u8]);
 
+/// The largest phantom grid (voxels) and detector (pixels) a `scene` input may ask for:
+/// larger ones are replaced (the voxel count) or not rendered (the pixels), so that one
+/// input stays well under a second; the memory limit still sees every size asked for.
+const SCENE_VOXELS: usize = 32 * 32 * 32;
+const SCENE_PIXELS: usize = 64 * 64;
+
+/// Scene TOML (`tomograf project --scene`): parsed, its physics chosen, its volume (the
+/// built-in phantom on a small grid: inputs name no files — the volume, spectrum and mesh
+/// readers have targets of their own), views and geometry resolved, primitive meshes
+/// built; an ideal DRR whose views are small is rendered (the first view).
+pub fn scene(data: &[u8]) {
+    let dir = scratch();
+    let Ok(text) = std::str::from_utf8(data) else {
+        return;
+    };
+    let Ok(mut scene) = tomograf_scene::Scene::from_toml(text, Some(&dir)) else {
+        return;
+    };
+    scene.volume.path = None;
+    if let Some(s) = scene.spectrum.as_mut() {
+        s.file = None;
+    }
+    scene.mesh.retain(|m| m.path.is_none());
+    let small = scene.volume.phantom_dims.is_some_and(|d| {
+        d.iter()
+            .try_fold(1usize, |a, &n| a.checked_mul(n))
+            .is_some_and(|n| n <= SCENE_VOXELS)
+    });
+    if !small {
+        scene.volume.phantom_dims = Some([8, 8, 8]);
+        scene.volume.phantom_spacing_mm = Some([40.0, 40.0, 40.0]);
+    }
+    let Ok(prepared) = tomograf_scene::prepare(&scene) else {
+        return;
+    };
+    let Some(view) = prepared.job.views.first() else {
+        return;
+    };
+    let Ok(renderer) = prepared.renderer() else {
+        return;
+    };
+    if prepared.acquisition.is_none() && view.rows.saturating_mul(view.cols) <= SCENE_PIXELS {
+        let _ = renderer.render(0, view);
+    }
+}
+
+/// The files of a checkpoint a `checkpoint` input is cut into at each [`FILE_MARKER`], in
+/// this order (those left out are missing).
+pub const CHECKPOINT_FILES: [&str; 5] = [
+    "config.toml",
+    "state.json",
+    "codes.json",
+    "mean_volume.npy",
+    "generator.bpk",
+];
+
+/// A checkpoint as inference loads it (`tomograf reconstruct`, `evaluate`):
+/// `tomograf_model::checkpoint::load_generator` on a folder of the files in
+/// [`CHECKPOINT_FILES`], cut from the input at each [`FILE_MARKER`].
+pub fn checkpoint(data: &[u8]) {
+    let dir = scratch().join("checkpoint");
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).expect("checkpoint folder");
+    let mut rest = data;
+    for name in CHECKPOINT_FILES {
+        let cut = rest
+            .windows(FILE_MARKER.len())
+            .position(|w| w == FILE_MARKER);
+        let (part, next) = match cut {
+            Some(i) => (&rest[..i], &rest[i + FILE_MARKER.len()..]),
+            None => (rest, &[][..]),
+        };
+        std::fs::write(dir.join(name), part).expect("checkpoint file");
+        rest = next;
+        if cut.is_none() {
+            break;
+        }
+    }
+    let device = tomograf_model::backend::device("flex").expect("the CPU backend");
+    let _ = tomograf_model::checkpoint::load_generator(&dir, &device);
+}
+
 /// Every target by name (the folder names under `fuzz/corpus/` and `fuzz/seeds/`).
 pub const TARGETS: &[(&str, Target)] = &[
     ("nifti", nifti),
@@ -132,4 +214,6 @@ pub const TARGETS: &[(&str, Target)] = &[
     ("mesh_stl", |d| mesh("stl", d)),
     ("spectrum", spectrum),
     ("item", item),
+    ("scene", scene),
+    ("checkpoint", checkpoint),
 ];
