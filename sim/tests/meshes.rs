@@ -545,3 +545,38 @@ fn axis_parallel_rays_with_signed_zero_directions_hit() {
         }
     }
 }
+
+/// Found by the `scene` fuzz target: a table top 4.5·10³⁷ mm wide made the f32 BVH build
+/// panic inside obvhs (its boxes overflow to infinity). Meshes reaching beyond 1 km are
+/// refused by name, before any BVH is built; one just inside the bound builds.
+#[test]
+fn meshes_beyond_a_kilometre_are_refused_before_the_bvh() {
+    let huge = shapes::cuboid(DVec3::new(4.5e37, 20.0, 1000.0)).unwrap();
+    let e = MeshObject::new(
+        "table",
+        &huge,
+        &Placement::default(),
+        "x",
+        Some(0.03),
+        false,
+    )
+    .unwrap_err();
+    assert!(matches!(e, MeshError::OutOfRange(_)), "{e:?}");
+    assert!(
+        e.to_string().contains("mesh table") && e.to_string().contains("beyond"),
+        "{e}"
+    );
+    let far = shapes::cuboid(DVec3::splat(10.0)).unwrap();
+    let e = MeshObject::new(
+        "far",
+        &far,
+        &Placement::translation(DVec3::new(0.0, 2e6, 0.0)),
+        "x",
+        Some(0.03),
+        false,
+    )
+    .unwrap_err();
+    assert!(e.to_string().contains("mesh far"), "{e}");
+    let big = shapes::cuboid(DVec3::new(1.9e6, 20.0, 1000.0)).unwrap();
+    MeshObject::new("big", &big, &Placement::default(), "x", Some(0.03), false).unwrap();
+}

@@ -89,6 +89,10 @@ fn margin(v: f32) -> f32 {
     1e-2 + 1e-5 * v.abs()
 }
 
+/// The largest |coordinate| of a placed mesh vertex, mm (1 km): larger meshes are refused,
+/// as no imaging scene needs them and the f32 BVH loses them to overflow.
+pub const MAX_COORD_MM: f64 = 1e6;
+
 impl MeshObject {
     /// Places `mesh`, checks that it is closed and outward facing ([`topology::check`])
     /// and, when `check_self_intersection`, that no two triangles cross; builds the BVH.
@@ -102,6 +106,17 @@ impl MeshObject {
     ) -> Result<Self> {
         check_mu(name, mu_per_mm)?;
         let world = mesh.placed(placement)?;
+        if let Some(v) = world
+            .vertices
+            .iter()
+            .find(|v| v.abs().max_element() > MAX_COORD_MM)
+        {
+            // The BVH is built in f32: far beyond this its boxes overflow to infinity.
+            return Err(MeshError::OutOfRange(format!(
+                "mesh {name}: a vertex lies at {v} mm, beyond ±{MAX_COORD_MM:e} mm of the \
+                 origin; check its size, translation and the file's units (mm)"
+            )));
+        }
         topology::check(&world).map_err(|e| prefix(name, e))?;
         let aabbs: Vec<Aabb> = (0..world.triangles.len())
             .map(|t| {
