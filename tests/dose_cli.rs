@@ -1,6 +1,6 @@
 //! End-to-end tests of `[dose]` on the command line: the dose NIfTI and JSON beside the
 //! images, dose where the body is and not in air, bytes independent of the thread count,
-//! and clear errors for scenes that cannot have a dose.
+//! and clear errors for scenes that cannot have a dose; `validate tg195` writes its files.
 
 mod common;
 
@@ -83,4 +83,67 @@ fn scenes_without_a_dose_are_refused_before_rendering() {
     assert!(e.contains("photons = 0"), "{e}");
     let e = fails("[acquisition]\npreset = \"kv-flat-panel-120kvp\"\n[dose]\nphotns = 10\n");
     assert!(e.contains("photns"), "{e}");
+}
+
+#[test]
+fn validate_tg195_writes_its_table_csv_and_figures() {
+    // Case 1 only, 20 000 photons per run: the files exist, the CSV has the 20 Case 1
+    // rows (4 beams × 3 kermas and 2 ratios), `--replot` redraws from it, and a case TG-195 does
+    // not have, or one we do not build, is refused by name.
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("v");
+    let o = out.to_str().unwrap();
+    let run = tomograf(&[
+        "validate",
+        "tg195",
+        "--cases",
+        "1",
+        "--photons-case1",
+        "20000",
+        "-o",
+        o,
+    ]);
+    ok(&run);
+    for f in ["tg195.md", "tg195.csv", "tg195-deviations.png"] {
+        assert!(out.join(f).is_file(), "{f} missing");
+    }
+    let csv = std::fs::read_to_string(out.join("tg195.csv")).unwrap();
+    assert!(csv.starts_with("case,quantity,ours,ours_se"), "{csv}");
+    let rows: Vec<&str> = csv.lines().skip(1).collect();
+    assert_eq!(rows.len(), 20, "{csv}");
+    assert!(rows.iter().all(|r| r.starts_with("1 ")), "{csv}");
+    // `--update` re-runs case 2 and keeps case 1's rows and seconds, byte for byte.
+    ok(&tomograf(&[
+        "validate",
+        "tg195",
+        "--update",
+        "--cases",
+        "2",
+        "--photons-case2",
+        "20000",
+        "-o",
+        o,
+    ]));
+    let merged = std::fs::read_to_string(out.join("tg195.csv")).unwrap();
+    assert!(merged.starts_with(&csv), "case 1 rows changed:\n{merged}");
+    assert_eq!(merged.lines().filter(|l| l.starts_with("2 ")).count(), 40);
+    let md = std::fs::read_to_string(out.join("tg195.md")).unwrap();
+    assert!(
+        md.contains("Kept from the previous run: case 1 (photons per run: case 1 20000"),
+        "{md}"
+    );
+    assert!(
+        md.contains("* case 1, 30 keV:") && md.contains("* case 2, radiography 56.4 keV:"),
+        "{md}"
+    );
+    std::fs::remove_file(out.join("tg195-deviations.png")).unwrap();
+    ok(&tomograf(&["validate", "tg195", "--replot", "-o", o]));
+    assert!(out.join("tg195-deviations.png").is_file());
+    let bad = tomograf(&["validate", "tg195", "--cases", "3", "-o", o]);
+    assert!(!bad.status.success());
+    assert!(
+        String::from_utf8_lossy(&bad.stderr).contains("unknown case '3'"),
+        "{}",
+        String::from_utf8_lossy(&bad.stderr)
+    );
 }

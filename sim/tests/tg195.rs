@@ -1,6 +1,7 @@
 //! A reduced AAPM TG-195 run (docs/validation.md has the full one, `tomograf validate
-//! tg195`): Case 1's HVL/QVL ratios and Case 2's whole box and three VOIs, each within a
-//! tolerance of 4 of our standard errors plus half the four codes' spread.
+//! tg195`): Case 1's HVL/QVL ratios, Case 2's whole box and three VOIs, and Case 4.2's
+//! centre and three peripheral cylinders (track-length estimator), each within a tolerance
+//! of 4 of our standard errors plus half the four codes' spread.
 
 use tomograf_sim::validation::tg195::{self, Beam, Comparison};
 
@@ -46,5 +47,24 @@ fn case1_half_and_quarter_value_layers() {
 #[test]
 fn case2_radiography_box_and_vois() {
     let rows = tg195::case2(Beam::Mono(56.4), false, &[3, 6, 7], 1_000_000, 2).unwrap();
+    check(&rows);
+}
+
+#[test]
+fn case42_centre_and_three_peripheral_angles() {
+    // The track-length estimator against the codes: 56.4 keV, 10 mm collimation, 2·10⁶
+    // photons (one run scores all cylinders; the rest of the rows are in the full table).
+    let rows = tg195::case42(Beam::Mono(56.4), false, 2_000_000, 3).unwrap();
+    let keep = [
+        "Center (mean over angles)",
+        "Periphery 0°",
+        "Periphery 90°",
+        "Periphery 180°",
+    ];
+    let rows: Vec<_> = rows
+        .into_iter()
+        .filter(|r| keep.contains(&r.quantity.as_str()))
+        .collect();
+    assert_eq!(rows.len(), keep.len());
     check(&rows);
 }

@@ -253,6 +253,30 @@ impl ScatterFactors {
         2.0 * std::f64::consts::PI * sum * h / 3.0
     }
 
+    /// Mean fraction of the photon's energy given to the electron in a Compton scatter at
+    /// `e_kev`, ⟨1 − E′/E⟩ = ∫ KN·S·(1 − E′/E) dμ / ∫ KN·S dμ, by Simpson's rule on the
+    /// grid of [`ScatterFactors::compton_norm`]: the mean of exactly the distribution that
+    /// [`ScatterFactors::sample_compton`] draws from.
+    pub fn compton_transfer_fraction(&self, e_kev: f64) -> f64 {
+        let n = SIMPSON_INTERVALS;
+        let h = 2.0 / n as f64;
+        let (mut num, mut den) = (0.0, 0.0);
+        for i in 0..=n {
+            let mu = -1.0 + i as f64 * h;
+            let w = if i == 0 || i == n {
+                1.0
+            } else if i % 2 == 1 {
+                4.0
+            } else {
+                2.0
+            };
+            let f = w * klein_nishina(e_kev, mu) * self.incoherent(momentum_transfer(e_kev, mu));
+            num += f * (1.0 - compton_ratio(e_kev, mu));
+            den += f;
+        }
+        if den > 0.0 { num / den } else { 0.0 }
+    }
+
     /// Normalisation of the Rayleigh density at `e_kev`: 2π ∫ (1+μ²)/2 · f2 dμ, exact for
     /// the piecewise-constant f2 (μ = 1 − 2x²/k², so dμ = 2 d(x²)/k²).
     pub fn rayleigh_norm(&self, e_kev: f64) -> f64 {

@@ -92,6 +92,7 @@ pub fn acquisition_dose(
                 photons,
                 max_collisions: 1000,
                 voxel_map: true,
+                ..TallySettings::default()
             },
             frame_seed(seed ^ DOSE_SALT, i as u64),
         )?;

@@ -175,6 +175,20 @@ impl FluenceDisc {
     }
 }
 
+/// How the scoring regions are tallied (the voxel map and the totals are always scored
+/// at the interaction point).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum RegionEstimator {
+    /// Analog: each collision inside a region scores what it deposits there.
+    #[default]
+    Collision,
+    /// Track length (the kerma approximation of MC-GPU and the EGSnrc user codes): every
+    /// flight that crosses a region scores its expected deposition along the chord,
+    /// w·E·Σ (μ_dep/ρ)·ρℓ ([`Medium::deposited_along`]). Unbiased for the same physics,
+    /// with far less variance in small or thin regions, where few photons interact.
+    TrackLength,
+}
+
 /// How a run is made.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct TallySettings {
@@ -185,6 +199,8 @@ pub struct TallySettings {
     pub max_collisions: u32,
     /// Whether to keep the per-voxel map (regions are always tallied).
     pub voxel_map: bool,
+    /// How the regions are scored.
+    pub regions: RegionEstimator,
 }
 
 impl Default for TallySettings {
@@ -193,6 +209,7 @@ impl Default for TallySettings {
             photons: 1_000_000,
             max_collisions: 1000,
             voxel_map: true,
+            regions: RegionEstimator::Collision,
         }
     }
 }
@@ -228,9 +245,42 @@ pub struct EnergyImparted {
     pub escaped: Estimate,
     /// Left in photons stopped at `max_collisions`.
     pub stopped: Estimate,
+    /// Covariance of the region means, row-major (regions × regions), (eV per source
+    /// photon)²: from the batch tallies, as the standard errors are.
+    region_covariance: Vec<f64>,
 }
 
 impl EnergyImparted {
+    /// A weighted sum Σ wᵢ·Tᵢ of region tallies (`(region index, weight)`), with its
+    /// standard error from the regions' covariance (regions scored from the same
+    /// histories are correlated). Errors on an index beyond the regions.
+    pub fn combine(&self, terms: &[(usize, f64)]) -> Result<Estimate> {
+        let n = self.regions.len();
+        if let Some((i, _)) = terms.iter().find(|(i, _)| *i >= n) {
+            return Err(SimError::OutOfRange(format!(
+                "region {i} of a tally with {n} regions"
+            )));
+        }
+        let mean = terms
+            .iter()
+            .map(|&(i, w)| w * self.regions[i].1.ev_per_photon)
+            .sum();
+        let mut var = 0.0;
+        for &(i, wi) in terms {
+            for &(j, wj) in terms {
+                var += wi * wj * self.region_covariance[i * n + j];
+            }
+        }
+        Ok(Estimate {
+            ev_per_photon: mean,
+            standard_error: if var.is_nan() {
+                f64::INFINITY
+            } else {
+                var.max(0.0).sqrt()
+            },
+        })
+    }
+
     /// (deposited + escaped + stopped) − source energy, eV per photon, and its standard
     /// error: zero to Monte Carlo error when energy is conserved.
     pub fn balance(&self) -> (f64, f64) {
@@ -333,6 +383,9 @@ pub fn simulate_with_fluence(
     // deposited, escaped, stopped).
     let nq = regions.len() + discs.len() + 3;
     let (mut s1, mut s2) = (vec![0.0; nq], vec![0.0; nq]);
+    // Σ T_i·T_j over batches for every pair of regions.
+    let nr = regions.len();
+    let mut s12 = vec![0.0; nr * nr];
     let mut start = 0;
     while start < batches {
         let end = (start + ROUND).min(batches);
@@ -356,6 +409,11 @@ pub fn simulate_with_fluence(
                 s1[k] += t;
                 s2[k] += t * t;
             }
+            for (i, ti) in batch.regions.iter().enumerate() {
+                for (j, tj) in batch.regions.iter().enumerate() {
+                    s12[i * nr + j] += ti * tj;
+                }
+            }
         }
         start = end;
     }
@@ -373,6 +431,17 @@ pub fn simulate_with_fluence(
             standard_error: se,
         }
     };
+    // Cov(mean_i, mean_j) = nb·cov_batch(T_i, T_j) / N² (as the standard errors above).
+    let region_covariance = (0..nr * nr)
+        .map(|ij| {
+            let (i, j) = (ij / nr, ij % nr);
+            if batches < 2 {
+                return f64::INFINITY;
+            }
+            let cov = (s12[ij] - s1[i] * s1[j] / nb) / (nb - 1.0);
+            nb * cov / (nf * nf)
+        })
+        .collect();
     voxel_ev.iter_mut().for_each(|e| *e /= nf);
     let m = regions.len() + discs.len();
     Ok(EnergyImparted {
@@ -392,6 +461,7 @@ pub fn simulate_with_fluence(
         deposited: estimate(m),
         escaped: estimate(m + 1),
         stopped: estimate(m + 2),
+        region_covariance,
     })
 }
 
@@ -419,13 +489,32 @@ fn run_batch(
         escaped: 0.0,
         stopped: 0.0,
     };
+    let track_length = settings.regions == RegionEstimator::TrackLength;
+    // For the track-length estimator: each region with unit axis and its bounding box,
+    // which rejects most flights (short ones, in a dense medium) before the exact chord.
+    let scorers: Vec<(Region, Region)> = if track_length {
+        regions
+            .iter()
+            .map(|r| {
+                let (lo, hi) = r.bounds();
+                (
+                    r.with_unit_axis(),
+                    Region::cube("bounds", (lo + hi) * 0.5, hi - lo),
+                )
+            })
+            .collect()
+    } else {
+        Vec::new()
+    };
     let deposit = |batch: &mut Batch, p: DVec3, ev: f64| {
         if ev <= 0.0 {
             return;
         }
-        for (k, r) in regions.iter().enumerate() {
-            if r.contains(p) {
-                batch.regions[k] += ev;
+        if !track_length {
+            for (k, r) in regions.iter().enumerate() {
+                if r.contains(p) {
+                    batch.regions[k] += ev;
+                }
             }
         }
         let g = packed.world_to_grid(p);
@@ -452,10 +541,19 @@ fn run_batch(
         let mut collisions = 0;
         loop {
             let c = medium.fly(p, d, e, &mut rng);
-            if !discs.is_empty() {
-                let t_end = c.map_or(f64::INFINITY, |c| (c.position - p).length());
-                for (k, disc) in discs.iter().enumerate() {
-                    batch.discs[k] += disc.score(p, d, t_end, e, w);
+            let t_end = c.map_or(f64::INFINITY, |c| (c.position - p).length());
+            for (k, disc) in discs.iter().enumerate() {
+                batch.discs[k] += disc.score(p, d, t_end, e, w);
+            }
+            if track_length {
+                for (k, (r, bounds)) in scorers.iter().enumerate() {
+                    let Some((b0, b1)) = bounds.chord(p, d, 0.0, t_end) else {
+                        continue;
+                    };
+                    if let Some((t0, t1)) = r.chord(p, d, b0, b1) {
+                        let kev = medium.deposited_along(p + d * t0, p + d * t1, e);
+                        batch.regions[k] += w * kev * EV_PER_KEV;
+                    }
                 }
             }
             let Some(c) = c else {

@@ -132,6 +132,109 @@ impl Region {
         }
     }
 
+    /// Where the line `p + t·d` (mm, `d` a unit vector) runs inside the region, clipped to
+    /// `t_min ≤ t ≤ t_max`: the parameter interval `(t0, t1)` with `t0 < t1`, or `None` if
+    /// the clipped line misses it (or only touches it).
+    pub fn chord(&self, p: DVec3, d: DVec3, t_min: f64, t_max: f64) -> Option<(f64, f64)> {
+        let (mut t0, mut t1) = (t_min, t_max);
+        match self.shape {
+            Shape::Box { min, max } => {
+                for a in 0..3 {
+                    if d[a] == 0.0 {
+                        if p[a] < min[a] || p[a] > max[a] {
+                            return None;
+                        }
+                        continue;
+                    }
+                    let (u, v) = ((min[a] - p[a]) / d[a], (max[a] - p[a]) / d[a]);
+                    t0 = t0.max(u.min(v));
+                    t1 = t1.min(u.max(v));
+                }
+            }
+            Shape::Cylinder {
+                centre,
+                axis,
+                radius,
+                half_length,
+            } => {
+                let a = DVec3::from(axis);
+                let a = if (a.length_squared() - 1.0).abs() < 1e-12 {
+                    a
+                } else {
+                    a.normalize()
+                };
+                let r = p - DVec3::from(centre);
+                // Along the axis: |r·a + t·d·a| ≤ half_length.
+                let (ra, da) = (r.dot(a), d.dot(a));
+                if da == 0.0 {
+                    if ra.abs() > half_length {
+                        return None;
+                    }
+                } else {
+                    let (u, v) = ((-half_length - ra) / da, (half_length - ra) / da);
+                    t0 = t0.max(u.min(v));
+                    t1 = t1.min(u.max(v));
+                }
+                // Across it: |r⊥ + t·d⊥|² ≤ radius².
+                let (rp, dp) = (r - a * ra, d - a * da);
+                let qa = dp.length_squared();
+                let qc = rp.length_squared() - radius * radius;
+                if qa == 0.0 {
+                    if qc > 0.0 {
+                        return None;
+                    }
+                } else {
+                    let qb = rp.dot(dp);
+                    let disc = qb * qb - qa * qc;
+                    if disc <= 0.0 {
+                        return None;
+                    }
+                    let s = disc.sqrt();
+                    // The stable pair of roots of qa·t² + 2·qb·t + qc.
+                    let q = -(qb + qb.signum() * s);
+                    let (u, v) = if q == 0.0 {
+                        (0.0, 0.0)
+                    } else {
+                        (q / qa, qc / q)
+                    };
+                    t0 = t0.max(u.min(v));
+                    t1 = t1.min(u.max(v));
+                }
+            }
+        }
+        (t0 < t1).then_some((t0, t1))
+    }
+
+    /// The same region with its axis (if any) scaled to unit length.
+    pub fn with_unit_axis(&self) -> Self {
+        let mut r = self.clone();
+        if let Shape::Cylinder { ref mut axis, .. } = r.shape {
+            *axis = DVec3::from(*axis).normalize().to_array();
+        }
+        r
+    }
+
+    /// The axis-aligned box that holds the region: (lower, upper corner), mm.
+    pub fn bounds(&self) -> (DVec3, DVec3) {
+        match self.shape {
+            Shape::Box { min, max } => (min.into(), max.into()),
+            Shape::Cylinder {
+                centre,
+                axis,
+                radius,
+                half_length,
+            } => {
+                let a = DVec3::from(axis).normalize();
+                let half = DVec3::new(
+                    half_length * a.x.abs() + radius * (1.0 - a.x * a.x).max(0.0).sqrt(),
+                    half_length * a.y.abs() + radius * (1.0 - a.y * a.y).max(0.0).sqrt(),
+                    half_length * a.z.abs() + radius * (1.0 - a.z * a.z).max(0.0).sqrt(),
+                );
+                (DVec3::from(centre) - half, DVec3::from(centre) + half)
+            }
+        }
+    }
+
     /// Volume in mm³.
     pub fn volume_mm3(&self) -> f64 {
         match self.shape {
