@@ -147,19 +147,15 @@ pub(crate) fn phantoms(
     size: usize,
     views: usize,
 ) -> Result<Vec<Item>> {
-    let cli = crate::demo::dataset_args(&[
-        "-o",
-        dir.to_str().context("temporary path")?,
-        "--phantoms",
-        &phantoms.to_string(),
-        "--size",
-        &size.to_string(),
-        "--views",
-        &views.to_string(),
-        "--profile",
-        "lidc",
-    ])?;
-    crate::dataset::run(cli)?;
+    crate::dataset::run_job(&crate::demo::phantom_job(
+        dir.to_path_buf(),
+        (0, phantoms),
+        tomograf_datasets::anatomy::Profile::LidcCropped,
+        false,
+        (size, views),
+        "train",
+        None,
+    ))?;
     Ok(data::load_dataset(dir, None)?)
 }
 

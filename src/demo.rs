@@ -7,9 +7,13 @@
 //! mean), and PNG figures.
 
 use crate::evaluate::DEFAULT_PCA_NOISE;
+use crate::physics::PhysicsArgs;
 use anyhow::{Context, Result};
-use clap::{Args, Parser};
+use clap::Args;
 use std::path::PathBuf;
+use tomograf_datasets::anatomy::Profile;
+use tomograf_scene::dataset::{DatasetJob, ItemSettings, ItemSource};
+use tomograf_sim::acquisition::Acquisition;
 
 /// The checkpoint shipped in the repository (`model/checkpoints/demo`).
 pub const SHIPPED_CHECKPOINT: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/model/checkpoints/demo");
@@ -52,17 +56,31 @@ pub struct DemoArgs {
     pub backend: Option<String>,
 }
 
-#[derive(Parser)]
-struct DatasetCli {
-    #[command(flatten)]
-    args: crate::dataset::DatasetArgs,
-}
-
-/// `tomograf dataset` arguments from their command-line form (without the command name).
-pub fn dataset_args(args: &[&str]) -> Result<crate::dataset::DatasetArgs> {
-    let mut v = vec!["dataset"];
-    v.extend_from_slice(args);
-    Ok(DatasetCli::try_parse_from(v)?.args)
+/// `count` phantoms of `profile` from `seed` on, `size`³ with `views` views (+ AP and
+/// lateral), into `output`.
+pub fn phantom_job(
+    output: PathBuf,
+    (seed, count): (u64, usize),
+    profile: Profile,
+    pacemaker: bool,
+    (size, views): (usize, usize),
+    split: &str,
+    acquisition: Option<(Acquisition, u64)>,
+) -> DatasetJob {
+    DatasetJob {
+        sources: (0..count)
+            .map(|n| ItemSource::phantom(seed + n as u64, profile, false, pacemaker))
+            .collect(),
+        settings: ItemSettings {
+            views,
+            size,
+            split: split.into(),
+            acquisition,
+            ..ItemSettings::default()
+        },
+        output,
+        shard: (0, 1),
+    }
 }
 
 pub fn run(args: DemoArgs) -> Result<()> {
@@ -83,22 +101,15 @@ pub fn run(args: DemoArgs) -> Result<()> {
             "1/3 remaking the checkpoint's training set ({} lidc phantoms, {size}³) for the PCA prior",
             args.train_phantoms
         );
-        let phantoms = args.train_phantoms.to_string();
-        let size = size.to_string();
-        crate::dataset::run(dataset_args(&[
-            "-o",
-            &train.display().to_string(),
-            "--phantoms",
-            &phantoms,
-            "--size",
-            &size,
-            "--views",
-            "36",
-            "--profile",
-            "lidc",
-            "--split",
+        crate::dataset::run_job(&phantom_job(
+            train.clone(),
+            (0, args.train_phantoms),
+            Profile::LidcCropped,
+            false,
+            (size, 36),
             "train",
-        ])?)?;
+            None,
+        ))?;
     }
     let pacemaker = args.profile == "full-chest";
     eprintln!(
@@ -108,33 +119,19 @@ pub fn run(args: DemoArgs) -> Result<()> {
         if pacemaker { " with pacemakers" } else { "" },
         args.preset
     );
-    let (phantoms, size, out) = (
-        args.phantoms.to_string(),
-        size.to_string(),
-        test.display().to_string(),
-    );
-    let mut cli = vec![
-        "-o",
-        &out,
-        "--phantoms",
-        &phantoms,
-        "--seed",
-        "100000",
-        "--profile",
-        &args.profile,
-        "--views",
-        "10",
-        "--size",
-        &size,
-        "--split",
+    let acquisition = crate::physics::from_args(&PhysicsArgs {
+        preset: Some(args.preset.clone()),
+        ..PhysicsArgs::default()
+    })?;
+    crate::dataset::run_job(&phantom_job(
+        test.clone(),
+        (100_000, args.phantoms),
+        Profile::parse(&args.profile)?,
+        pacemaker,
+        (size, 10),
         "test",
-        "--preset",
-        &args.preset,
-    ];
-    if pacemaker {
-        cli.push("--pacemaker");
-    }
-    crate::dataset::run(dataset_args(&cli)?)?;
+        acquisition,
+    ))?;
     eprintln!("3/3 reconstructing and scoring");
     crate::evaluate::run(crate::evaluate::EvaluateArgs {
         data: test,

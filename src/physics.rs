@@ -6,7 +6,7 @@
 use anyhow::{Result, bail};
 use clap::Args;
 use tomograf_scene::Scene;
-pub use tomograf_scene::physics::{acquisition, item_seed, scatter_model};
+pub use tomograf_scene::physics::{acquisition, scatter_model};
 use tomograf_sim::acquisition::{Acquisition, SpectrumSpec};
 
 /// Flags of `tomograf project` and `tomograf dataset` for real detector physics.

@@ -21,6 +21,7 @@
 //! the heavy work, register it in [`tomograf_py`] below under the matching comment, and add
 //! its signatures to `_native.pyi` and a test to `bridge/tests/`.
 
+mod dataset;
 pub mod errors;
 pub mod geometry;
 pub mod phantom;
@@ -66,6 +67,8 @@ fn tomograf_py(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(scatter::scatter_matched, m)?)?;
     // Scenes (the same files `tomograf project --scene` renders).
     m.add_function(wrap_pyfunction!(scene::render_scene, m)?)?;
+    // Data-set items (the same files `tomograf dataset` writes).
+    m.add_function(wrap_pyfunction!(dataset::make_item, m)?)?;
     // Meshes, reconstruction: register here.
     Ok(())
 }

@@ -7,8 +7,10 @@
 //! reference of every key; units are mm, keV, mm⁻¹ and HU throughout.
 //!
 //! Data flows one way: scene → volume and views ([`volume`], [`job`]) → the physics the
-//! scene asks for ([`physics`]) → [`prepare::SceneRenderer`] → images.
+//! scene asks for ([`physics`]) → [`prepare::SceneRenderer`] → images. [`dataset`] makes
+//! the model's training and test items (CT, projections, geometry) the same way.
 
+pub mod dataset;
 pub mod dose;
 pub mod job;
 pub mod physics;

@@ -9,7 +9,7 @@ mod phantom;
 
 pub use phantom::{PhantomArgs, ScanArgs, scan, write_phantom};
 pub use tomograf_scene::job::resolve;
-pub use tomograf_scene::volume::{load_hu, load_mu, load_volume_file};
+pub use tomograf_scene::volume::{load_hu, load_mu};
 
 use crate::output;
 use crate::output::{Format, Outputs};

@@ -14,7 +14,6 @@ pub mod levels;
 mod render;
 mod report;
 
-use crate::dataset::DatasetArgs;
 use crate::evaluate::{Evaluation, evaluate, parse_shard};
 use crate::train::TrainArgs;
 use anyhow::{Context, Result, bail};
@@ -22,6 +21,8 @@ use clap::{Args, Subcommand};
 use levels::DataSpec;
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
+use tomograf_datasets::anatomy::Profile;
+use tomograf_scene::dataset::{DatasetJob, ItemSettings, ItemSource};
 
 #[derive(Debug, Subcommand)]
 pub enum StudyCommand {
@@ -293,7 +294,12 @@ impl Study {
         self.dir.join("eval").join(test).join(cell)
     }
 
-    fn dataset_args(&self, split: &str, spec: &DataSpec, shard: Option<String>) -> DatasetArgs {
+    fn dataset_job(
+        &self,
+        split: &str,
+        spec: &DataSpec,
+        shard: (usize, usize),
+    ) -> Result<DatasetJob> {
         let s = &self.settings;
         let test = split == "test";
         // Train and test phantoms are disjoint; the same phantoms at every realism level.
@@ -305,45 +311,37 @@ impl Study {
         if spec.real_physics() {
             physics.noise_seed = Some(s.seed.wrapping_mul(2).wrapping_add(u64::from(test)));
         }
-        DatasetArgs {
-            inputs: Vec::new(),
+        let (count, views) = if test {
+            (s.scale.test_phantoms, s.scale.test_views)
+        } else {
+            (s.scale.train_phantoms, s.scale.views)
+        };
+        let profile = Profile::parse(spec.profile)?;
+        Ok(DatasetJob {
+            sources: (0..count)
+                .map(|n| ItemSource::phantom(first + n as u64, profile, spec.table, spec.pacemaker))
+                .collect(),
+            settings: ItemSettings {
+                views,
+                size: s.scale.size,
+                split: split.into(),
+                acquisition: crate::physics::from_args(&physics)?,
+                ..ItemSettings::default()
+            },
             output: self.data_dir(split, spec),
-            phantoms: if test {
-                s.scale.test_phantoms
-            } else {
-                s.scale.train_phantoms
-            },
-            seed: first,
-            profile: spec.profile.into(),
-            table: spec.table,
-            pacemaker: spec.pacemaker,
-            views: if test {
-                s.scale.test_views
-            } else {
-                s.scale.views
-            },
-            size: s.scale.size,
-            hu_window: Vec::new(),
-            crop_hu: -900.0,
-            energy_kev: 60.0,
-            sad: 1000.0,
-            sid: 1500.0,
-            split: split.into(),
             shard,
-            physics,
-        }
+        })
     }
 
     /// Every data set of `splits`, or this shard's items of each.
     fn data(&self, (i, n): (usize, usize), splits: &[&str]) -> Result<()> {
-        let shard = (n > 1).then(|| format!("{i}/{n}"));
         for (split, specs) in [("train", &self.train), ("test", &self.test)] {
             if !splits.contains(&split) {
                 continue;
             }
             for spec in specs.iter().filter(|s| s.data_of.is_none()) {
                 eprintln!("data: {split} set '{}'", spec.name);
-                crate::dataset::run(self.dataset_args(split, spec, shard.clone()))
+                crate::dataset::run_job(&self.dataset_job(split, spec, (i, n))?)
                     .with_context(|| format!("{split} set '{}'", spec.name))?;
             }
         }
@@ -353,10 +351,9 @@ impl Study {
     /// Makes sure a data set is complete (generating what a shard left out) and its
     /// manifest lists every item.
     fn finish_data(&self, split: &str, spec: &DataSpec) -> Result<PathBuf> {
-        let args = self.dataset_args(split, spec, None);
-        let dir = args.output.clone();
-        crate::dataset::run(args).with_context(|| format!("{split} set '{}'", spec.name))?;
-        Ok(dir)
+        let job = self.dataset_job(split, spec, (0, 1))?;
+        crate::dataset::run_job(&job).with_context(|| format!("{split} set '{}'", spec.name))?;
+        Ok(job.output)
     }
 
     /// Trains every model not yet trained (this shard's: model k goes to shard k mod N).

@@ -284,3 +284,32 @@ def render_scene(scene: Union[str, "PathLike[str]", dict]) -> npt.NDArray[np.flo
     views axis. Output files are not written. UserWarning for geometry probably not meant
     and for starved or saturated pixels; ValueError for a bad scene, FileNotFoundError for
     a missing file."""
+
+def make_item(
+    output: Union[str, "PathLike[str]"],
+    *,
+    ct: Optional[Union[str, "PathLike[str]"]] = None,
+    phantom_seed: Optional[int] = None,
+    profile: str = "lidc",
+    table: bool = False,
+    pacemaker: bool = False,
+    index: int = 0,
+    views: int = 72,
+    size: int = 128,
+    hu_window: Tuple[float, float] = (-1024.0, 2048.0),
+    crop_hu: float = -900.0,
+    energy_kev: float = 60.0,
+    sad_mm: float = 1000.0,
+    sid_mm: float = 1500.0,
+    split: str = "train",
+    physics: Optional[dict] = None,
+) -> "PathLike[str]":
+    """Makes one TomoGRAF data-set item in the folder `output`, the same files (and bytes)
+    as item `index` of `tomograf dataset`: ct.nii.gz (cropped CT resampled to size³, [0, 1]
+    over hu_window in HU), projections.npy (float32 (views + 2, size, size): every
+    360/views degrees, then AP and lateral, exact Siddon; line integrals at energy_kev keV,
+    or the detector's signal when `physics` holds a scene's physics tables such as
+    {"acquisition": {"preset": "kv-flat-panel-120kvp", "seed": 5}}), views.json and
+    item.json (written last). Source: exactly one of `ct` (NIfTI or DICOM folder) and
+    `phantom_seed` (profile "lidc" or "full-chest"). Distances in mm. Returns the folder.
+    ValueError for bad settings, FileNotFoundError for a missing CT."""

@@ -1,0 +1,342 @@
+//! Data-set items as in the TomoGRAF paper, the one definition behind `tomograf dataset`,
+//! the studies and `tomograf.make_item` in Python.
+//!
+//! Per item (a CT file or DICOM folder, or a seeded anatomical phantom): the
+//! black-border-cropped CT resampled to `size³` and normalised to [0, 1] over an HU window
+//! (`ct.nii.gz`, whose affine keeps the world frame), and `views` projections every
+//! 360/`views` degrees plus AP and lateral at `size²` (`projections.npy`, shape views × rows
+//! × cols), rendered with exact Siddon from the cropped full-resolution volume — ideal line
+//! integrals at an effective energy, or with an [`Acquisition`] the detector's signal —
+//! with the geometry of every view in `views.json`. `item.json` is written last and marks
+//! the item finished (the format: [`tomograf_datasets::item`]).
+//!
+//! Every file is written to a temporary name and renamed, so a killed run leaves no
+//! half-written file, and items are independent: item i's bytes depend only on its source,
+//! the settings and i (its noise seed is [`item_seed`]`(seed, i)`), so shards of a set give
+//! the bytes of one run.
+//!
+//! Units: mm, keV, HU.
+
+use crate::physics::item_seed;
+use crate::volume::load_volume_file;
+use anyhow::{Context, Result, bail};
+use serde::Serialize;
+use sha2::{Digest, Sha256};
+use std::path::{Path, PathBuf};
+use tomograf_datasets::anatomy::{self, AnatomySpec, Profile};
+use tomograf_datasets::item::{self, AcquisitionRecord, ItemRecord};
+use tomograf_datasets::preprocess::{HuWindow, crop_black_border, resample};
+use tomograf_datasets::{atomic, image, nifti};
+use tomograf_sim::acquisition::Acquisition;
+use tomograf_sim::attenuation::Attenuation;
+use tomograf_sim::geometry::angles;
+use tomograf_sim::{Beam, Detector, Geometry, Pose, Projector, Renderer, View};
+
+/// How every item of a set is made. [`Default`] is the paper's protocol at 128³.
+#[derive(Debug, Clone)]
+pub struct ItemSettings {
+    /// HU window mapped to [0, 1].
+    pub window: HuWindow,
+    /// Black-border crop threshold, HU: voxels at or below it count as border.
+    pub crop_hu: f32,
+    /// Effective energy for HU → μ of the ideal DRR, keV.
+    pub energy_kev: f64,
+    /// Projections per full rotation (every 360/views degrees), besides AP and lateral.
+    pub views: usize,
+    /// CT grid (size³) and detector (size²).
+    pub size: usize,
+    /// Source-to-isocentre distance, mm.
+    pub sad_mm: f64,
+    /// Source-to-detector distance, mm.
+    pub sid_mm: f64,
+    /// Name of the split the set belongs to (e.g. "train", or the institution).
+    pub split: String,
+    /// Real detector physics and its noise seed; `None`: ideal line integrals.
+    pub acquisition: Option<(Acquisition, u64)>,
+}
+
+impl Default for ItemSettings {
+    fn default() -> Self {
+        Self {
+            window: HuWindow::CHEST,
+            crop_hu: -900.0,
+            energy_kev: 60.0,
+            views: 72,
+            size: 128,
+            sad_mm: 1000.0,
+            sid_mm: 1500.0,
+            split: "train".into(),
+            acquisition: None,
+        }
+    }
+}
+
+impl ItemSettings {
+    /// Checks the settings before any work, naming the bad one.
+    pub fn validate(&self) -> Result<()> {
+        if self.size < 2 || self.views == 0 {
+            bail!("the size must be at least 2 and the views at least 1");
+        }
+        if let Some((acq, _)) = &self.acquisition
+            && acq.detector.channels() != 1
+        {
+            bail!("data sets hold one image per view: use a one-channel detector");
+        }
+        Ok(())
+    }
+}
+
+/// Where an item comes from.
+#[derive(Debug, Clone, Serialize)]
+#[serde(tag = "kind", rename_all = "kebab-case")]
+pub enum ItemSource {
+    /// A CT: NIfTI file or DICOM series folder.
+    File {
+        /// Its path.
+        path: PathBuf,
+    },
+    /// A seeded anatomical phantom.
+    Phantom {
+        /// What is generated.
+        spec: AnatomySpec,
+    },
+}
+
+impl ItemSource {
+    /// Phantom `seed` of `profile` on a grid large enough for the profile's field of view,
+    /// at about CT resolution, optionally on a table and with a pacemaker.
+    pub fn phantom(seed: u64, profile: Profile, table: bool, pacemaker: bool) -> Self {
+        let (dims, spacing) = match profile {
+            Profile::LidcCropped => ([200, 200, 128], [2.0, 2.0, 2.5]),
+            Profile::FullChest => ([256, 256, 200], [2.2, 2.2, 2.5]),
+        };
+        let mut spec = AnatomySpec::new(seed, profile, dims, spacing);
+        spec.table = table;
+        spec.pacemaker = pacemaker;
+        ItemSource::Phantom { spec }
+    }
+}
+
+/// Inputs expanded: files as given; a folder with DICOM files is one series, any other
+/// folder contributes its NIfTI files and series sub-folders, sorted by path.
+pub fn expand_inputs(inputs: &[PathBuf]) -> Result<Vec<PathBuf>> {
+    let mut out = Vec::new();
+    for p in inputs {
+        if p.is_dir()
+            && !tomograf_datasets::dicom::scan_dicom_tree(p)?
+                .iter()
+                .any(|s| s.folder == *p)
+        {
+            let mut nii: Vec<PathBuf> = std::fs::read_dir(p)
+                .with_context(|| format!("cannot list {}", p.display()))?
+                .filter_map(|e| e.ok().map(|e| e.path()))
+                .filter(|f| {
+                    let n = f.to_string_lossy().to_ascii_lowercase();
+                    n.ends_with(".nii") || n.ends_with(".nii.gz")
+                })
+                .collect();
+            nii.sort();
+            out.extend(nii);
+            out.extend(
+                tomograf_datasets::dicom::scan_dicom_tree(p)?
+                    .into_iter()
+                    .map(|s| s.folder),
+            );
+        } else {
+            out.push(p.clone());
+        }
+    }
+    Ok(out)
+}
+
+/// SHA-256 of a file, or of a folder's files (sorted names and contents).
+fn sha256_of(path: &Path) -> Result<String> {
+    let mut h = Sha256::new();
+    if path.is_dir() {
+        let mut files: Vec<PathBuf> = std::fs::read_dir(path)?
+            .filter_map(|e| e.ok().map(|e| e.path()))
+            .filter(|f| f.is_file())
+            .collect();
+        files.sort();
+        for f in files {
+            h.update(f.file_name().unwrap_or_default().as_encoded_bytes());
+            h.update(std::fs::read(&f).with_context(|| format!("cannot read {}", f.display()))?);
+        }
+    } else {
+        h.update(std::fs::read(path).with_context(|| format!("cannot read {}", path.display()))?);
+    }
+    Ok(format!("{:x}", h.finalize()))
+}
+
+/// Whether `dir` holds a finished item (its `item.json` exists and parses).
+pub fn is_finished(dir: &Path) -> bool {
+    item::finished_record(dir).is_some()
+}
+
+/// A set's items, the shard this run makes, and where they go.
+#[derive(Debug, Clone)]
+pub struct DatasetJob {
+    /// Every item of the set, in order.
+    pub sources: Vec<ItemSource>,
+    /// How each is made.
+    pub settings: ItemSettings,
+    /// Output folder: item i in `{i:05}/`, `manifest.jsonl` beside them.
+    pub output: PathBuf,
+    /// This run makes items i with i mod n = shard.0, n = shard.1.
+    pub shard: (usize, usize),
+}
+
+/// What a [`DatasetJob`] did.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct DatasetSummary {
+    /// Items made by this run.
+    pub made: usize,
+    /// Items of this shard already finished (skipped).
+    pub skipped: usize,
+    /// Finished items the rebuilt manifest lists (all shards).
+    pub listed: usize,
+}
+
+impl DatasetJob {
+    /// The indices this run is responsible for.
+    pub fn mine(&self) -> Vec<usize> {
+        let (shard, shards) = self.shard;
+        (0..self.sources.len())
+            .filter(|i| i % shards == shard)
+            .collect()
+    }
+
+    /// Makes this shard's unfinished items (resumable: finished ones are skipped), then
+    /// rebuilds the manifest. `progress(index, made)` is called after each item.
+    pub fn run(&self, mut progress: impl FnMut(usize, bool)) -> Result<DatasetSummary> {
+        self.settings.validate()?;
+        let (shard, shards) = self.shard;
+        if shards == 0 || shard >= shards {
+            bail!("shard {shard}/{shards}: give I/N with 0 ≤ I < N");
+        }
+        if self.sources.is_empty() {
+            bail!("nothing to do: give CT inputs or phantoms");
+        }
+        std::fs::create_dir_all(&self.output)
+            .with_context(|| format!("cannot create {}", self.output.display()))?;
+        atomic::remove_stale_temporaries(&self.output)?;
+        let (mut made, mut skipped) = (0, 0);
+        for index in self.mine() {
+            let dir = self.output.join(format!("{index:05}"));
+            let done = is_finished(&dir);
+            if done {
+                skipped += 1;
+            } else {
+                make_item(&self.settings, index, &self.sources[index], &dir)
+                    .with_context(|| format!("item {index:05}"))?;
+                made += 1;
+            }
+            progress(index, !done);
+        }
+        let listed = item::write_manifest(&self.output, self.sources.len())?;
+        Ok(DatasetSummary {
+            made,
+            skipped,
+            listed,
+        })
+    }
+}
+
+/// Makes item `index` of a set from `source` into `dir` (created if missing).
+pub fn make_item(
+    settings: &ItemSettings,
+    index: usize,
+    source: &ItemSource,
+    dir: &Path,
+) -> Result<()> {
+    settings.validate()?;
+    // The CT in HU, and what identifies it.
+    let (hu, sha) = match source {
+        ItemSource::File { path } => (load_volume_file(path, false)?, sha256_of(path)?),
+        ItemSource::Phantom { spec } => {
+            let sha = format!(
+                "{:x}",
+                Sha256::digest(serde_json::to_string(spec)?.as_bytes())
+            );
+            (anatomy::generate(spec)?, sha)
+        }
+    };
+    let cropped = crop_black_border(&hu, settings.crop_hu)?;
+
+    // Projections from the cropped full-resolution volume.
+    let acquisition = &settings.acquisition;
+    let mu = match acquisition {
+        None => Attenuation::hounsfield_at_kev(settings.energy_kev)?.to_mu(cropped.clone())?,
+        Some(_) => cropped.clone(), // classified into tissues by the acquisition, in HU
+    };
+    let mut poses = angles::arc(0.0, 360.0 / settings.views as f64, settings.views, 0.0)?;
+    poses.extend([Pose::AP, Pose::LATERAL]);
+    let size = settings.size;
+    let mut geometry = Geometry {
+        beam: Beam::Cone {
+            sad_mm: settings.sad_mm,
+            sid_mm: settings.sid_mm,
+        },
+        detector: Detector::new(size, size, 1.0),
+        isocentre: mu.centre(),
+    };
+    let pitch = geometry.fit_pitch(&poses, &mu)?;
+    geometry.detector.pitch_u_mm = pitch;
+    geometry.detector.pitch_v_mm = pitch;
+    let views: Vec<View> = geometry.views(&poses)?;
+    let mut stack = Vec::with_capacity(views.len() * size * size);
+    let quantity = match acquisition {
+        None => {
+            let renderer = Renderer::new(&mu, Projector::Siddon)?;
+            for v in &views {
+                stack.extend(renderer.render(v)?.data);
+            }
+            "line integral ∫mu ds (mu at the effective energy)".to_string()
+        }
+        Some((acq, seed)) => {
+            let prepared = acq.prepare(&mu, item_seed(*seed, index))?;
+            for (i, v) in views.iter().enumerate() {
+                stack.extend(prepared.acquire(Projector::Siddon, v, i)?.remove(0).data);
+            }
+            format!("detector signal: {:?} (see acquisition)", acq.output)
+        }
+    };
+
+    // The CT on the training grid, normalised.
+    let ct = settings.window.normalize(&resample(&cropped, [size; 3])?)?;
+
+    std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
+    nifti::write_nifti(&dir.join("ct.nii.gz"), &ct)?;
+    image::write_npy(
+        &dir.join("projections.npy"),
+        &stack,
+        &[views.len(), size, size],
+    )?;
+    item::write_views(dir, &geometry, &poses, &views)?;
+    let record = ItemRecord {
+        index,
+        id: format!("{index:05}"),
+        split: settings.split.clone(),
+        source: serde_json::to_value(source)?,
+        source_sha256: sha,
+        hu_window: settings.window,
+        energy_kev: settings.energy_kev,
+        ct: "ct.nii.gz".into(),
+        ct_dims: ct.dims(),
+        projections: "projections.npy".into(),
+        projection_quantity: quantity,
+        acquisition: acquisition
+            .as_ref()
+            .map(|(a, s)| {
+                AcquisitionRecord {
+                    settings: a.clone(),
+                    noise_seed: *s,
+                }
+                .to_json()
+            })
+            .unwrap_or(serde_json::Value::Null),
+        views: "views.json".into(),
+        angles_deg: poses.iter().map(|p| [p.theta_deg, p.phi_deg]).collect(),
+    };
+    Ok(item::write_record(dir, &record)?)
+}
