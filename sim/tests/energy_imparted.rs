@@ -48,6 +48,22 @@ fn pencil() -> FieldSource {
     .unwrap()
 }
 
+/// A 20 × 20 mm field on the block's entrance face from 500 mm.
+fn field_20mm() -> FieldSource {
+    FieldSource::new(
+        DVec3::new(0.0, 0.0, -500.0),
+        DVec3::ZERO,
+        DVec3::X * 10.0,
+        DVec3::Y * 10.0,
+    )
+    .unwrap()
+}
+
+/// 30, 60 and 90 keV photons in the ratio 1 : 2 : 1.
+fn three_lines() -> BeamSpectrum {
+    BeamSpectrum::new(vec![30.0, 60.0, 90.0], &[1.0, 2.0, 1.0]).unwrap()
+}
+
 /// Mean fraction of the photon energy given to the electron in a Compton scatter,
 /// ⟨T/E⟩ = ∫ (1 − E′/E) S(x) dσ_KN / ∫ S(x) dσ_KN, by Simpson's rule over cos θ, written
 /// here from the Klein–Nishina formula; `s(mu)` is the incoherent scattering function
@@ -99,19 +115,7 @@ fn first_collision_deposition_in_a_water_slab_matches_the_tables() {
     let x = water().interactions(e).unwrap();
     let mu = x.total() * 1.0 / 10.0; // mm⁻¹ at 1 g/cm³
     let interacting = 1.0 - (-mu * 50.0).exp();
-    let s_water = |mu: f64| {
-        let q = momentum_transfer(e, mu);
-        water()
-            .composition()
-            .iter()
-            .map(|&(z, w)| {
-                w / material::element(z).unwrap().atomic_mass_u * incoherent_function(z, q).unwrap()
-            })
-            .sum::<f64>()
-    };
-    let want =
-        e * 1000.0 * interacting * (x.photoelectric + x.incoherent * transfer_fraction(e, s_water))
-            / x.total();
+    let want = e * 1000.0 * interacting * water_deposition(e) / x.total();
     let got = r.deposited.ev_per_photon;
     eprintln!(
         "first collision: {got:.2} ± {:.2} eV, analytic {want:.2}",
@@ -131,14 +135,8 @@ fn first_collision_deposition_in_a_water_slab_matches_the_tables() {
 #[test]
 fn energy_is_conserved_and_regions_agree_with_the_voxel_map() {
     let medium = block();
-    let beam = BeamSpectrum::new(vec![30.0, 60.0, 90.0], &[1.0, 2.0, 1.0]).unwrap();
-    let source = FieldSource::new(
-        DVec3::new(0.0, 0.0, -500.0),
-        DVec3::ZERO,
-        DVec3::X * 10.0,
-        DVec3::Y * 10.0,
-    )
-    .unwrap();
+    let beam = three_lines();
+    let source = field_20mm();
     let whole = Region::cube(
         "whole",
         DVec3::new(0.0, 0.0, 25.0),
@@ -435,14 +433,8 @@ fn track_length_and_collision_estimators_agree_in_small_regions() {
     // spectrum, they must agree within 4 combined standard errors, and the track-length
     // one must have the smaller error in each (few photons interact in a 2 mm slab).
     let medium = block();
-    let beam = BeamSpectrum::new(vec![30.0, 60.0, 90.0], &[1.0, 2.0, 1.0]).unwrap();
-    let source = FieldSource::new(
-        DVec3::new(0.0, 0.0, -500.0),
-        DVec3::ZERO,
-        DVec3::X * 10.0,
-        DVec3::Y * 10.0,
-    )
-    .unwrap();
+    let beam = three_lines();
+    let source = field_20mm();
     let regions = [
         Region::cube(
             "slab",
