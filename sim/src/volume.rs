@@ -88,7 +88,7 @@ impl Volume {
             )));
         }
         let direction = orthonormalise(direction)?;
-        if let Some(pos) = data.iter().position(|v| !v.is_finite()) {
+        if let Some(pos) = first_non_finite(&data) {
             let [i, j, k] = unravel(pos, dims);
             return Err(SimError::NonFiniteVoxel {
                 i,
@@ -155,7 +155,7 @@ impl Volume {
     pub fn map_in_place(mut self, f: impl Fn(f32) -> f32 + Sync) -> Result<Self> {
         use rayon::prelude::*;
         self.data.par_iter_mut().for_each(|v| *v = f(*v));
-        if let Some(pos) = self.data.iter().position(|v| !v.is_finite()) {
+        if let Some(pos) = first_non_finite(&self.data) {
             let [i, j, k] = unravel(pos, self.dims);
             return Err(SimError::NonFiniteVoxel {
                 i,
@@ -259,6 +259,19 @@ impl Volume {
                 (lo.min(v), hi.max(v))
             })
     }
+}
+
+/// Index of the first NaN or ±Inf value, scanning on every core (a CT is 10⁷–10⁸ voxels)
+/// in blocks (rayon's per-item `position_first` measured 20× slower than one core here).
+fn first_non_finite(data: &[f32]) -> Option<usize> {
+    use rayon::prelude::*;
+    const BLOCK: usize = 1 << 16;
+    data.par_chunks(BLOCK)
+        .enumerate()
+        .find_map_first(|(b, block)| {
+            let at = block.iter().position(|v| !v.is_finite())?;
+            Some(b * BLOCK + at)
+        })
 }
 
 /// `nx·ny·nz`, refusing zero sizes, overflow, volumes above [`MAX_VOXELS`] and volumes
@@ -390,6 +403,35 @@ mod tests {
         let sheared = DMat3::from_cols(DVec3::X, DVec3::new(0.1, 1.0, 0.0).normalize(), DVec3::Z);
         let e = Volume::new([2, 2, 2], DVec3::ONE, DVec3::ZERO, sheared, cube(2)).unwrap_err();
         assert!(e.to_string().contains("not orthogonal"));
+    }
+
+    /// The first bad voxel in memory order is the one reported, wherever the others lie
+    /// (several in one scanning block, others in later blocks), on any number of threads.
+    #[test]
+    fn the_first_non_finite_voxel_is_reported() {
+        let n = 5 * (1 << 16) + 3;
+        let mut d = vec![1.0f32; n];
+        for (at, v) in [
+            (4 * (1 << 16) + 2, f32::NAN),
+            (70_001, f32::INFINITY),
+            (70_005, f32::NAN),
+            (200_000, f32::NEG_INFINITY),
+        ] {
+            d[at] = v;
+        }
+        for threads in [1, 2, 5] {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap();
+            assert_eq!(pool.install(|| first_non_finite(&d)), Some(70_001));
+        }
+        assert_eq!(first_non_finite(&d[..70_001]), None);
+        let e = Volume::new([n, 1, 1], DVec3::ONE, DVec3::ZERO, DMat3::IDENTITY, d).unwrap_err();
+        assert!(
+            matches!(e, SimError::NonFiniteVoxel { i: 70_001, .. }),
+            "{e}"
+        );
     }
 
     #[test]

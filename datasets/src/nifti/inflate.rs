@@ -9,6 +9,7 @@
 //! corrupt stream, a size that cannot be allocated — returns `None`, and the caller
 //! streams the file as before, which reports any problem with its usual, precise errors.
 
+use super::decode::zeroed_words;
 use libdeflater::Decompressor;
 
 /// The uncompressed length mod 2³² that a gzip file's trailer records (its last member's).
@@ -17,35 +18,36 @@ fn trailer_size(gz: &[u8]) -> Option<u32> {
     Some(u32::from_le_bytes(tail))
 }
 
-/// `len` zero bytes, or `None` where they cannot be allocated. Zeroed by the allocator
-/// (fresh pages from the system are zero already: no pass over them), unlike
-/// `try_reserve` + `resize`; unlike `vec![0; len]`, a failed allocation is not an abort.
-fn zeroed(len: usize) -> Option<Vec<u8>> {
-    if len == 0 {
-        return Some(Vec::new());
-    }
-    let layout = std::alloc::Layout::array::<u8>(len).ok()?;
-    // SAFETY: `layout` has a non-zero size.
-    let p = unsafe { std::alloc::alloc_zeroed(layout) };
-    if p.is_null() {
-        return None;
-    }
-    // SAFETY: `p` was allocated by the global allocator with the layout of `len` u8s (so
-    // capacity `len`), and all `len` bytes are initialised (zero).
-    Some(unsafe { Vec::from_raw_parts(p, len, len) })
+/// The inflated bytes of a `.nii.gz`, held in a word buffer so that its voxels can be
+/// decoded to `f32` where they lie ([`super::decode::decode_in_place`]).
+pub(super) struct Inflated {
+    /// At least `len` bytes and `min_words` words (see [`whole`]).
+    pub words: Vec<f32>,
+    /// Inflated bytes at the start of `words`.
+    pub len: usize,
 }
 
-/// Inflates the gzip file `gz` into a buffer of exactly `expected` bytes, verifying the
-/// CRC-32 and length in its trailer; `None` unless it holds exactly that many bytes (see
-/// the module documentation).
-pub(super) fn whole(gz: &[u8], expected: u64) -> Option<Vec<u8>> {
+impl Inflated {
+    /// The inflated file: header, extensions and voxels.
+    pub fn bytes(&self) -> &[u8] {
+        &bytemuck::cast_slice(&self.words)[..self.len]
+    }
+}
+
+/// Inflates the gzip file `gz` into a buffer of at least `min_words` words that starts
+/// with exactly `expected` bytes, verifying the CRC-32 and length in its trailer; `None`
+/// unless it holds exactly that many bytes (see the module documentation).
+pub(super) fn whole(gz: &[u8], expected: u64, min_words: usize) -> Option<Inflated> {
     if u64::from(trailer_size(gz)?) != expected % (1u64 << 32) {
         return None;
     }
     let len = usize::try_from(expected).ok()?;
-    let mut out = zeroed(len)?;
-    let n = Decompressor::new().gzip_decompress(gz, &mut out).ok()?;
-    (n == len).then_some(out)
+    let mut words = zeroed_words(len.div_ceil(4).max(min_words))?;
+    let out: &mut [u8] = bytemuck::cast_slice_mut(&mut words);
+    let n = Decompressor::new()
+        .gzip_decompress(gz, &mut out[..len])
+        .ok()?;
+    (n == len).then_some(Inflated { words, len })
 }
 
 #[cfg(test)]
@@ -65,19 +67,24 @@ mod tests {
     fn inflates_exactly_the_expected_bytes_and_nothing_else() {
         let data: Vec<u8> = (0..100_000u32).map(|i| (i * 7 % 251) as u8).collect();
         let gz = gzip(&data);
-        assert_eq!(whole(&gz, data.len() as u64).as_deref(), Some(&data[..]));
+        assert_eq!(
+            whole(&gz, data.len() as u64, 0)
+                .as_ref()
+                .map(Inflated::bytes),
+            Some(&data[..])
+        );
         // Another expected size (the header disagrees with the trailer): not attempted.
-        assert_eq!(whole(&gz, data.len() as u64 - 1), None);
+        assert!(whole(&gz, data.len() as u64 - 1, 0).is_none());
         // Two members: the trailer is the second's, so the sizes disagree.
         let two = [gzip(&data[..500]), gzip(&data[500..])].concat();
-        assert_eq!(whole(&two, data.len() as u64), None);
+        assert!(whole(&two, data.len() as u64, 0).is_none());
         // A flipped bit in the stream fails the CRC (or the inflate).
         let mut bad = gz.clone();
         let mid = bad.len() / 2;
         bad[mid] ^= 0x10;
-        assert_eq!(whole(&bad, data.len() as u64), None);
+        assert!(whole(&bad, data.len() as u64, 0).is_none());
         // Truncated files, including ones shorter than a trailer.
-        assert_eq!(whole(&gz[..gz.len() - 9], data.len() as u64), None);
-        assert_eq!(whole(&gz[..3], 3), None);
+        assert!(whole(&gz[..gz.len() - 9], data.len() as u64, 0).is_none());
+        assert!(whole(&gz[..3], 3, 0).is_none());
     }
 }

@@ -21,10 +21,12 @@
 //! would need NIfTI-2) cannot be written.
 
 mod affine;
+mod decode;
 mod inflate;
 
 use crate::atomic::write_atomic_to_path;
 use crate::error::{DatasetError, Result};
+use decode::{decode_in_place, decode_parallel, decodes_in_place, zeroed_words};
 use flate2::read::MultiGzDecoder;
 use glam::{DMat3, DVec3};
 use ndarray::{ArrayD, ArrayView3, ShapeBuilder};
@@ -82,13 +84,14 @@ pub fn read_nifti(path: &Path) -> Result<Volume> {
             .read_to_end(&mut compressed)
             .map_err(|e| DatasetError::io(path, "reading", e))?;
         compressed_len = compressed.len() as u64;
-        inflated = expected_size(&compressed, path).and_then(|n| inflate::whole(&compressed, n));
+        inflated = expected_size(&compressed, path)
+            .and_then(|(n, count)| inflate::whole(&compressed, n, count as usize));
         if inflated.is_some() {
             compressed = Vec::new();
         }
     }
     let mut reader: Box<dyn Read + '_> = match (&inflated, gz) {
-        (Some(bytes), _) => Box::new(&bytes[..]),
+        (Some(whole), _) => Box::new(whole.bytes()),
         // Multi-member aware (the crate's own reader decodes only the first gzip member).
         (None, true) => Box::new(MultiGzDecoder::new(&compressed[..])),
         (None, false) => Box::new(buffered),
@@ -170,53 +173,96 @@ pub fn read_nifti(path: &Path) -> Result<Volume> {
     if !h.scl_inter.is_finite() {
         h.scl_inter = 0.0;
     }
-    // Inflated whole: the voxels are decoded where they lie (no copy).
-    let raw = inflated
-        .as_deref()
-        .and_then(|all| all.get(offset as usize..(offset + nbytes) as usize));
-    let direct =
-        raw.and_then(|raw| decode_parallel(raw, dtype, h.endianness, h.scl_slope, h.scl_inter));
-    let data = match direct {
-        Some(data) if data.len() == count => data,
-        _ => {
-            let voxels =
-                InMemNiftiVolume::from_reader(&mut reader, &h).map_err(|e| voxel_error(path, e))?;
-            if gz {
-                // Decode to the end so that the gzip trailer (CRC-32 and length) is verified.
-                io::copy(&mut reader, &mut io::sink()).map_err(|e| read_error(path, e))?;
+    // Inflated whole: the voxels are decoded where they lie, in the buffer they were
+    // inflated into.
+    let in_place = decodes_in_place(dtype) && (inflated.is_some() || !gz);
+    let data = if in_place {
+        // The voxels' bytes at `at` of a buffer of at least `count` words: the inflated
+        // file, or the uncompressed file's voxels read into one.
+        let (words, at) = match inflated.is_some() {
+            true => {
+                drop(reader);
+                let whole = inflated.take().expect("inflated");
+                (whole.words, offset as usize)
             }
-            match decode_parallel(
-                voxels.raw_data(),
-                dtype,
-                h.endianness,
-                h.scl_slope,
-                h.scl_inter,
-            ) {
-                Some(data) if data.len() == count => data,
-                _ => {
-                    let array = voxels.into_ndarray::<f32>().map_err(|e| {
-                        DatasetError::unsupported(
+            false => {
+                let mut words = zeroed_words(count).ok_or_else(|| DatasetError::TooLarge {
+                    path: path.to_owned(),
+                    detail: format!("cannot allocate {count} voxels"),
+                })?;
+                let bytes: &mut [u8] = bytemuck::cast_slice_mut(&mut words);
+                reader
+                    .read_exact(&mut bytes[..nbytes as usize])
+                    .map_err(|e| match e.kind() {
+                        io::ErrorKind::UnexpectedEof => DatasetError::truncated(
                             path,
-                            format!("voxel type {dtype:?} cannot be decoded: {e}"),
-                        )
+                            format!("the voxel data ends before its {nbytes} bytes"),
+                        ),
+                        _ => DatasetError::io(path, "reading", e),
                     })?;
-                    i_fastest(array, dims).map_err(|e| DatasetError::corrupt(path, e))?
+                drop(reader);
+                (words, 0)
+            }
+        };
+        decode_in_place(
+            words,
+            at,
+            count,
+            dtype,
+            h.endianness,
+            h.scl_slope,
+            h.scl_inter,
+        )
+    } else {
+        let raw = inflated
+            .as_ref()
+            .and_then(|all| all.bytes().get(offset as usize..(offset + nbytes) as usize));
+        let direct =
+            raw.and_then(|raw| decode_parallel(raw, dtype, h.endianness, h.scl_slope, h.scl_inter));
+        let data = match direct {
+            Some(data) if data.len() == count => data,
+            _ => {
+                let voxels = InMemNiftiVolume::from_reader(&mut reader, &h)
+                    .map_err(|e| voxel_error(path, e))?;
+                if gz {
+                    // Decode to the end so that the gzip trailer (CRC-32 and length) is
+                    // verified.
+                    io::copy(&mut reader, &mut io::sink()).map_err(|e| read_error(path, e))?;
+                }
+                match decode_parallel(
+                    voxels.raw_data(),
+                    dtype,
+                    h.endianness,
+                    h.scl_slope,
+                    h.scl_inter,
+                ) {
+                    Some(data) if data.len() == count => data,
+                    _ => {
+                        let array = voxels.into_ndarray::<f32>().map_err(|e| {
+                            DatasetError::unsupported(
+                                path,
+                                format!("voxel type {dtype:?} cannot be decoded: {e}"),
+                            )
+                        })?;
+                        i_fastest(array, dims).map_err(|e| DatasetError::corrupt(path, e))?
+                    }
                 }
             }
-        }
+        };
+        drop(reader);
+        drop(inflated);
+        data
     };
-    drop(reader);
-    drop(inflated);
     Volume::new(dims, spacing, origin, direction, data).map_err(|source| DatasetError::Volume {
         path: path.to_owned(),
         source,
     })
 }
 
-/// The uncompressed size of a `.nii.gz` (header, extensions and voxels) as its header
-/// states it, inflating only the header; `None` where the header is not valid (the
-/// streaming read then reports why).
-fn expected_size(gz: &[u8], path: &Path) -> Option<u64> {
+/// The uncompressed size of a `.nii.gz` (header, extensions and voxels) and its number of
+/// voxels, as its header states them, inflating only the header; `None` where the header
+/// is not valid (the streaming read then reports why).
+fn expected_size(gz: &[u8], path: &Path) -> Option<(u64, u64)> {
     let h = read_header(&mut MultiGzDecoder::new(gz), path).ok()?;
     let dims = volume_dims(&h, path).ok()?;
     let dtype = voxel_type(&h, path).ok()?;
@@ -224,7 +270,10 @@ fn expected_size(gz: &[u8], path: &Path) -> Option<u64> {
     let count = dims
         .iter()
         .try_fold(1u64, |n, &d| n.checked_mul(d as u64))?;
-    offset.checked_add(count.checked_mul(dtype.size_of() as u64)?)
+    Some((
+        offset.checked_add(count.checked_mul(dtype.size_of() as u64)?)?,
+        count,
+    ))
 }
 
 /// Reads the 348-byte header and parses it with the crate, with precise errors for empty,
@@ -401,66 +450,6 @@ fn geometry(h: &NiftiHeader) -> std::result::Result<(DVec3, DMat3, DVec3), Strin
 /// length 1). With its axes reversed it is indexed `[…, k, j, i]`, whose logical
 /// row-major order is ours; when that view is in standard layout (it is for the crate's
 /// column-major arrays) its buffer is already in that order and is taken without copying.
-/// The CT voxel types (int16, uint16, float32) decoded to `f32` on every core, in the
-/// file's order (i fastest): the same values as the crate's `into_ndarray::<f32>` (each
-/// value cast to f32, then `x·slope + inter` in f32 when the slope is not 0; tested bit
-/// for bit). `None` for other types, which the crate decodes.
-fn decode_parallel(
-    raw: &[u8],
-    dtype: NiftiType,
-    endianness: Endianness,
-    slope: f32,
-    inter: f32,
-) -> Option<Vec<f32>> {
-    let le = endianness == Endianness::Little;
-    Some(match dtype {
-        NiftiType::Int16 => convert(raw, slope, inter, |b: [u8; 2]| {
-            f32::from(if le {
-                i16::from_le_bytes(b)
-            } else {
-                i16::from_be_bytes(b)
-            })
-        }),
-        NiftiType::Uint16 => convert(raw, slope, inter, |b: [u8; 2]| {
-            f32::from(if le {
-                u16::from_le_bytes(b)
-            } else {
-                u16::from_be_bytes(b)
-            })
-        }),
-        NiftiType::Float32 => convert(raw, slope, inter, |b: [u8; 4]| {
-            if le {
-                f32::from_le_bytes(b)
-            } else {
-                f32::from_be_bytes(b)
-            }
-        }),
-        _ => return None,
-    })
-}
-
-/// `raw` as values of `N` bytes each, decoded by `decode` and scaled, on every core.
-fn convert<const N: usize>(
-    raw: &[u8],
-    slope: f32,
-    inter: f32,
-    decode: impl Fn([u8; N]) -> f32 + Sync,
-) -> Vec<f32> {
-    use rayon::prelude::*;
-    // Voxels per task: large enough that scheduling costs nothing.
-    const BLOCK: usize = 1 << 16;
-    let mut out = vec![0.0f32; raw.len() / N];
-    out.par_chunks_mut(BLOCK)
-        .zip(raw.par_chunks(BLOCK * N))
-        .for_each(|(o, bytes)| {
-            for (v, b) in o.iter_mut().zip(bytes.chunks_exact(N)) {
-                let x = decode(b.try_into().expect("chunks of N bytes"));
-                *v = if slope == 0.0 { x } else { x * slope + inter };
-            }
-        });
-    out
-}
-
 fn i_fastest(array: ArrayD<f32>, dims: [usize; 3]) -> std::result::Result<Vec<f32>, String> {
     let shape = array.shape();
     let padded: Vec<usize> = (0..shape.len().max(3))

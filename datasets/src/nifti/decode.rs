@@ -1,0 +1,254 @@
+//! Stored voxel values → `f32`, on every core.
+//!
+//! Two ways for the CT voxel types (int16, uint16, float32):
+//! * [`decode_parallel`] reads raw bytes and returns a new buffer;
+//! * [`decode_in_place`] decodes voxels that lie in the bytes of the `f32` buffer they are
+//!   decoded into (a `.nii.gz` inflated whole, [`super::inflate::whole`]): no second buffer
+//!   of the volume's size is allocated. On the virtual machines we measure on, the kernel
+//!   zeroes fresh pages at about 0.5 GB/s, so a 140 MB buffer not allocated is worth more
+//!   than the decoding itself (docs/datasets.md, "Loading speed").
+//!
+//! Both give the same values as the `nifti` crate's `into_ndarray::<f32>`: each value cast
+//! to f32, then `x·slope + inter` in f32 when the slope is not 0 (tested bit for bit).
+
+use nifti::{Endianness, NiftiType};
+use rayon::prelude::*;
+
+/// Voxels per parallel task: large enough that scheduling costs nothing.
+const BLOCK: usize = 1 << 16;
+
+/// The stored value of `N` bytes → f32, before scaling.
+fn int16(le: bool) -> impl Fn([u8; 2]) -> f32 + Sync + Copy {
+    move |b| {
+        f32::from(if le {
+            i16::from_le_bytes(b)
+        } else {
+            i16::from_be_bytes(b)
+        })
+    }
+}
+fn uint16(le: bool) -> impl Fn([u8; 2]) -> f32 + Sync + Copy {
+    move |b| {
+        f32::from(if le {
+            u16::from_le_bytes(b)
+        } else {
+            u16::from_be_bytes(b)
+        })
+    }
+}
+fn float32(le: bool) -> impl Fn([u8; 4]) -> f32 + Sync + Copy {
+    move |b| {
+        if le {
+            f32::from_le_bytes(b)
+        } else {
+            f32::from_be_bytes(b)
+        }
+    }
+}
+
+/// `decode` followed by the header's scaling (none when the slope is 0).
+fn scaled<const N: usize>(
+    slope: f32,
+    inter: f32,
+    decode: impl Fn([u8; N]) -> f32 + Sync + Copy,
+) -> impl Fn([u8; N]) -> f32 + Sync + Copy {
+    move |b| {
+        let x = decode(b);
+        if slope == 0.0 { x } else { x * slope + inter }
+    }
+}
+
+/// The CT voxel types (int16, uint16, float32) decoded to `f32` on every core, in the
+/// file's order (i fastest). `None` for other types, which the crate decodes.
+pub(super) fn decode_parallel(
+    raw: &[u8],
+    dtype: NiftiType,
+    endianness: Endianness,
+    slope: f32,
+    inter: f32,
+) -> Option<Vec<f32>> {
+    let le = endianness == Endianness::Little;
+    Some(match dtype {
+        NiftiType::Int16 => convert(raw, scaled(slope, inter, int16(le))),
+        NiftiType::Uint16 => convert(raw, scaled(slope, inter, uint16(le))),
+        NiftiType::Float32 => convert(raw, scaled(slope, inter, float32(le))),
+        _ => return None,
+    })
+}
+
+/// `raw` as values of `N` bytes each, decoded by `decode`, into a new buffer.
+fn convert<const N: usize>(raw: &[u8], decode: impl Fn([u8; N]) -> f32 + Sync) -> Vec<f32> {
+    let mut out = vec![0.0f32; raw.len() / N];
+    out.par_chunks_mut(BLOCK)
+        .zip(raw.par_chunks(BLOCK * N))
+        .for_each(|(o, bytes)| decode_into(o, bytes, &decode));
+    out
+}
+
+fn decode_into<const N: usize>(out: &mut [f32], bytes: &[u8], decode: &impl Fn([u8; N]) -> f32) {
+    for (v, b) in out.iter_mut().zip(bytes.as_chunks::<N>().0) {
+        *v = decode(*b);
+    }
+}
+
+/// `len` zero words, or `None` where they cannot be allocated. Zeroed by the allocator
+/// (fresh pages from the system are zero already: no pass over them), unlike
+/// `try_reserve` + `resize`; unlike `vec![0; len]`, a failed allocation is not an abort.
+///
+/// The kernel zeroes each page when it is first written; that is done here on every core
+/// (one write per 4 KiB page), not later inside the one-threaded inflate.
+pub(super) fn zeroed_words(len: usize) -> Option<Vec<f32>> {
+    if len == 0 {
+        return Some(Vec::new());
+    }
+    let layout = std::alloc::Layout::array::<f32>(len).ok()?;
+    // SAFETY: `layout` has a non-zero size.
+    let p = unsafe { std::alloc::alloc_zeroed(layout) };
+    if p.is_null() {
+        return None;
+    }
+    // SAFETY: `p` was allocated by the global allocator with the layout of `len` f32s (so
+    // capacity `len`), and all of them are initialised (all-zero bits are 0.0).
+    let mut words = unsafe { Vec::from_raw_parts(p.cast::<f32>(), len, len) };
+    const PAGE_WORDS: usize = 1024;
+    words.par_chunks_mut(256 * PAGE_WORDS).for_each(|chunk| {
+        for w in chunk.iter_mut().step_by(PAGE_WORDS) {
+            // Volatile: the write must happen although it stores the value already there.
+            // SAFETY: `w` is a valid, aligned, exclusive reference.
+            unsafe { std::ptr::write_volatile(w, 0.0) };
+        }
+    });
+    Some(words)
+}
+
+/// Whether [`decode_in_place`] decodes `dtype`.
+pub(super) fn decodes_in_place(dtype: NiftiType) -> bool {
+    matches!(
+        dtype,
+        NiftiType::Int16 | NiftiType::Uint16 | NiftiType::Float32
+    )
+}
+
+/// Decodes the `count` voxels stored from byte `offset` of `words`' own bytes into
+/// `words[..count]` and returns the buffer cut to `count` values (its capacity is kept).
+///
+/// `words` must hold at least `count` values and `offset + size·count` bytes, and `dtype`
+/// be one of [`decodes_in_place`]'s; panics otherwise (a caller's bug, not bad input).
+///
+/// * 4-byte voxels move down by `offset` bytes (one `memmove`), then are decoded where
+///   they lie.
+/// * 2-byte voxels spread out to 4 bytes: voxels `[s, n)` are decoded, in parallel, into
+///   words that no voxel still to be decoded occupies (`4s ≥ offset + 2n`), then the same
+///   for `[s', s)`, … — about half of what is left each pass — and the last few (their
+///   bytes overlap their own words) from a copy.
+pub(super) fn decode_in_place(
+    mut words: Vec<f32>,
+    offset: usize,
+    count: usize,
+    dtype: NiftiType,
+    endianness: Endianness,
+    slope: f32,
+    inter: f32,
+) -> Vec<f32> {
+    let le = endianness == Endianness::Little;
+    match dtype {
+        NiftiType::Int16 => spread(&mut words, offset, count, scaled(slope, inter, int16(le))),
+        NiftiType::Uint16 => spread(&mut words, offset, count, scaled(slope, inter, uint16(le))),
+        NiftiType::Float32 => {
+            let decode = scaled(slope, inter, float32(le));
+            let bytes: &mut [u8] = bytemuck::cast_slice_mut(&mut words);
+            bytes.copy_within(offset..offset + 4 * count, 0);
+            words[..count].par_chunks_mut(BLOCK).for_each(|c| {
+                for v in c {
+                    *v = decode(v.to_ne_bytes());
+                }
+            });
+        }
+        other => panic!("decode_in_place does not decode {other:?}"),
+    }
+    words.truncate(count);
+    words
+}
+
+/// The 2-byte case of [`decode_in_place`].
+fn spread(
+    words: &mut [f32],
+    offset: usize,
+    count: usize,
+    decode: impl Fn([u8; 2]) -> f32 + Sync + Copy,
+) {
+    assert!(words.len() >= count && 4 * words.len() >= offset + 2 * count);
+    let mut n = count;
+    while n > 0 {
+        // Words [s, n) lie past every byte of the voxels [0, n) still to be decoded.
+        let s = (offset + 2 * n).div_ceil(4);
+        if s >= n {
+            break;
+        }
+        let (lo, hi) = words.split_at_mut(s);
+        let raw = &bytemuck::cast_slice::<f32, u8>(lo)[offset + 2 * s..offset + 2 * n];
+        hi[..n - s]
+            .par_chunks_mut(BLOCK)
+            .zip(raw.par_chunks(2 * BLOCK))
+            .for_each(|(o, b)| decode_into(o, b, &decode));
+        n = s;
+    }
+    let bytes: &[u8] = bytemuck::cast_slice(words);
+    let head = bytes[offset..offset + 2 * n].to_vec();
+    decode_into(&mut words[..n], &head, &decode);
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// In-place decoding gives decode_parallel's values bit for bit, for every type, byte
+    /// order, scaling and header offset (odd ones included), from 0 voxels to many blocks.
+    #[test]
+    fn in_place_equals_a_separate_buffer() {
+        let mut state = 99u64;
+        let mut random = || {
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (state >> 33) as u8
+        };
+        for count in [0usize, 1, 3, 177, 1000, 3 * BLOCK + 17] {
+            for offset in [348usize, 352, 353, 368, 1001] {
+                for dtype in [NiftiType::Int16, NiftiType::Uint16, NiftiType::Float32] {
+                    let size = dtype.size_of();
+                    let mut raw: Vec<u8> = (0..size * count).map(|_| random()).collect();
+                    if dtype == NiftiType::Float32 {
+                        // Finite values (both byte orders' exponent bytes cleared a little).
+                        raw.chunks_exact_mut(4).for_each(|c| {
+                            c[0] &= 0x3f;
+                            c[3] &= 0x3f;
+                        });
+                    }
+                    for endianness in [Endianness::Little, Endianness::Big] {
+                        for (slope, inter) in [(0.0f32, 0.0f32), (0.37, 12.5)] {
+                            let want =
+                                decode_parallel(&raw, dtype, endianness, slope, inter).unwrap();
+                            let len = count.max((offset + raw.len()).div_ceil(4));
+                            let mut words = vec![f32::NAN; len];
+                            let bytes: &mut [u8] = bytemuck::cast_slice_mut(&mut words);
+                            bytes[offset..offset + raw.len()].copy_from_slice(&raw);
+                            let got = decode_in_place(
+                                words, offset, count, dtype, endianness, slope, inter,
+                            );
+                            assert_eq!(got.len(), count);
+                            let (a, b): (Vec<u32>, Vec<u32>) = (
+                                got.iter().map(|v| v.to_bits()).collect(),
+                                want.iter().map(|v| v.to_bits()).collect(),
+                            );
+                            assert!(
+                                a == b,
+                                "{dtype:?} {endianness:?} offset {offset} count {count}"
+                            );
+                        }
+                    }
+                }
+            }
+        }
+    }
+}
