@@ -12,8 +12,7 @@ use anyhow::{Context, Result};
 use clap::Args;
 use std::path::PathBuf;
 use tomograf_datasets::anatomy::Profile;
-use tomograf_scene::dataset::{DatasetJob, ItemSettings, ItemSource};
-use tomograf_sim::acquisition::Acquisition;
+use tomograf_scene::dataset::DatasetJob;
 
 /// The checkpoint shipped in the repository (`model/checkpoints/demo`).
 pub const SHIPPED_CHECKPOINT: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/model/checkpoints/demo");
@@ -56,33 +55,6 @@ pub struct DemoArgs {
     pub backend: Option<String>,
 }
 
-/// `count` phantoms of `profile` from `seed` on, `size`³ with `views` views (+ AP and
-/// lateral), into `output`.
-pub fn phantom_job(
-    output: PathBuf,
-    (seed, count): (u64, usize),
-    profile: Profile,
-    pacemaker: bool,
-    (size, views): (usize, usize),
-    split: &str,
-    acquisition: Option<(Acquisition, u64)>,
-) -> DatasetJob {
-    DatasetJob {
-        sources: (0..count)
-            .map(|n| ItemSource::phantom(seed + n as u64, profile, false, pacemaker))
-            .collect(),
-        settings: ItemSettings {
-            views,
-            size,
-            split: split.into(),
-            acquisition,
-            ..ItemSettings::default()
-        },
-        output,
-        shard: (0, 1),
-    }
-}
-
 pub fn run(args: DemoArgs) -> Result<()> {
     let device = tomograf_model::backend::device(
         args.backend
@@ -101,7 +73,7 @@ pub fn run(args: DemoArgs) -> Result<()> {
             "1/3 remaking the checkpoint's training set ({} lidc phantoms, {size}³) for the PCA prior",
             args.train_phantoms
         );
-        crate::dataset::run_job(&phantom_job(
+        crate::dataset::run_job(&DatasetJob::phantoms(
             train.clone(),
             (0, args.train_phantoms),
             Profile::LidcCropped,
@@ -123,7 +95,7 @@ pub fn run(args: DemoArgs) -> Result<()> {
         preset: Some(args.preset.clone()),
         ..PhysicsArgs::default()
     })?;
-    crate::dataset::run_job(&phantom_job(
+    crate::dataset::run_job(&DatasetJob::phantoms(
         test.clone(),
         (100_000, args.phantoms),
         Profile::parse(&args.profile)?,

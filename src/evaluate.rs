@@ -20,7 +20,7 @@ use tomograf_datasets::atomic::write_atomic;
 use tomograf_model::baseline::{Baseline, Fdk, MeanVolume, SartTv};
 use tomograf_model::config::{InferOverrides, Tune};
 use tomograf_model::data::Item;
-use tomograf_model::metrics::{mean_std, psnr, rmse, ssim3d};
+use tomograf_model::metrics::mean_std;
 use tomograf_model::pca::PcaMap;
 use tomograf_model::scatter_correction::ScatterCorrection;
 use tomograf_model::{backend, checkpoint, data};
@@ -101,41 +101,7 @@ pub struct EvaluateArgs {
 /// The PCA-MAP prior's default projection noise (fraction of the largest line integral).
 pub const DEFAULT_PCA_NOISE: f64 = 0.01;
 
-/// Metrics of one reconstruction: over the whole volume, and inside the body (voxels whose
-/// ground truth is above −900 HU; SSIM over the windows centred there), since air
-/// dominates whole-volume figures. Body figures are NaN in score files written before they
-/// existed.
-#[derive(Debug, Clone, Copy)]
-pub struct Scores {
-    pub psnr: f64,
-    pub ssim: f64,
-    pub rmse_hu: f64,
-    pub body_psnr: f64,
-    pub body_ssim: f64,
-    pub body_rmse_hu: f64,
-}
-
-/// The body mask's threshold, HU.
-pub const BODY_HU: f32 = -900.0;
-
-pub fn score(item: &Item, volume: &Volume) -> Result<Scores> {
-    let gt = item.ct.as_ref().context("item has no ground-truth CT")?;
-    let width = f64::from(item.window.hi - item.window.lo);
-    // The model's density is unbounded above; the ground truth is clamped to [0, 1].
-    let v: Vec<f32> = volume.data().iter().map(|x| x.clamp(0.0, 1.0)).collect();
-    let body = (BODY_HU - item.window.lo) / (item.window.hi - item.window.lo);
-    let mask: Vec<bool> = gt.data().iter().map(|&x| x > body).collect();
-    let body_rmse = tomograf_model::metrics::rmse_in(&v, gt.data(), &mask)
-        .context("the ground truth has no voxel above −900 HU (no body to score)")?;
-    Ok(Scores {
-        psnr: psnr(&v, gt.data(), 1.0)?,
-        ssim: ssim3d(&v, gt.data(), gt.dims(), 1.0)?,
-        rmse_hu: rmse(&v, gt.data())? * width,
-        body_psnr: -20.0 * body_rmse.log10(),
-        body_ssim: tomograf_model::metrics::ssim3d_in(&v, gt.data(), gt.dims(), 1.0, Some(&mask))?,
-        body_rmse_hu: body_rmse * width,
-    })
-}
+pub use tomograf_model::metrics::{Scores, score};
 
 /// `I/N` with 0 ≤ I < N.
 pub fn parse_shard(text: &str) -> Result<(usize, usize)> {
@@ -201,13 +167,6 @@ pub const NETWORK_ONLY: &str = "TomoGRAF (network only)";
 
 const ITEM_HEADER: &str =
     "item,views,method,psnr_db,ssim,rmse_hu,iterations,seconds,body_psnr_db,body_ssim,body_rmse_hu";
-
-impl PartialEq for Scores {
-    fn eq(&self, o: &Self) -> bool {
-        let body = |s: &Self| [s.body_psnr, s.body_ssim, s.body_rmse_hu].map(f64::to_bits);
-        (self.psnr, self.ssim, self.rmse_hu) == (o.psnr, o.ssim, o.rmse_hu) && body(self) == body(o)
-    }
-}
 
 /// Where and how to evaluate, for [`evaluate`] (the CLI's and the studies' entry point).
 pub struct Evaluation<'a> {

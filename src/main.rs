@@ -1,10 +1,6 @@
 //! `tomograf` — X-ray projections (DRRs) of CT volumes with exact ray tracing.
 
 mod bench;
-mod bench_accel;
-mod bench_backend;
-mod bench_model;
-mod bench_physics;
 mod dataset;
 mod demo;
 #[cfg(test)]

@@ -153,6 +153,61 @@ pub fn mean_std(v: &[f64]) -> (f64, f64) {
     (m, var.sqrt())
 }
 
+/// The body mask's threshold, HU: voxels whose ground truth is above it are "body".
+pub const BODY_HU: f32 = -900.0;
+
+/// Metrics of one reconstruction: over the whole volume, and inside the body (voxels whose
+/// ground truth is above [`BODY_HU`]; SSIM over the windows centred there), since air
+/// dominates whole-volume figures. PSNR in dB, RMSE in HU. Body figures are NaN in score
+/// files written before they existed.
+#[derive(Debug, Clone, Copy)]
+pub struct Scores {
+    pub psnr: f64,
+    pub ssim: f64,
+    pub rmse_hu: f64,
+    pub body_psnr: f64,
+    pub body_ssim: f64,
+    pub body_rmse_hu: f64,
+}
+
+impl PartialEq for Scores {
+    /// Equal bit for bit in the body figures (so NaN equals NaN: files written before them).
+    fn eq(&self, o: &Self) -> bool {
+        let body = |s: &Self| [s.body_psnr, s.body_ssim, s.body_rmse_hu].map(f64::to_bits);
+        (self.psnr, self.ssim, self.rmse_hu) == (o.psnr, o.ssim, o.rmse_hu) && body(self) == body(o)
+    }
+}
+
+/// Scores `volume` (normalised units, as the model reconstructs) against `item`'s ground
+/// truth. The reconstruction is clamped to [0, 1] first, as the ground truth is.
+pub fn score(item: &crate::data::Item, volume: &tomograf_sim::Volume) -> Result<Scores> {
+    let Some(gt) = item.ct.as_ref() else {
+        return Err(crate::error::ModelError::Invalid(format!(
+            "item {} has no ground-truth CT",
+            item.id
+        )));
+    };
+    let width = f64::from(item.window.hi - item.window.lo);
+    // The model's density is unbounded above; the ground truth is clamped to [0, 1].
+    let v: Vec<f32> = volume.data().iter().map(|x| x.clamp(0.0, 1.0)).collect();
+    let body = (BODY_HU - item.window.lo) / (item.window.hi - item.window.lo);
+    let mask: Vec<bool> = gt.data().iter().map(|&x| x > body).collect();
+    ensure!(
+        mask.iter().any(|&m| m),
+        "the ground truth of item {} has no voxel above {BODY_HU} HU (no body to score)",
+        item.id
+    );
+    let body_rmse = rmse_in(&v, gt.data(), &mask)?;
+    Ok(Scores {
+        psnr: psnr(&v, gt.data(), 1.0)?,
+        ssim: ssim3d(&v, gt.data(), gt.dims(), 1.0)?,
+        rmse_hu: rmse(&v, gt.data())? * width,
+        body_psnr: -20.0 * body_rmse.log10(),
+        body_ssim: ssim3d_in(&v, gt.data(), gt.dims(), 1.0, Some(&mask))?,
+        body_rmse_hu: body_rmse * width,
+    })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

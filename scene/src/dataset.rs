@@ -198,6 +198,34 @@ pub struct DatasetSummary {
 }
 
 impl DatasetJob {
+    /// `count` procedural phantoms of `profile` with seeds `seed, seed + 1, …` (no table,
+    /// a pacemaker if asked), `size`³ voxels with `views` views (+ AP and lateral), the
+    /// paper's protocol otherwise ([`ItemSettings::default`]), into `output`, one shard.
+    pub fn phantoms(
+        output: PathBuf,
+        (seed, count): (u64, usize),
+        profile: Profile,
+        pacemaker: bool,
+        (size, views): (usize, usize),
+        split: &str,
+        acquisition: Option<(Acquisition, u64)>,
+    ) -> Self {
+        Self {
+            sources: (0..count)
+                .map(|n| ItemSource::phantom(seed + n as u64, profile, false, pacemaker))
+                .collect(),
+            settings: ItemSettings {
+                views,
+                size,
+                split: split.into(),
+                acquisition,
+                ..ItemSettings::default()
+            },
+            output,
+            shard: (0, 1),
+        }
+    }
+
     /// The indices this run is responsible for.
     pub fn mine(&self) -> Vec<usize> {
         let (shard, shards) = self.shard;

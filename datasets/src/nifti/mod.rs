@@ -126,7 +126,7 @@ pub fn read_nifti(path: &Path) -> Result<Volume> {
         return Err(DatasetError::truncated(
             path,
             format!(
-                "{}×{}×{} {} voxels need {nbytes} bytes from byte {offset}, more than the                  {} compressed bytes can hold (deflate expands at most {MAX_DEFLATE_RATIO}:1)",
+                "{}×{}×{} {} voxels need {nbytes} bytes from byte {offset}, more than the {} compressed bytes can hold (deflate expands at most {MAX_DEFLATE_RATIO}:1)",
                 dims[0],
                 dims[1],
                 dims[2],

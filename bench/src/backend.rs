@@ -15,7 +15,7 @@ use tomograf_model::data::Item;
 use tomograf_model::reconstruct::reconstruct;
 use tomograf_model::{backend, checkpoint};
 
-use crate::bench_model::{self, median, phantoms, tempfile_dir, trainer};
+use crate::model::{self, median, phantoms, tempfile_dir, trainer};
 
 /// Seconds per step of `config` on each device, `steps` steps per measurement, `repeats`
 /// interleaved measurements (median), after one warm-up step each.
@@ -79,7 +79,7 @@ pub fn section(quick: bool, repeats: usize, name: &str) -> Result<String> {
     }
     // The same 1-view reconstruction on both.
     let item = &items[0];
-    let refs = vec![bench_model::ap_reference(item)?];
+    let refs = vec![model::ap_reference(item)?];
     let truth = item.ct.as_ref().context("bench item has no CT")?;
     let mut rec_s: [Vec<f64>; 2] = [Vec::new(), Vec::new()];
     let mut recs = Vec::new();
@@ -103,8 +103,8 @@ pub fn section(quick: bool, repeats: usize, name: &str) -> Result<String> {
         .fold(0.0f32, f32::max);
     let range = vc.iter().fold(0.0f32, |m, v| m.max(v.abs()));
     // Scored as `tomograf evaluate` scores (density clamped to [0, 1]).
-    let pc = crate::evaluate::score(item, &recs[0].volume)?.psnr;
-    let pg = crate::evaluate::score(item, &recs[1].volume)?.psnr;
+    let pc = tomograf_model::metrics::score(item, &recs[0].volume)?.psnr;
+    let pg = tomograf_model::metrics::score(item, &recs[1].volume)?.psnr;
 
     eprintln!(
         "agreement: loss {worst_loss:.2e}, density {max_diff:.2e}, PSNR flex {pc:.3} / {name} \

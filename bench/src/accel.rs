@@ -3,7 +3,8 @@
 //! Every figure is a ratio against a baseline rendered in the same process (same volume,
 //! same view), medians of repeated renders.
 
-use crate::bench::{BenchArgs, thorax_mu, view};
+use crate::Options;
+use crate::projector::{thorax_mu, view};
 use anyhow::Result;
 use std::fmt::Write as _;
 use std::time::Instant;
@@ -52,7 +53,7 @@ fn max_rel(a: &Projection, b: &Projection) -> f64 {
 
 /// Empty-space skipping on the chest-sized case: speed-up per finder and brick size,
 /// with and without exact-zero air, and the brick map's build time and memory.
-pub fn skipping(args: &BenchArgs, md: &mut String) -> Result<()> {
+pub fn skipping(args: &Options, md: &mut String) -> Result<()> {
     let (dims, spacing, det) = if args.quick {
         ([64, 64, 17], [5.6, 5.6, 19.6], 64)
     } else {
@@ -221,7 +222,7 @@ pub fn skipping(args: &BenchArgs, md: &mut String) -> Result<()> {
 }
 
 /// Mesh objects: cost of adding meshes to a DRR of the chest-sized case.
-pub fn meshes(args: &BenchArgs, md: &mut String) -> Result<()> {
+pub fn meshes(args: &Options, md: &mut String) -> Result<()> {
     use std::sync::Arc;
     use tomograf_sim::mesh::{MeshObject, MeshScene, Placement, shapes};
     let (dims, spacing, det, segments) = if args.quick {
@@ -300,9 +301,9 @@ pub fn meshes(args: &BenchArgs, md: &mut String) -> Result<()> {
     Ok(())
 }
 
-/// `tomograf bench --accel-only`: these sections alone.
-pub fn run(args: &BenchArgs, mut md: String) -> Result<()> {
-    let section = args.section.as_deref();
+/// `tomograf bench --accel-only`: these sections alone after `md`; `section` is
+/// `skipping` or `meshes` for one of them.
+pub fn page(args: &Options, section: Option<&str>, mut md: String) -> Result<String> {
     if !matches!(section, None | Some("skipping") | Some("meshes")) {
         anyhow::bail!("unknown --section: use skipping or meshes");
     }
@@ -312,12 +313,5 @@ pub fn run(args: &BenchArgs, mut md: String) -> Result<()> {
     if section != Some("skipping") {
         meshes(args, &mut md)?;
     }
-    println!("{md}");
-    if let Some(path) = &args.out {
-        tomograf_datasets::atomic::write_atomic(path, |w| {
-            std::io::Write::write_all(w, md.as_bytes())
-        })?;
-        eprintln!("wrote {}", path.display());
-    }
-    Ok(())
+    Ok(md)
 }

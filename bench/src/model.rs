@@ -19,7 +19,7 @@ use tomograf_model::reconstruct::{Reference, reconstruct};
 use tomograf_model::train::{Trainer, projection_scale};
 use tomograf_model::{backend, checkpoint, data};
 
-pub(crate) fn median(mut v: Vec<f64>) -> f64 {
+pub fn median(mut v: Vec<f64>) -> f64 {
     v.sort_by(f64::total_cmp);
     let n = v.len();
     if n == 0 {
@@ -32,7 +32,7 @@ pub(crate) fn median(mut v: Vec<f64>) -> f64 {
     }
 }
 
-pub(crate) fn trainer(
+pub fn trainer(
     config: TrainConfig,
     items: &[Item],
     device: &tomograf_model::Device,
@@ -129,7 +129,7 @@ pub fn section(quick: bool, repeats: usize) -> Result<String> {
 }
 
 /// The AP view of a bench item, as a 1-view reconstruction's reference.
-pub(crate) fn ap_reference(item: &Item) -> Result<Reference> {
+pub fn ap_reference(item: &Item) -> Result<Reference> {
     let ap = item
         .find_pose(tomograf_sim::Pose::AP)
         .context("the bench data set has no AP view")?;
@@ -141,13 +141,8 @@ pub(crate) fn ap_reference(item: &Item) -> Result<Reference> {
 }
 
 /// A `lidc` data set of `phantoms` items, `size`³ with `views` views, made in `dir`.
-pub(crate) fn phantoms(
-    dir: &Path,
-    phantoms: usize,
-    size: usize,
-    views: usize,
-) -> Result<Vec<Item>> {
-    crate::dataset::run_job(&crate::demo::phantom_job(
+pub fn phantoms(dir: &Path, phantoms: usize, size: usize, views: usize) -> Result<Vec<Item>> {
+    tomograf_scene::dataset::DatasetJob::phantoms(
         dir.to_path_buf(),
         (0, phantoms),
         tomograf_datasets::anatomy::Profile::LidcCropped,
@@ -155,11 +150,12 @@ pub(crate) fn phantoms(
         (size, views),
         "train",
         None,
-    ))?;
+    )
+    .run(|_, _| {})?;
     Ok(data::load_dataset(dir, None)?)
 }
 
-pub(crate) fn tempfile_dir() -> Result<std::path::PathBuf> {
+pub fn tempfile_dir() -> Result<std::path::PathBuf> {
     let p = std::env::temp_dir().join(format!("tomograf-bench-model-{}", std::process::id()));
     if p.exists() {
         std::fs::remove_dir_all(&p)?;
