@@ -44,15 +44,48 @@ pub struct TrainArgs {
 const HEADER: &str = "iteration,seconds,loss_d,loss_g,loss_volume,loss_projection,loss_code,\
 hinge_v,hinge_p,recon_v,recon_p,l1_volume,l1_patch";
 
+/// What to train and where, for [`train`] (the CLI's and the studies' entry point).
+pub struct Training<'a> {
+    /// Data set folder (manifest.jsonl and item folders).
+    pub data: &'a Path,
+    /// Run folder: checkpoint/, metrics.csv, config.toml.
+    pub output: &'a Path,
+    /// Preset (tiny, small, paper) or a TOML file.
+    pub config: &'a str,
+    /// Overrides of the configuration's iteration count and seed.
+    pub iterations: Option<usize>,
+    pub seed: Option<u64>,
+    /// Only the items of this split.
+    pub split: Option<&'a str>,
+    /// Continue from the run folder's checkpoint, or start afresh when there is none yet.
+    pub resume: bool,
+    /// Backend name (`None`: the default).
+    pub backend: Option<&'a str>,
+}
+
 pub fn run(args: TrainArgs) -> Result<()> {
-    let device = backend::device(args.backend.as_deref().unwrap_or(backend::default_name()))?;
-    let items = data::load_dataset(&args.data, args.split.as_deref())
+    train(&Training {
+        data: &args.data,
+        output: &args.output,
+        config: &args.config,
+        iterations: args.iterations,
+        seed: args.seed,
+        split: args.split.as_deref(),
+        resume: args.resume,
+        backend: args.backend.as_deref(),
+    })
+}
+
+/// Trains (or resumes) a run, showing progress; checkpoints are written atomically.
+pub fn train(args: &Training) -> Result<()> {
+    let device = backend::device(args.backend.unwrap_or(backend::default_name()))?;
+    let items = data::load_dataset(args.data, args.split)
         .with_context(|| format!("loading the data set {}", args.data.display()))?;
     let scale = items[0].scale;
     let ck = args.output.join("checkpoint");
     let ids: Vec<String> = items.iter().map(|i| i.id.clone()).collect();
     if args.output.is_dir() {
-        let stale = tomograf_datasets::atomic::remove_stale_temporaries(&args.output)?;
+        let stale = tomograf_datasets::atomic::remove_stale_temporaries(args.output)?;
         if stale > 0 {
             eprintln!("removed {stale} temporary file(s) a killed run left");
         }
@@ -76,7 +109,7 @@ pub fn run(args: TrainArgs) -> Result<()> {
                 ck.display()
             );
         }
-        let mut config = TrainConfig::load(&args.config)?;
+        let mut config = TrainConfig::load(args.config)?;
         if let Some(s) = args.seed {
             config.seed = s;
         }
@@ -86,7 +119,7 @@ pub fn run(args: TrainArgs) -> Result<()> {
     if let Some(n) = args.iterations {
         trainer.config.iterations = n;
     }
-    std::fs::create_dir_all(&args.output)
+    std::fs::create_dir_all(args.output)
         .with_context(|| format!("cannot create the output folder {}", args.output.display()))?;
     let toml = trainer.config.to_toml();
     tomograf_datasets::atomic::write_atomic(&args.output.join("config.toml"), |w| {
@@ -123,12 +156,12 @@ pub fn run(args: TrainArgs) -> Result<()> {
             ));
         }
         if m.iteration % trainer.config.checkpoint_every == 0 || m.iteration == total {
-            save(&trainer, scale, &ck, &csv_path, &rows, &args.output)?;
+            save(&trainer, scale, &ck, &csv_path, &rows, args.output)?;
         }
         bar.inc(1);
     }
     bar.finish_and_clear();
-    save(&trainer, scale, &ck, &csv_path, &rows, &args.output)?;
+    save(&trainer, scale, &ck, &csv_path, &rows, args.output)?;
     eprintln!(
         "trained {} iterations: {}, {}",
         trainer.iteration,

@@ -15,7 +15,7 @@ mod render;
 mod report;
 
 use crate::evaluate::{Evaluation, evaluate, parse_shard};
-use crate::train::TrainArgs;
+use crate::train::{Training, train};
 use anyhow::{Context, Result, bail};
 use clap::{Args, Subcommand};
 use levels::DataSpec;
@@ -376,15 +376,15 @@ impl Study {
                 spec.name,
                 if resume { "resuming" } else { "new" }
             );
-            crate::train::run(TrainArgs {
-                data,
-                output: dir.clone(),
-                config: self.settings.scale.config.clone(),
+            train(&Training {
+                data: &data,
+                output: &dir,
+                config: &self.settings.scale.config,
                 iterations: None,
                 seed: Some(self.settings.seed),
                 split: None,
                 resume,
-                backend: self.backend.clone(),
+                backend: self.backend.as_deref(),
             })
             .with_context(|| format!("training model '{}'", spec.name))?;
             crate::output::write_json(
