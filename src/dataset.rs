@@ -115,7 +115,7 @@ pub fn job(args: &DatasetArgs) -> Result<DatasetJob> {
     let shard = args
         .shard
         .as_deref()
-        .map(crate::evaluate::parse_shard)
+        .map(tomograf_eval::evaluation::parse_shard)
         .transpose()?
         .unwrap_or((0, 1));
     let mut sources: Vec<ItemSource> = expand_inputs(&args.inputs)?

@@ -6,12 +6,12 @@
 //! the PCA-MAP prior of the same training volumes, FDK and SART-TV (from zero and from the
 //! mean), and PNG figures.
 
-use crate::evaluate::DEFAULT_PCA_NOISE;
 use crate::physics::PhysicsArgs;
 use anyhow::{Context, Result};
 use clap::Args;
 use std::path::PathBuf;
 use tomograf_datasets::anatomy::Profile;
+use tomograf_eval::evaluation::DEFAULT_PCA_NOISE;
 use tomograf_scene::dataset::DatasetJob;
 
 /// The checkpoint shipped in the repository (`model/checkpoints/demo`).

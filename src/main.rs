@@ -7,7 +7,6 @@ mod demo;
 mod doc_examples;
 mod dose;
 mod evaluate;
-mod figures;
 mod output;
 mod phantom_devices;
 mod physics;

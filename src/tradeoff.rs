@@ -144,9 +144,9 @@ fn plot(ladder: &Ladder, budget: f64, path: &std::path::Path) -> Result<()> {
     let xs = series.iter().flat_map(|(_, p)| p.iter().map(|q| q.0));
     let (lo, hi) = xs.fold((1.0f64, 1.0f64), |(a, b), x| (a.min(x), b.max(x)));
     series.push(("budget", vec![(lo, budget.log10()), (hi, budget.log10())]));
-    crate::figures::plot_points(
+    tomograf_eval::figures::plot_points(
         path,
-        &crate::figures::Axes {
+        &tomograf_eval::figures::Axes {
             title: "Speed against accuracy (one knob changed from the reference)",
             x: "speed-up over the reference (×)",
             y: "log10 RMS error (relative)",

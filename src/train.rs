@@ -233,9 +233,9 @@ fn save(
             })
             .collect()
     };
-    crate::figures::plot_lines(
+    tomograf_eval::figures::plot_lines(
         &out.join("loss.png"),
-        &crate::figures::Axes {
+        &tomograf_eval::figures::Axes {
             title: "Training losses",
             x: "iteration",
             y: "loss",

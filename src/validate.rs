@@ -2,7 +2,6 @@
 //! (`tomograf_sim::validation::tg195`) and writes the comparison with the four codes as a
 //! markdown table, a CSV and figures.
 
-use crate::figures::{Axes, plot_deviations, plot_points};
 use anyhow::{Context, Result};
 use clap::{Args, Subcommand};
 use indicatif::{ProgressBar, ProgressStyle};
@@ -11,6 +10,7 @@ use std::io::Write as _;
 use std::path::PathBuf;
 use std::time::Instant;
 use tomograf_datasets::atomic::write_atomic;
+use tomograf_eval::figures::{Axes, plot_deviations, plot_points};
 use tomograf_sim::validation::tg195::{self, Beam, Comparison};
 
 #[derive(Subcommand, Debug)]

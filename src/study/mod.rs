@@ -14,7 +14,6 @@ pub mod levels;
 mod render;
 mod report;
 
-use crate::evaluate::{Evaluation, evaluate, parse_shard};
 use crate::train::{Training, train};
 use anyhow::{Context, Result, bail};
 use clap::{Args, Subcommand};
@@ -22,6 +21,7 @@ use levels::DataSpec;
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 use tomograf_datasets::anatomy::Profile;
+use tomograf_eval::evaluation::{DEFAULT_PCA_NOISE, Evaluation, evaluate, parse_shard};
 use tomograf_scene::dataset::{DatasetJob, ItemSettings, ItemSource};
 
 #[derive(Debug, Subcommand)]
@@ -435,7 +435,7 @@ impl Study {
                     seed: self.settings.seed,
                     backend: self.backend.as_deref(),
                     shard,
-                    pca_noise: crate::evaluate::DEFAULT_PCA_NOISE,
+                    pca_noise: DEFAULT_PCA_NOISE,
                     classical: checkpoint.is_none(),
                     scatter_correction: test.correction,
                     scatter_prior_data: prior_data.as_deref(),

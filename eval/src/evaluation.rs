@@ -1,0 +1,526 @@
+//! The evaluation protocol (`tomograf evaluate` and the studies): reconstruct every test
+//! item from 1/2/5/10 views with TomoGRAF and the baselines and compare with the ground
+//! truth — PSNR, 3D SSIM and RMSE in HU (`tomograf_model::metrics::score`), mean ± std per
+//! view count — as a markdown table, a CSV and PNG figures.
+//!
+//! Each item's scores go to `items/<id>.csv` (written atomically) as soon as it is done, so
+//! a re-run skips finished items, and a shard `(I, N)` scores items `I, I+N, …` only; the
+//! shards' `items/` folders (one shared output folder, or copied together) are combined
+//! into `results.md` / `results.csv` by [`merge`]. Without a checkpoint only the
+//! classical baselines (FDK, SART-TV) are scored.
+
+use crate::figures::slices_and_profile;
+use crate::protocol::{correct_scatter, paper_poses, references, run_one, write_hu};
+use anyhow::{Context, Result, bail};
+use serde::{Deserialize, Serialize};
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+use tomograf_datasets::atomic::write_atomic;
+use tomograf_model::baseline::{Baseline, Fdk, MeanVolume, SartTv};
+use tomograf_model::config::{InferOverrides, Tune};
+use tomograf_model::data::Item;
+use tomograf_model::metrics::mean_std;
+use tomograf_model::pca::PcaMap;
+use tomograf_model::scatter_correction::ScatterCorrection;
+use tomograf_model::{backend, checkpoint, data};
+use tomograf_sim::{Pose, Volume};
+
+/// The PCA-MAP prior's default projection noise (fraction of the largest line integral).
+pub const DEFAULT_PCA_NOISE: f64 = 0.01;
+
+pub use tomograf_model::metrics::{Scores, score};
+
+/// `I/N` with 0 ≤ I < N.
+pub fn parse_shard(text: &str) -> Result<(usize, usize)> {
+    let bad = || anyhow::anyhow!("--shard '{text}' must be I/N with 0 ≤ I < N, e.g. 0/4");
+    let (i, n) = text.split_once('/').ok_or_else(bad)?;
+    let (i, n): (usize, usize) = (
+        i.trim().parse().map_err(|_| bad())?,
+        n.trim().parse().map_err(|_| bad())?,
+    );
+    if n == 0 || i >= n {
+        return Err(bad());
+    }
+    Ok((i, n))
+}
+
+/// What an evaluation computes; `job.json` of its output folder, so results of different
+/// settings are never mixed in one folder.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Job {
+    /// Item ids to score (after --split and --items), in order.
+    pub items: Vec<String>,
+    pub views: Vec<usize>,
+    /// Score TomoGRAF (and the mean training volume) from a checkpoint.
+    pub model: bool,
+    /// Score FDK and SART-TV.
+    pub classical: bool,
+    /// Inference seed, iteration cap and what is tuned (model only).
+    pub seed: u64,
+    pub iterations: Option<usize>,
+    pub tune: Option<Tune>,
+    /// Inference stopping threshold, dB (absent in folders written before it existed).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub psnr_threshold: Option<f64>,
+    /// Data-consistency sweeps override (absent in folders written before it existed).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub refine_iterations: Option<usize>,
+    /// The PCA-MAP prior's training set and noise, when it is scored.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub pca: Option<(PathBuf, f64)>,
+    /// The views' scatter correction (absent: none, and in folders written before it).
+    #[serde(default, skip_serializing_if = "is_none")]
+    pub scatter_correction: ScatterCorrection,
+}
+
+fn is_none(c: &ScatterCorrection) -> bool {
+    *c == ScatterCorrection::None
+}
+
+/// One score: an item, a view count, a method.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Row {
+    pub item: String,
+    pub views: usize,
+    pub method: String,
+    pub scores: Scores,
+    pub iterations: usize,
+    pub seconds: f64,
+}
+
+/// The method name of TomoGRAF's network volume before its data-consistency sweeps (a row
+/// only when the checkpoint's inference runs them); "TomoGRAF" is the final volume.
+pub const NETWORK_ONLY: &str = "TomoGRAF (network only)";
+
+const ITEM_HEADER: &str =
+    "item,views,method,psnr_db,ssim,rmse_hu,iterations,seconds,body_psnr_db,body_ssim,body_rmse_hu";
+
+/// Where and how to evaluate, for [`evaluate`] (the CLI's and the studies' entry point).
+pub struct Evaluation<'a> {
+    pub data: &'a Path,
+    pub checkpoint: Option<&'a Path>,
+    /// The training set: also score the PCA-MAP prior built from its CTs.
+    pub train_data: Option<&'a Path>,
+    pub output: &'a Path,
+    pub views: &'a [usize],
+    pub split: Option<&'a str>,
+    pub items: Option<usize>,
+    /// Overrides of the checkpoint's inference settings.
+    pub infer: InferOverrides,
+    pub seed: u64,
+    pub backend: Option<&'a str>,
+    pub shard: (usize, usize),
+    /// The PCA-MAP prior's noise (with `train_data`).
+    pub pca_noise: f64,
+    /// Also score FDK and SART-TV.
+    pub classical: bool,
+    /// Correct the views for scatter first (every method sees the corrected views).
+    pub scatter_correction: ScatterCorrection,
+    /// Without a checkpoint: the training set whose mean volume the `prior` scatter
+    /// correction starts from (`None`: `train_data`'s).
+    pub scatter_prior_data: Option<&'a Path>,
+    /// Show inference progress bars.
+    pub show: bool,
+}
+
+/// Scores this shard's items not yet scored under `e.output/items/`; returns how many it
+/// scored. Figures (slices, residual, profile) and the reconstruction are written for the
+/// data set's first item, by the shard that holds it.
+pub fn evaluate(e: &Evaluation) -> Result<usize> {
+    if e.views.is_empty() || e.views.contains(&0) {
+        bail!("view counts must be ≥ 1 (view count 0 given)");
+    }
+    let mut items = data::load_dataset(e.data, e.split)?;
+    if let Some(n) = e.items {
+        if n == 0 {
+            bail!("--items 0 scores nothing: give at least 1 (or leave it out for every item)");
+        }
+        items.truncate(n);
+    }
+    let device = backend::device(e.backend.unwrap_or(backend::default_name()))?;
+    let job = Job {
+        items: items.iter().map(|i| i.id.clone()).collect(),
+        views: e.views.to_vec(),
+        model: e.checkpoint.is_some(),
+        classical: e.classical,
+        seed: e.seed,
+        iterations: e.infer.iterations,
+        tune: e.infer.tune,
+        psnr_threshold: e.infer.psnr_threshold,
+        refine_iterations: e.infer.refine_iterations,
+        pca: e.train_data.map(|p| (p.to_path_buf(), e.pca_noise)),
+        scatter_correction: e.scatter_correction,
+    };
+    if !job.model && !job.classical {
+        bail!("nothing to evaluate: give a checkpoint or score the classical baselines");
+    }
+    std::fs::create_dir_all(e.output.join("items"))
+        .with_context(|| format!("cannot create {}", e.output.display()))?;
+    tomograf_datasets::atomic::remove_stale_temporaries(e.output)?;
+    check_job(e.output, &job)?;
+    // The checkpoint's inference settings, mean training volume and projection scale.
+    let model = match e.checkpoint {
+        Some(ck) => {
+            let generator = checkpoint::load_generator(ck, &device)
+                .with_context(|| format!("checkpoint {}", ck.display()))?;
+            let infer = generator.config.infer.overridden(&e.infer)?;
+            Some((ck, infer, generator.prior, generator.state.proj_scale))
+        }
+        None => None,
+    };
+    let pca = match e.train_data {
+        Some(dir) => {
+            let train = data::load_dataset(dir, None)
+                .with_context(|| format!("the PCA prior's training set {}", dir.display()))?;
+            let cts: Vec<&Volume> = train.iter().filter_map(|i| i.ct.as_ref()).collect();
+            // The model's projection scale when there is one, so both read noise alike.
+            let scale = match &model {
+                Some((_, _, _, proj_scale)) => *proj_scale,
+                None => tomograf_model::train::projection_scale(&train)?,
+            };
+            eprintln!("PCA prior from {} training volumes", cts.len());
+            Some(PcaMap::from_volumes(&cts, e.pca_noise, scale)?)
+        }
+        None => None,
+    };
+    let classical: Vec<Box<dyn Baseline>> = if e.classical {
+        vec![Box::new(Fdk), Box::new(SartTv::FROM_ZERO)]
+    } else {
+        Vec::new()
+    };
+    // Every baseline, in the tables' order: those built from the model's training
+    // population (mean volume, SART-TV from it, PCA-MAP), then the classical ones.
+    let sart_mean = model
+        .as_ref()
+        .map(|(_, _, mean, _)| SartTv::from_mean(MeanVolume::clone(mean)));
+    let mut baselines: Vec<&dyn Baseline> = Vec::new();
+    if let Some((_, _, mean, _)) = &model {
+        baselines.push(mean);
+    }
+    if let Some(s) = &sart_mean {
+        baselines.push(s);
+    }
+    if let Some(p) = &pca {
+        baselines.push(p);
+    }
+    baselines.extend(classical.iter().map(|b| b.as_ref()));
+    // The scatter correction's prior: the mean training volume, the checkpoint's or that of
+    // a training set's CTs.
+    let train_mean = match (&model, e.scatter_prior_data.or(e.train_data)) {
+        (None, Some(dir)) if e.scatter_correction == ScatterCorrection::Prior => {
+            let train = data::load_dataset(dir, None)
+                .with_context(|| format!("the scatter prior's training set {}", dir.display()))?;
+            Some(MeanVolume::from_volumes(
+                train.iter().filter_map(|i| i.ct.as_ref()),
+            )?)
+        }
+        _ => None,
+    };
+    let prior_mean = model
+        .as_ref()
+        .map(|(_, _, mean, _)| mean)
+        .or(train_mean.as_ref());
+    if e.scatter_correction == ScatterCorrection::Prior && prior_mean.is_none() {
+        bail!(
+            "--scatter-correction prior estimates scatter from the mean training volume: give \
+             --checkpoint or --train-data"
+        );
+    }
+    let (shard, shards) = e.shard;
+    let mut made = 0;
+    for (n, item) in items.iter().enumerate() {
+        let path = item_path(e.output, &item.id);
+        if n % shards != shard || path.exists() {
+            continue;
+        }
+        let corrected = correct_views(item, e, prior_mean)?;
+        let item = corrected.as_ref().unwrap_or(item);
+        let mut rows = Vec::new();
+        for &count in e.views {
+            let poses = paper_poses(count)?;
+            let refs = references(item, &poses)?;
+            let grid = item.ct.as_ref().context("item has no ground-truth CT")?;
+            let mut volumes: Vec<Volume> = Vec::new();
+            if let Some((ck, infer, _, _)) = &model {
+                if e.show {
+                    eprintln!(
+                        "item {} ({}/{}), {count} view(s)",
+                        item.id,
+                        n + 1,
+                        items.len()
+                    );
+                }
+                let t0 = Instant::now();
+                let rec = run_one(ck, item, &poses, Some(infer), e.seed, &device, e.show)?;
+                let seconds = t0.elapsed().as_secs_f64();
+                rows.push(Row {
+                    item: item.id.clone(),
+                    views: count,
+                    method: "TomoGRAF".into(),
+                    scores: score(item, &rec.volume)?,
+                    iterations: rec.iterations,
+                    seconds,
+                });
+                volumes.push(rec.volume);
+                if let Some(net) = rec.network {
+                    if e.show {
+                        eprintln!(
+                            "  projection PSNR (dB) of the network's volume {:.1?}, after \
+                             data consistency {:.1?}",
+                            net.psnr, rec.psnr
+                        );
+                    }
+                    rows.push(Row {
+                        item: item.id.clone(),
+                        views: count,
+                        method: NETWORK_ONLY.into(),
+                        scores: score(item, &net.volume)?,
+                        iterations: rec.iterations,
+                        seconds: seconds - net.refine_seconds,
+                    });
+                    volumes.push(net.volume);
+                }
+            }
+            for b in &baselines {
+                let t0 = Instant::now();
+                let v = b.reconstruct(&refs, grid, &item.scale)?;
+                rows.push(Row {
+                    item: item.id.clone(),
+                    views: count,
+                    method: b.name().into(),
+                    scores: score(item, &v)?,
+                    iterations: 0,
+                    seconds: t0.elapsed().as_secs_f64(),
+                });
+                volumes.push(v);
+            }
+            if n == 0 {
+                let stem = e.output.join(format!("{}_{count}view", item.id));
+                write_hu(item, &volumes[0], &stem.with_extension("nii.gz"))?;
+                let refs: Vec<&Volume> = volumes.iter().collect();
+                let names: Vec<&str> = rows[rows.len() - volumes.len()..]
+                    .iter()
+                    .map(|r| r.method.as_str())
+                    .collect();
+                slices_and_profile(item, &refs, &names, &stem)?;
+            }
+        }
+        write_rows(&path, &rows)?;
+        made += 1;
+    }
+    Ok(made)
+}
+
+/// `item` with the views that `e.views` use corrected for scatter as `e` asks (`None`: no
+/// correction asked).
+fn correct_views(item: &Item, e: &Evaluation, prior: Option<&MeanVolume>) -> Result<Option<Item>> {
+    let mut poses: Vec<Pose> = Vec::new();
+    for &count in e.views {
+        for pose in paper_poses(count)? {
+            if !poses.contains(&pose) {
+                poses.push(pose);
+            }
+        }
+    }
+    correct_scatter(item, e.scatter_correction, prior, &poses, e.seed, e.show)
+}
+
+fn item_path(output: &Path, id: &str) -> PathBuf {
+    output.join("items").join(format!("{id}.csv"))
+}
+
+/// Writes `job.json`, or checks that the one already there asks for the same evaluation.
+fn check_job(output: &Path, job: &Job) -> Result<()> {
+    let path = output.join("job.json");
+    if let Ok(bytes) = std::fs::read(&path) {
+        let old: Job = serde_json::from_slice(&bytes)
+            .with_context(|| format!("{} is not an evaluation's job.json", path.display()))?;
+        if old != *job {
+            bail!(
+                "{} holds results of another evaluation (other items, views, methods, seed or \
+                 inference settings); choose another --output or remove it",
+                output.display()
+            );
+        }
+        return Ok(());
+    }
+    Ok(tomograf_datasets::atomic::write_json(
+        &path,
+        &serde_json::to_value(job)?,
+    )?)
+}
+
+fn write_rows(path: &Path, rows: &[Row]) -> Result<()> {
+    let mut text = format!("{ITEM_HEADER}\n");
+    for r in rows {
+        let _ = writeln!(
+            text,
+            "{},{},{},{:.6},{:.6},{:.4},{},{:.3},{:.6},{:.6},{:.4}",
+            r.item,
+            r.views,
+            r.method,
+            r.scores.psnr,
+            r.scores.ssim,
+            r.scores.rmse_hu,
+            r.iterations,
+            r.seconds,
+            r.scores.body_psnr,
+            r.scores.body_ssim,
+            r.scores.body_rmse_hu
+        );
+    }
+    write_atomic(path, |w| std::io::Write::write_all(w, text.as_bytes()))?;
+    Ok(())
+}
+
+fn parse_rows(path: &Path) -> Result<Vec<Row>> {
+    let text =
+        std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))?;
+    let mut rows = Vec::new();
+    for (n, line) in text.lines().enumerate().skip(1) {
+        let bad = || anyhow::anyhow!("{} line {}: not a score row", path.display(), n + 1);
+        let f: Vec<&str> = line.split(',').collect();
+        if f.len() != 8 && f.len() != 11 {
+            return Err(bad());
+        }
+        let num = |i: usize| f[i].parse::<f64>().map_err(|_| bad());
+        let body = |i: usize| if f.len() == 11 { num(i) } else { Ok(f64::NAN) };
+        rows.push(Row {
+            item: f[0].into(),
+            views: f[1].parse().map_err(|_| bad())?,
+            method: f[2].into(),
+            scores: Scores {
+                psnr: num(3)?,
+                ssim: num(4)?,
+                rmse_hu: num(5)?,
+                body_psnr: body(8)?,
+                body_ssim: body(9)?,
+                body_rmse_hu: body(10)?,
+            },
+            iterations: f[6].parse().map_err(|_| bad())?,
+            seconds: num(7)?,
+        });
+    }
+    Ok(rows)
+}
+
+/// Every score of an evaluation folder, in the job's item order; an error naming the items
+/// no shard has scored yet, unless `partial` (then the scored items only).
+pub fn load_rows(output: &Path, partial: bool) -> Result<Vec<Row>> {
+    let path = output.join("job.json");
+    let job: Job = serde_json::from_slice(
+        &std::fs::read(&path).with_context(|| format!("cannot read {}", path.display()))?,
+    )
+    .with_context(|| format!("{} is not an evaluation's job.json", path.display()))?;
+    let missing: Vec<&str> = job
+        .items
+        .iter()
+        .filter(|id| !item_path(output, id).exists())
+        .map(String::as_str)
+        .collect();
+    if !missing.is_empty() && !partial {
+        bail!(
+            "{}: {} of {} item(s) not scored yet ({}); run the missing shards first",
+            output.display(),
+            missing.len(),
+            job.items.len(),
+            missing.join(", ")
+        );
+    }
+    let mut rows = Vec::new();
+    for id in job
+        .items
+        .iter()
+        .filter(|id| !missing.contains(&id.as_str()))
+    {
+        rows.extend(parse_rows(&item_path(output, id))?);
+    }
+    Ok(rows)
+}
+
+/// Mean ± std per (views, method) of `rows`, in order of first appearance.
+pub fn summarise(rows: &[Row]) -> Vec<(usize, String, Vec<Scores>)> {
+    let mut table: Vec<(usize, String, Vec<Scores>)> = Vec::new();
+    for r in rows {
+        match table
+            .iter_mut()
+            .find(|(v, m, _)| *v == r.views && *m == r.method)
+        {
+            Some(e) => e.2.push(r.scores),
+            None => table.push((r.views, r.method.clone(), vec![r.scores])),
+        }
+    }
+    table.sort_by_key(|(v, _, _)| *v);
+    table
+}
+
+/// Writes `results.csv` (every score) and `results.md` (mean ± std per view count and
+/// method) from the items' scores ([`load_rows`]); returns the markdown and the scores.
+pub fn merge(output: &Path, partial: bool) -> Result<(String, Vec<Row>)> {
+    let rows = load_rows(output, partial)?;
+    let mut csv = format!("{ITEM_HEADER}\n");
+    for r in &rows {
+        let _ = writeln!(
+            csv,
+            "{},{},{},{:.4},{:.5},{:.2},{},{:.2},{:.4},{:.5},{:.2}",
+            r.item,
+            r.views,
+            r.method,
+            r.scores.psnr,
+            r.scores.ssim,
+            r.scores.rmse_hu,
+            r.iterations,
+            r.seconds,
+            r.scores.body_psnr,
+            r.scores.body_ssim,
+            r.scores.body_rmse_hu
+        );
+    }
+    write_atomic(&output.join("results.csv"), |w| {
+        std::io::Write::write_all(w, csv.as_bytes())
+    })?;
+    let mut md = "| views | method | PSNR (dB) | SSIM | RMSE (HU) | body PSNR (dB) | body SSIM | \
+                  body RMSE (HU) |\n|---:|---|---:|---:|---:|---:|---:|---:|\n"
+        .to_string();
+    for (v, m, s) in summarise(&rows) {
+        let f = |g: fn(&Scores) -> f64| mean_std(&s.iter().map(g).collect::<Vec<_>>());
+        let (p, ps) = f(|s| s.psnr);
+        let (q, qs) = f(|s| s.ssim);
+        let (r, rs) = f(|s| s.rmse_hu);
+        let (bp, bps) = f(|s| s.body_psnr);
+        let (bq, bqs) = f(|s| s.body_ssim);
+        let (br, brs) = f(|s| s.body_rmse_hu);
+        let _ = writeln!(
+            md,
+            "| {v} | {m} | {p:.2} ± {ps:.2} | {q:.3} ± {qs:.3} | {r:.1} ± {rs:.1} | \
+             {bp:.2} ± {bps:.2} | {bq:.3} ± {bqs:.3} | {br:.1} ± {brs:.1} |"
+        );
+    }
+    let model: Vec<&Row> = rows.iter().filter(|r| r.method == "TomoGRAF").collect();
+    let items = rows
+        .iter()
+        .map(|r| &r.item)
+        .collect::<std::collections::BTreeSet<_>>()
+        .len();
+    let _ = write!(md, "\n{items} test item(s)");
+    if !model.is_empty() {
+        let spi: Vec<f64> = model
+            .iter()
+            .map(|r| r.seconds / r.iterations.max(1) as f64)
+            .collect();
+        let its: Vec<f64> = model.iter().map(|r| r.iterations as f64).collect();
+        let _ = write!(
+            md,
+            "; inference: {:.0} iterations on average, {:.3} s per iteration (including \
+             loading and the final volume rendering)",
+            mean_std(&its).0,
+            mean_std(&spi).0
+        );
+    }
+    md.push_str(".\n");
+    write_atomic(&output.join("results.md"), |w| {
+        std::io::Write::write_all(w, md.as_bytes())
+    })?;
+    Ok((md, rows))
+}

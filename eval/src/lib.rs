@@ -1,0 +1,15 @@
+//! The evaluation protocol of tomograf, as library code that `tomograf reconstruct`,
+//! `tomograf evaluate` and the studies call with typed arguments:
+//! * [`protocol`]: the paper's view sets, an item's reference projections, scatter
+//!   correction of its views, one reconstruction from a checkpoint, writing it in HU;
+//! * [`evaluation`]: scoring TomoGRAF and the baselines on every test item (resumable and
+//!   sharded, one CSV per item), and merging the items into `results.md` / `results.csv`;
+//! * [`figures`]: the plots of evaluations, studies, training and validation (PNG, with
+//!   titles, axis labels and units).
+//!
+//! The scores themselves (PSNR, SSIM, RMSE in HU, whole volume and body) are
+//! `tomograf_model::metrics::score`.
+
+pub mod evaluation;
+pub mod figures;
+pub mod protocol;
