@@ -6,9 +6,9 @@
 
 use anyhow::{Context, Result, bail};
 use serde::Serialize;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use tomograf_datasets::sidecar::{FilesRecord, Sidecar, ViewRecord};
-use tomograf_datasets::{atomic, image};
+use tomograf_datasets::image;
 use tomograf_scene::job::Job;
 use tomograf_scene::scene::Scene;
 use tomograf_scene::volume::VolumeSource;
@@ -164,11 +164,6 @@ impl Outputs {
         sidecar.write(&self.dir.join(format!("{}.json", self.prefix)))?;
         Ok(files + 1)
     }
-}
-
-/// Writes pretty JSON (and a final newline) atomically.
-pub fn write_json(path: &Path, value: &serde_json::Value) -> Result<()> {
-    Ok(atomic::write_json(path, value)?)
 }
 
 /// Min..max of an image (or [v, v+1] for a constant image).

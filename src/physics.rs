@@ -3,11 +3,12 @@
 //! [`tomograf_sim::acquisition::Acquisition`]. A scene that asks for none of it renders the
 //! ideal DRR with the monochromatic projector and pays for nothing else.
 
-use anyhow::{Result, bail};
+use anyhow::Result;
 use clap::Args;
 use tomograf_scene::Scene;
-pub use tomograf_scene::physics::{acquisition, scatter_model};
-use tomograf_sim::acquisition::{Acquisition, SpectrumSpec};
+pub use tomograf_scene::overrides::PhysicsOverrides;
+pub use tomograf_scene::physics::acquisition;
+use tomograf_sim::acquisition::Acquisition;
 
 /// Flags of `tomograf project` and `tomograf dataset` for real detector physics.
 #[derive(Debug, Args, Clone, Default)]
@@ -51,65 +52,30 @@ pub struct PhysicsArgs {
 }
 
 impl PhysicsArgs {
+    /// The flags as plain data.
+    pub fn overrides(&self) -> PhysicsOverrides {
+        PhysicsOverrides {
+            preset: self.preset.clone(),
+            kvp: self.kvp,
+            mas: self.mas,
+            energy_bins: self.energy_bins,
+            noise_seed: self.noise_seed,
+            signal: self.signal.clone(),
+            detector_model: self.detector_model.clone(),
+            scatter: self.scatter.clone(),
+            scatter_photons: self.scatter_photons,
+        }
+    }
+
     /// Writes the flags into the scene (flags win).
     pub fn merge_into(&self, s: &mut Scene) -> Result<()> {
-        if self.preset.is_some() {
-            s.acquisition.preset = self.preset.clone();
-        }
-        if self.noise_seed.is_some() {
-            s.acquisition.seed = self.noise_seed;
-        }
-        if self.signal.is_some() {
-            s.acquisition.signal = self.signal.clone();
-        }
-        if self.detector_model.is_some() {
-            s.detector.model = self.detector_model.clone();
-        }
-        if let Some(model) = scatter_model(self.scatter.as_deref(), self.scatter_photons)? {
-            // The scene's images and anti-scatter grid stay; the flags choose the model.
-            s.scatter.get_or_insert_with(Default::default).model = model;
-        }
-        if let Some(kvp) = self.kvp {
-            // A preset's beam keeps its filtration and exposure at the new voltage.
-            let old = match (s.spectrum.take(), s.acquisition.preset.as_deref()) {
-                (Some(old), _) => Some(old),
-                (None, Some(p)) if p != "ideal-drr" => Some(Acquisition::preset(p)?.spectrum),
-                (None, _) => None,
-            };
-            s.spectrum = Some(SpectrumSpec {
-                kvp: Some(kvp),
-                energy_kev: None,
-                photons_per_mas_mm2: None,
-                file: None,
-                fluence_unit: None,
-                ..old.unwrap_or_else(|| SpectrumSpec::tungsten(kvp, &[], 1.0))
-            });
-        }
-        if self.mas.is_some() || self.energy_bins.is_some() {
-            let spec = match (s.spectrum.as_mut(), s.acquisition.preset.as_deref()) {
-                (Some(spec), _) => spec,
-                (None, Some(p)) if p != "ideal-drr" => {
-                    s.spectrum = Some(Acquisition::preset(p)?.spectrum);
-                    s.spectrum.as_mut().expect("just set")
-                }
-                _ => bail!("--mas and --energy-bins need a spectrum: give --kvp or --preset"),
-            };
-            if let Some(m) = self.mas {
-                spec.mas = m;
-            }
-            if let Some(b) = self.energy_bins {
-                spec.bins = Some(b);
-            }
-        }
-        Ok(())
+        self.overrides().merge_into(s)
     }
 }
 
 /// The acquisition the flags alone ask for (no scene file), with its noise seed.
 pub fn from_args(args: &PhysicsArgs) -> Result<Option<(Acquisition, u64)>> {
-    let mut scene = Scene::default();
-    args.merge_into(&mut scene)?;
-    acquisition(&scene)
+    args.overrides().acquisition()
 }
 
 #[cfg(test)]

@@ -4,6 +4,9 @@
 //!   correction of its views, one reconstruction from a checkpoint, writing it in HU;
 //! * [`evaluation`]: scoring TomoGRAF and the baselines on every test item (resumable and
 //!   sharded, one CSV per item), and merging the items into `results.md` / `results.csv`;
+//! * [`study`]: the realism-gap and domain-shift studies (data, training, evaluation,
+//!   report), resumable and sharded by stage;
+//! * [`training`]: the training driver (checkpoints, resume, metrics, loss plot);
 //! * [`figures`]: the plots of evaluations, studies, training and validation (PNG, with
 //!   titles, axis labels and units).
 //!
@@ -13,3 +16,5 @@
 pub mod evaluation;
 pub mod figures;
 pub mod protocol;
+pub mod study;
+pub mod training;

@@ -13,6 +13,7 @@
 pub mod dataset;
 pub mod dose;
 pub mod job;
+pub mod overrides;
 pub mod physics;
 pub mod prepare;
 pub mod scatter;

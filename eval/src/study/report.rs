@@ -5,13 +5,13 @@
 
 use super::render::{Block, render};
 use super::{Kind, Study, VIEWS, relative};
+use crate::evaluation::{NETWORK_ONLY, Row, Scores, merge};
+use crate::figures::{Axes, COLOUR_NAMES, plot_histograms, plot_points};
 use anyhow::{Context, Result};
 use std::collections::BTreeSet;
 use std::fmt::Write as _;
 use std::path::Path;
 use tomograf_datasets::atomic::write_atomic;
-use tomograf_eval::evaluation::{NETWORK_ONLY, Row, Scores, merge};
-use tomograf_eval::figures::{Axes, COLOUR_NAMES, plot_histograms, plot_points};
 use tomograf_model::metrics::mean_std;
 
 /// Scores of one method on one test set from one view count, over the test items.

@@ -1,9 +1,9 @@
 //! The data sets the studies are made of: realism levels (the same phantoms through ever
 //! more realistic physics) and domain shifts (other patients, hardware or exposure).
 
-use crate::physics::PhysicsArgs;
 use anyhow::{Result, bail};
 use tomograf_model::scatter_correction::ScatterCorrection;
+use tomograf_scene::overrides::PhysicsOverrides;
 
 /// One data set a study trains or tests on: a phantom population and a physics.
 #[derive(Debug, Clone)]
@@ -17,7 +17,7 @@ pub struct DataSpec {
     pub table: bool,
     pub pacemaker: bool,
     /// Detector physics (ideal DRR when empty).
-    pub physics: PhysicsArgs,
+    pub physics: PhysicsOverrides,
     /// A test set that evaluates another set's data (its folder name) differently: with
     /// `correction`, and no data of its own.
     pub data_of: Option<&'static str>,
@@ -26,7 +26,7 @@ pub struct DataSpec {
 }
 
 impl DataSpec {
-    fn lidc(name: &'static str, about: &'static str, physics: PhysicsArgs) -> Self {
+    fn lidc(name: &'static str, about: &'static str, physics: PhysicsOverrides) -> Self {
         Self {
             name,
             about,
@@ -51,13 +51,17 @@ impl DataSpec {
 }
 
 /// The 120 kVp chest-radiography preset, with `detector` replacing its flat panel.
-fn kv(detector: Option<&str>, scatter: Option<&str>, scatter_photons: Option<u64>) -> PhysicsArgs {
-    PhysicsArgs {
+fn kv(
+    detector: Option<&str>,
+    scatter: Option<&str>,
+    scatter_photons: Option<u64>,
+) -> PhysicsOverrides {
+    PhysicsOverrides {
         preset: Some("kv-flat-panel-120kvp".into()),
         detector_model: detector.map(str::to_string),
         scatter: scatter.map(str::to_string),
         scatter_photons,
-        ..PhysicsArgs::default()
+        ..PhysicsOverrides::default()
     }
 }
 
@@ -73,7 +77,7 @@ pub fn realism_levels(scatter_photons: u64) -> Vec<DataSpec> {
         DataSpec::lidc(
             "ideal-drr",
             "ideal DRR: monochromatic line integrals at 60 keV, exact Siddon",
-            PhysicsArgs::default(),
+            PhysicsOverrides::default(),
         ),
         DataSpec::lidc(
             "polychromatic",

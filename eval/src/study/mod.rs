@@ -1,4 +1,4 @@
-//! `tomograf study realism-gap` and `tomograf study domain-shift`: generate the data sets,
+//! The studies (`tomograf study realism-gap` and `tomograf study domain-shift`): generate the data sets,
 //! train the models, evaluate every model on every test set (with FDK and SART-TV from
 //! the same views) and write a report with tables and plots.
 //!
@@ -14,75 +14,15 @@ pub mod levels;
 mod render;
 mod report;
 
-use crate::train::{Training, train};
+use crate::evaluation::{DEFAULT_PCA_NOISE, Evaluation, evaluate};
+use crate::training::{Training, train};
 use anyhow::{Context, Result, bail};
-use clap::{Args, Subcommand};
+use indicatif::{ProgressBar, ProgressStyle};
 use levels::DataSpec;
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 use tomograf_datasets::anatomy::Profile;
-use tomograf_eval::evaluation::{DEFAULT_PCA_NOISE, Evaluation, evaluate, parse_shard};
 use tomograf_scene::dataset::{DatasetJob, ItemSettings, ItemSource};
-
-#[derive(Debug, Subcommand)]
-pub enum StudyCommand {
-    /// Models trained on ever more realistic projections (ideal DRR → + polychromatic →
-    /// + detector noise and blur → + scatter), each evaluated on every level.
-    RealismGap(RealismArgs),
-    /// A model trained on lidc phantoms, tested on shifted populations and exposures.
-    DomainShift(ShiftArgs),
-}
-
-#[derive(Debug, Args)]
-pub struct RealismArgs {
-    #[command(flatten)]
-    pub common: CommonArgs,
-    /// Realism levels to include (default: all): ideal-drr, polychromatic, noise-blur,
-    /// scatter.
-    #[arg(long, value_delimiter = ',')]
-    pub levels: Vec<String>,
-}
-
-#[derive(Debug, Args)]
-pub struct ShiftArgs {
-    #[command(flatten)]
-    pub common: CommonArgs,
-    /// Test sets to include (default: all): lidc, full-chest, table, pacemaker,
-    /// paper-in-house, kvp-80, low-mas.
-    #[arg(long, value_delimiter = ',')]
-    pub shifts: Vec<String>,
-}
-
-#[derive(Debug, Args)]
-pub struct CommonArgs {
-    /// Study folder (re-running it resumes: finished work is kept).
-    #[arg(short, long)]
-    pub output: PathBuf,
-    /// tiny (CI: 16³, a few phantoms, the tiny model; about a minute) or small (the real
-    /// figure: 64³, the small model; hours on a CPU).
-    #[arg(long, default_value = "tiny")]
-    pub scale: String,
-    /// Seed of the phantoms, the detector noise, training and inference.
-    #[arg(long, default_value_t = 0)]
-    pub seed: u64,
-    /// Run one stage only: data, train, evaluate or report (default: all, in order).
-    #[arg(long, default_value = "all")]
-    pub stage: String,
-    /// Take part I/N (0-based) of the stage's work, for running across machines: data
-    /// items, models and test items are dealt round-robin. Needs --stage.
-    #[arg(long)]
-    pub shard: Option<String>,
-    /// Backend: flex (CPU, default), ndarray, cuda, wgpu (as compiled in).
-    #[arg(long)]
-    pub backend: Option<String>,
-    /// With --stage data: make only the train or only the test sets (default both).
-    #[arg(long)]
-    pub split: Option<String>,
-    /// With --stage report: report on the test items scored so far (an interim report of a
-    /// sharded evaluation; it names the cells that average fewer phantoms than the scale).
-    #[arg(long)]
-    pub partial: bool,
-}
 
 /// Sizes of a study.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -153,108 +93,9 @@ pub struct Study {
 /// View counts every study evaluates (the paper's).
 pub const VIEWS: [usize; 4] = [1, 2, 5, 10];
 
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-enum Stage {
-    All,
-    Data,
-    Train,
-    Evaluate,
-    Report,
-}
-
-pub fn run(command: StudyCommand) -> Result<()> {
-    let (kind, common, train, test) = match command {
-        StudyCommand::RealismGap(a) => {
-            let scale = Scale::parse(&a.common.scale)?;
-            let levels = levels::select(
-                levels::realism_levels(scale.scatter_photons),
-                &a.levels,
-                "realism level",
-            )?;
-            let tests = levels::realism_test_sets(&levels);
-            (Kind::RealismGap, a.common, levels, tests)
-        }
-        StudyCommand::DomainShift(a) => {
-            let shifts = levels::select(levels::shifts(), &a.shifts, "shift")?;
-            (
-                Kind::DomainShift,
-                a.common,
-                vec![levels::shift_training()],
-                shifts,
-            )
-        }
-    };
-    let scale = Scale::parse(&common.scale)?;
-    let stage = match common.stage.as_str() {
-        "all" => Stage::All,
-        "data" => Stage::Data,
-        "train" => Stage::Train,
-        "evaluate" => Stage::Evaluate,
-        "report" => Stage::Report,
-        other => bail!("unknown --stage '{other}': use all, data, train, evaluate or report"),
-    };
-    let shard = common
-        .shard
-        .as_deref()
-        .map(parse_shard)
-        .transpose()?
-        .unwrap_or((0, 1));
-    let splits: &[&str] = match common.split.as_deref() {
-        None => &["train", "test"],
-        Some("train") => &["train"],
-        Some("test") => &["test"],
-        Some(other) => bail!("unknown --split '{other}': use train or test"),
-    };
-    if common.split.is_some() && stage != Stage::Data {
-        bail!("--split is for --stage data (make only the train or only the test sets)");
-    }
-    if common.partial && stage != Stage::Report {
-        bail!("--partial is for --stage report (an interim report while shards still run)");
-    }
-    if shard.1 > 1 && matches!(stage, Stage::All | Stage::Report) {
-        bail!(
-            "--shard splits one stage: give --stage data, train or evaluate (each after the \
-             previous one has finished on every shard), then --stage report once"
-        );
-    }
-    let settings = Settings {
-        kind,
-        scale,
-        seed: common.seed,
-        train_sets: train.iter().map(|s| s.name.to_string()).collect(),
-        test_sets: test.iter().map(|s| s.name.to_string()).collect(),
-    };
-    let study = Study {
-        dir: common.output.clone(),
-        settings,
-        train,
-        test,
-        backend: common.backend.clone(),
-    };
-    study.check_settings()?;
-    let all = stage == Stage::All;
-    if all || stage == Stage::Data {
-        study.data(shard, splits)?;
-    }
-    if all || stage == Stage::Train {
-        study.train(shard)?;
-    }
-    if all || stage == Stage::Evaluate {
-        study.evaluate(shard)?;
-    }
-    if all || stage == Stage::Report {
-        report::write(&study, common.partial)?;
-        eprintln!(
-            "report: {0}/report.md, {0}/report.html, {0}/results.csv, figures in {0}/figures",
-            study.dir.display()
-        );
-    }
-    Ok(())
-}
-
 impl Study {
     /// Writes `study.json`, or checks that the folder's is the same study.
-    fn check_settings(&self) -> Result<()> {
+    pub fn check_settings(&self) -> Result<()> {
         std::fs::create_dir_all(&self.dir)
             .with_context(|| format!("cannot create {}", self.dir.display()))?;
         tomograf_datasets::atomic::remove_stale_temporaries(&self.dir)?;
@@ -276,7 +117,10 @@ impl Study {
             }
             return Ok(());
         }
-        crate::output::write_json(&path, &serde_json::to_value(&self.settings)?)
+        Ok(tomograf_datasets::atomic::write_json(
+            &path,
+            &serde_json::to_value(&self.settings)?,
+        )?)
     }
 
     fn data_dir(&self, split: &str, spec: &DataSpec) -> PathBuf {
@@ -325,7 +169,7 @@ impl Study {
                 views,
                 size: s.scale.size,
                 split: split.into(),
-                acquisition: crate::physics::from_args(&physics)?,
+                acquisition: physics.acquisition()?,
                 ..ItemSettings::default()
             },
             output: self.data_dir(split, spec),
@@ -334,14 +178,14 @@ impl Study {
     }
 
     /// Every data set of `splits`, or this shard's items of each.
-    fn data(&self, (i, n): (usize, usize), splits: &[&str]) -> Result<()> {
+    pub fn data(&self, (i, n): (usize, usize), splits: &[&str]) -> Result<()> {
         for (split, specs) in [("train", &self.train), ("test", &self.test)] {
             if !splits.contains(&split) {
                 continue;
             }
             for spec in specs.iter().filter(|s| s.data_of.is_none()) {
                 eprintln!("data: {split} set '{}'", spec.name);
-                crate::dataset::run_job(&self.dataset_job(split, spec, (i, n))?)
+                make(&self.dataset_job(split, spec, (i, n))?)
                     .with_context(|| format!("{split} set '{}'", spec.name))?;
             }
         }
@@ -352,12 +196,12 @@ impl Study {
     /// manifest lists every item.
     fn finish_data(&self, split: &str, spec: &DataSpec) -> Result<PathBuf> {
         let job = self.dataset_job(split, spec, (0, 1))?;
-        crate::dataset::run_job(&job).with_context(|| format!("{split} set '{}'", spec.name))?;
+        make(&job).with_context(|| format!("{split} set '{}'", spec.name))?;
         Ok(job.output)
     }
 
     /// Trains every model not yet trained (this shard's: model k goes to shard k mod N).
-    fn train(&self, (i, n): (usize, usize)) -> Result<()> {
+    pub fn train(&self, (i, n): (usize, usize)) -> Result<()> {
         for (k, spec) in self.train.iter().enumerate() {
             if k % n != i {
                 continue;
@@ -387,7 +231,7 @@ impl Study {
                 backend: self.backend.as_deref(),
             })
             .with_context(|| format!("training model '{}'", spec.name))?;
-            crate::output::write_json(
+            tomograf_datasets::atomic::write_json(
                 &dir.join("done.json"),
                 &serde_json::json!({"train_set": spec.name}),
             )?;
@@ -397,7 +241,7 @@ impl Study {
 
     /// Scores every model and the classical baselines on every test set (this shard's
     /// items of each).
-    fn evaluate(&self, shard: (usize, usize)) -> Result<()> {
+    pub fn evaluate(&self, shard: (usize, usize)) -> Result<()> {
         for spec in &self.train {
             if !self.model_dir(spec).join("done.json").exists() {
                 bail!(
@@ -446,6 +290,34 @@ impl Study {
         eprintln!("evaluate: {scored} item evaluation(s) run, the rest were already scored");
         Ok(())
     }
+}
+
+impl Study {
+    /// Writes `report.md`, `report.html`, `results.csv` and `figures/` from the scores so
+    /// far (`partial`: an interim report while shards still run; otherwise every cell must
+    /// be complete).
+    pub fn report(&self, partial: bool) -> Result<()> {
+        report::write(self, partial)
+    }
+}
+
+/// Makes a data-set job's missing items with a progress bar.
+fn make(job: &DatasetJob) -> Result<()> {
+    let bar = ProgressBar::new(job.mine().len() as u64).with_style(
+        ProgressStyle::with_template("{spinner} item {pos}/{len} [{bar:30}] {elapsed} (eta {eta})")
+            .expect("valid template")
+            .progress_chars("=> "),
+    );
+    let summary = job.run(|_, _| bar.inc(1))?;
+    bar.finish_and_clear();
+    eprintln!(
+        "{} item(s) made, {} already finished; manifest lists {} of {} item(s)",
+        summary.made,
+        summary.skipped,
+        summary.listed,
+        job.sources.len()
+    );
+    Ok(())
 }
 
 /// Whether `path` is inside the study folder `dir` (for relative links in the report).

@@ -1,0 +1,212 @@
+//! The training driver (`tomograf train` and the studies): TomoGRAF trained on a data set
+//! from `tomograf dataset`, with checkpoints, resume, CSV metrics, a loss plot and a
+//! progress bar. Checkpoints and metrics are written atomically, metrics first, so a run
+//! killed anywhere resumes with `resume` (tests/soak.rs).
+
+use anyhow::{Context, Result, bail};
+use indicatif::{ProgressBar, ProgressStyle};
+use std::io::Write;
+use std::path::Path;
+use std::time::Instant;
+use tomograf_model::baseline::MeanVolume;
+use tomograf_model::config::TrainConfig;
+use tomograf_model::train::{StepMetrics, Trainer, projection_scale};
+use tomograf_model::{backend, checkpoint, data};
+
+const HEADER: &str = "iteration,seconds,loss_d,loss_g,loss_volume,loss_projection,loss_code,\
+hinge_v,hinge_p,recon_v,recon_p,l1_volume,l1_patch";
+
+/// What to train and where, for [`train`] (the CLI's and the studies' entry point).
+pub struct Training<'a> {
+    /// Data set folder (manifest.jsonl and item folders).
+    pub data: &'a Path,
+    /// Run folder: checkpoint/, metrics.csv, config.toml.
+    pub output: &'a Path,
+    /// Preset (tiny, small, paper) or a TOML file.
+    pub config: &'a str,
+    /// Overrides of the configuration's iteration count and seed.
+    pub iterations: Option<usize>,
+    pub seed: Option<u64>,
+    /// Only the items of this split.
+    pub split: Option<&'a str>,
+    /// Continue from the run folder's checkpoint, or start afresh when there is none yet.
+    pub resume: bool,
+    /// Backend name (`None`: the default).
+    pub backend: Option<&'a str>,
+}
+
+/// Trains (or resumes) a run, showing progress; checkpoints are written atomically.
+pub fn train(args: &Training) -> Result<()> {
+    let device = backend::device(args.backend.unwrap_or(backend::default_name()))?;
+    let items = data::load_dataset(args.data, args.split)
+        .with_context(|| format!("loading the data set {}", args.data.display()))?;
+    let scale = items[0].scale;
+    let ck = args.output.join("checkpoint");
+    let ids: Vec<String> = items.iter().map(|i| i.id.clone()).collect();
+    if args.output.is_dir() {
+        let stale = tomograf_datasets::atomic::remove_stale_temporaries(args.output)?;
+        if stale > 0 {
+            eprintln!("removed {stale} temporary file(s) a killed run left");
+        }
+    }
+    let resumable = args.resume && checkpoint::recover(&ck)?;
+    if args.resume && !resumable {
+        eprintln!(
+            "no checkpoint in {} yet: starting afresh",
+            args.output.display()
+        );
+    }
+    let mut trainer = if resumable {
+        let (t, state) = checkpoint::load_trainer(&ck, &device)
+            .with_context(|| format!("resuming from {}", ck.display()))?;
+        eprintln!("resuming at iteration {}", state.iteration);
+        t
+    } else {
+        if ck.exists() {
+            bail!(
+                "{} already holds a checkpoint: pass --resume to continue it or choose another --output",
+                ck.display()
+            );
+        }
+        let mut config = TrainConfig::load(args.config)?;
+        if let Some(s) = args.seed {
+            config.seed = s;
+        }
+        let mean = MeanVolume::from_volumes(items.iter().filter_map(|i| i.ct.as_ref()))?;
+        Trainer::new(config, projection_scale(&items)?, mean, ids, &device)?
+    };
+    if let Some(n) = args.iterations {
+        trainer.config.iterations = n;
+    }
+    std::fs::create_dir_all(args.output)
+        .with_context(|| format!("cannot create the output folder {}", args.output.display()))?;
+    let toml = trainer.config.to_toml();
+    tomograf_datasets::atomic::write_atomic(&args.output.join("config.toml"), |w| {
+        w.write_all(toml.as_bytes())
+    })?;
+    let csv_path = args.output.join("metrics.csv");
+    let mut rows = keep_rows(&csv_path, trainer.iteration)?;
+    let (g, d) = trainer.parameter_counts();
+    eprintln!(
+        "{} item(s), config '{}', {} generator and {} discriminator parameters",
+        items.len(),
+        trainer.config.name,
+        g,
+        d
+    );
+    let total = trainer.config.iterations;
+    let bar = ProgressBar::new(total as u64).with_position(trainer.iteration.min(total) as u64);
+    bar.set_style(
+        ProgressStyle::with_template(
+            "{spinner} it {pos}/{len} [{bar:30}] {elapsed} (eta {eta}) {msg}",
+        )
+        .expect("valid template")
+        .progress_chars("=> "),
+    );
+    while trainer.iteration < total {
+        let t0 = Instant::now();
+        let m = trainer.step(&items)?;
+        let secs = t0.elapsed().as_secs_f64();
+        if m.iteration % trainer.config.log_every == 0 || m.iteration == total {
+            rows.push(row(&m, secs));
+            bar.set_message(format!(
+                "G {:.4} L1(V) {:.4} L1(P) {:.4}",
+                m.loss_g, m.l1_volume, m.l1_patch
+            ));
+        }
+        if m.iteration % trainer.config.checkpoint_every == 0 || m.iteration == total {
+            save(&trainer, scale, &ck, &csv_path, &rows, args.output)?;
+        }
+        bar.inc(1);
+    }
+    bar.finish_and_clear();
+    save(&trainer, scale, &ck, &csv_path, &rows, args.output)?;
+    eprintln!(
+        "trained {} iterations: {}, {}",
+        trainer.iteration,
+        ck.display(),
+        csv_path.display()
+    );
+    Ok(())
+}
+
+fn row(m: &StepMetrics, secs: f64) -> String {
+    format!(
+        "{},{secs:.4},{:.6},{:.6},{:.6},{:.6},{:.6},{:.6},{:.6},{:.6},{:.6},{:.6},{:.6}",
+        m.iteration,
+        m.loss_d,
+        m.loss_g,
+        m.loss_volume,
+        m.loss_projection,
+        m.loss_code,
+        m.hinge_v,
+        m.hinge_p,
+        m.recon_v,
+        m.recon_p,
+        m.l1_volume,
+        m.l1_patch
+    )
+}
+
+/// The CSV rows of iterations ≤ `upto` already on disk (a resumed run drops the rest).
+fn keep_rows(path: &Path, upto: usize) -> Result<Vec<String>> {
+    let Ok(text) = std::fs::read_to_string(path) else {
+        return Ok(Vec::new());
+    };
+    Ok(text
+        .lines()
+        .skip(1)
+        .filter(|l| {
+            l.split(',')
+                .next()
+                .and_then(|v| v.parse::<usize>().ok())
+                .is_some_and(|i| i <= upto)
+        })
+        .map(str::to_string)
+        .collect())
+}
+
+fn save(
+    trainer: &Trainer,
+    scale: tomograf_model::render::DensityScale,
+    ck: &Path,
+    csv_path: &Path,
+    rows: &[String],
+    out: &Path,
+) -> Result<()> {
+    // The metrics before the checkpoint: a run killed between the two resumes from the
+    // previous checkpoint and recomputes the rows after it (the other order lost the rows
+    // between the two checkpoints: found by tests/soak.rs).
+    tomograf_datasets::atomic::write_atomic(csv_path, |f| {
+        writeln!(f, "{HEADER}")?;
+        for r in rows {
+            writeln!(f, "{r}")?;
+        }
+        Ok(())
+    })?;
+    let series = |col: usize| -> Vec<(f64, f64)> {
+        rows.iter()
+            .filter_map(|r| {
+                let v: Vec<f64> = r.split(',').filter_map(|x| x.parse().ok()).collect();
+                Some((*v.first()?, *v.get(col)?))
+            })
+            .collect()
+    };
+    crate::figures::plot_lines(
+        &out.join("loss.png"),
+        &crate::figures::Axes {
+            title: "Training losses",
+            x: "iteration",
+            y: "loss",
+        },
+        &[
+            ("loss_g", series(3)),
+            ("loss_volume", series(4)),
+            ("loss_projection", series(5)),
+            ("l1_volume", series(11)),
+            ("l1_patch", series(12)),
+        ],
+    )?;
+    checkpoint::save(trainer, scale, ck)?;
+    Ok(())
+}

@@ -1,0 +1,168 @@
+//! `tomograf study realism-gap` and `tomograf study domain-shift`: parses the flags into a
+//! [`Study`] and runs the stages asked for (the studies themselves are
+//! `tomograf_eval::study`; docs/studies.md).
+
+use anyhow::{Result, bail};
+use clap::{Args, Subcommand};
+use std::path::PathBuf;
+use tomograf_eval::evaluation::parse_shard;
+use tomograf_eval::study::{Kind, Scale, Settings, Study, levels};
+
+#[derive(Debug, Subcommand)]
+pub enum StudyCommand {
+    /// Models trained on ever more realistic projections (ideal DRR → + polychromatic →
+    /// + detector noise and blur → + scatter), each evaluated on every level.
+    RealismGap(RealismArgs),
+    /// A model trained on lidc phantoms, tested on shifted populations and exposures.
+    DomainShift(ShiftArgs),
+}
+
+#[derive(Debug, Args)]
+pub struct RealismArgs {
+    #[command(flatten)]
+    pub common: CommonArgs,
+    /// Realism levels to include (default: all): ideal-drr, polychromatic, noise-blur,
+    /// scatter.
+    #[arg(long, value_delimiter = ',')]
+    pub levels: Vec<String>,
+}
+
+#[derive(Debug, Args)]
+pub struct ShiftArgs {
+    #[command(flatten)]
+    pub common: CommonArgs,
+    /// Test sets to include (default: all): lidc, full-chest, table, pacemaker,
+    /// paper-in-house, kvp-80, low-mas.
+    #[arg(long, value_delimiter = ',')]
+    pub shifts: Vec<String>,
+}
+
+#[derive(Debug, Args)]
+pub struct CommonArgs {
+    /// Study folder (re-running it resumes: finished work is kept).
+    #[arg(short, long)]
+    pub output: PathBuf,
+    /// tiny (CI: 16³, a few phantoms, the tiny model; about a minute) or small (the real
+    /// figure: 64³, the small model; hours on a CPU).
+    #[arg(long, default_value = "tiny")]
+    pub scale: String,
+    /// Seed of the phantoms, the detector noise, training and inference.
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    /// Run one stage only: data, train, evaluate or report (default: all, in order).
+    #[arg(long, default_value = "all")]
+    pub stage: String,
+    /// Take part I/N (0-based) of the stage's work, for running across machines: data
+    /// items, models and test items are dealt round-robin. Needs --stage.
+    #[arg(long)]
+    pub shard: Option<String>,
+    /// Backend: flex (CPU, default), ndarray, cuda, wgpu (as compiled in).
+    #[arg(long)]
+    pub backend: Option<String>,
+    /// With --stage data: make only the train or only the test sets (default both).
+    #[arg(long)]
+    pub split: Option<String>,
+    /// With --stage report: report on the test items scored so far (an interim report of a
+    /// sharded evaluation; it names the cells that average fewer phantoms than the scale).
+    #[arg(long)]
+    pub partial: bool,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Stage {
+    All,
+    Data,
+    Train,
+    Evaluate,
+    Report,
+}
+
+pub fn run(command: StudyCommand) -> Result<()> {
+    let (kind, common, train, test) = match command {
+        StudyCommand::RealismGap(a) => {
+            let scale = Scale::parse(&a.common.scale)?;
+            let levels = levels::select(
+                levels::realism_levels(scale.scatter_photons),
+                &a.levels,
+                "realism level",
+            )?;
+            let tests = levels::realism_test_sets(&levels);
+            (Kind::RealismGap, a.common, levels, tests)
+        }
+        StudyCommand::DomainShift(a) => {
+            let shifts = levels::select(levels::shifts(), &a.shifts, "shift")?;
+            (
+                Kind::DomainShift,
+                a.common,
+                vec![levels::shift_training()],
+                shifts,
+            )
+        }
+    };
+    let scale = Scale::parse(&common.scale)?;
+    let stage = match common.stage.as_str() {
+        "all" => Stage::All,
+        "data" => Stage::Data,
+        "train" => Stage::Train,
+        "evaluate" => Stage::Evaluate,
+        "report" => Stage::Report,
+        other => bail!("unknown --stage '{other}': use all, data, train, evaluate or report"),
+    };
+    let shard = common
+        .shard
+        .as_deref()
+        .map(parse_shard)
+        .transpose()?
+        .unwrap_or((0, 1));
+    let splits: &[&str] = match common.split.as_deref() {
+        None => &["train", "test"],
+        Some("train") => &["train"],
+        Some("test") => &["test"],
+        Some(other) => bail!("unknown --split '{other}': use train or test"),
+    };
+    if common.split.is_some() && stage != Stage::Data {
+        bail!("--split is for --stage data (make only the train or only the test sets)");
+    }
+    if common.partial && stage != Stage::Report {
+        bail!("--partial is for --stage report (an interim report while shards still run)");
+    }
+    if shard.1 > 1 && matches!(stage, Stage::All | Stage::Report) {
+        bail!(
+            "--shard splits one stage: give --stage data, train or evaluate (each after the \
+             previous one has finished on every shard), then --stage report once"
+        );
+    }
+    let settings = Settings {
+        kind,
+        scale,
+        seed: common.seed,
+        train_sets: train.iter().map(|s| s.name.to_string()).collect(),
+        test_sets: test.iter().map(|s| s.name.to_string()).collect(),
+    };
+    let study = Study {
+        dir: common.output.clone(),
+        settings,
+        train,
+        test,
+        backend: common.backend.clone(),
+    };
+    study.check_settings()?;
+    let all = stage == Stage::All;
+    if all || stage == Stage::Data {
+        study.data(shard, splits)?;
+    }
+    if all || stage == Stage::Train {
+        study.train(shard)?;
+    }
+    if all || stage == Stage::Evaluate {
+        study.evaluate(shard)?;
+    }
+    if all || stage == Stage::Report {
+        study.report(common.partial)?;
+        eprintln!(
+            "report: {0}/report.md, {0}/report.html, {0}/results.csv, figures in {0}/figures",
+            study.dir.display()
+        );
+    }
+    Ok(())
+}
