@@ -7,8 +7,8 @@
 use anyhow::{Context, Result, bail};
 use serde::Serialize;
 use std::path::PathBuf;
-use tomograf_datasets::sidecar::{FilesRecord, Sidecar, ViewRecord};
 use tomograf_datasets::image;
+use tomograf_datasets::sidecar::{FilesRecord, Sidecar, ViewRecord};
 use tomograf_scene::job::Job;
 use tomograf_scene::scene::Scene;
 use tomograf_scene::volume::VolumeSource;
