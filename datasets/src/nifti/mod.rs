@@ -179,30 +179,27 @@ pub fn read_nifti(path: &Path) -> Result<Volume> {
     let data = if in_place {
         // The voxels' bytes at `at` of a buffer of at least `count` words: the inflated
         // file, or the uncompressed file's voxels read into one.
-        let (words, at) = match inflated.is_some() {
-            true => {
-                drop(reader);
-                let whole = inflated.take().expect("inflated");
-                (whole.words, offset as usize)
-            }
-            false => {
-                let mut words = zeroed_words(count).ok_or_else(|| DatasetError::TooLarge {
-                    path: path.to_owned(),
-                    detail: format!("cannot allocate {count} voxels"),
+        let (words, at) = if inflated.is_some() {
+            drop(reader);
+            let whole = inflated.take().expect("inflated");
+            (whole.words, offset as usize)
+        } else {
+            let mut words = zeroed_words(count).ok_or_else(|| DatasetError::TooLarge {
+                path: path.to_owned(),
+                detail: format!("cannot allocate {count} voxels"),
+            })?;
+            let bytes: &mut [u8] = bytemuck::cast_slice_mut(&mut words);
+            reader
+                .read_exact(&mut bytes[..nbytes as usize])
+                .map_err(|e| match e.kind() {
+                    io::ErrorKind::UnexpectedEof => DatasetError::truncated(
+                        path,
+                        format!("the voxel data ends before its {nbytes} bytes"),
+                    ),
+                    _ => DatasetError::io(path, "reading", e),
                 })?;
-                let bytes: &mut [u8] = bytemuck::cast_slice_mut(&mut words);
-                reader
-                    .read_exact(&mut bytes[..nbytes as usize])
-                    .map_err(|e| match e.kind() {
-                        io::ErrorKind::UnexpectedEof => DatasetError::truncated(
-                            path,
-                            format!("the voxel data ends before its {nbytes} bytes"),
-                        ),
-                        _ => DatasetError::io(path, "reading", e),
-                    })?;
-                drop(reader);
-                (words, 0)
-            }
+            drop(reader);
+            (words, 0)
         };
         decode_in_place(
             words,
@@ -214,39 +211,31 @@ pub fn read_nifti(path: &Path) -> Result<Volume> {
             h.scl_inter,
         )
     } else {
-        let raw = inflated
-            .as_ref()
-            .and_then(|all| all.bytes().get(offset as usize..(offset + nbytes) as usize));
-        let direct =
-            raw.and_then(|raw| decode_parallel(raw, dtype, h.endianness, h.scl_slope, h.scl_inter));
-        let data = match direct {
+        // Streamed (or a type the in-place decoder does not take): the crate reads the
+        // voxels, from the inflated bytes where there are some.
+        let voxels =
+            InMemNiftiVolume::from_reader(&mut reader, &h).map_err(|e| voxel_error(path, e))?;
+        if gz {
+            // Decode to the end so that the gzip trailer (CRC-32 and length) is
+            // verified.
+            io::copy(&mut reader, &mut io::sink()).map_err(|e| read_error(path, e))?;
+        }
+        let data = match decode_parallel(
+            voxels.raw_data(),
+            dtype,
+            h.endianness,
+            h.scl_slope,
+            h.scl_inter,
+        ) {
             Some(data) if data.len() == count => data,
             _ => {
-                let voxels = InMemNiftiVolume::from_reader(&mut reader, &h)
-                    .map_err(|e| voxel_error(path, e))?;
-                if gz {
-                    // Decode to the end so that the gzip trailer (CRC-32 and length) is
-                    // verified.
-                    io::copy(&mut reader, &mut io::sink()).map_err(|e| read_error(path, e))?;
-                }
-                match decode_parallel(
-                    voxels.raw_data(),
-                    dtype,
-                    h.endianness,
-                    h.scl_slope,
-                    h.scl_inter,
-                ) {
-                    Some(data) if data.len() == count => data,
-                    _ => {
-                        let array = voxels.into_ndarray::<f32>().map_err(|e| {
-                            DatasetError::unsupported(
-                                path,
-                                format!("voxel type {dtype:?} cannot be decoded: {e}"),
-                            )
-                        })?;
-                        i_fastest(array, dims).map_err(|e| DatasetError::corrupt(path, e))?
-                    }
-                }
+                let array = voxels.into_ndarray::<f32>().map_err(|e| {
+                    DatasetError::unsupported(
+                        path,
+                        format!("voxel type {dtype:?} cannot be decoded: {e}"),
+                    )
+                })?;
+                i_fastest(array, dims).map_err(|e| DatasetError::corrupt(path, e))?
             }
         };
         drop(reader);
