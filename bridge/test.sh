@@ -2,7 +2,7 @@
 # Tests of the Python bridge (docs/python.md), called by scripts/test.sh after the Rust
 # tests: a virtual environment with the test packages (bridge/requirements-test.txt),
 # libLLVM 19 for Mitsuba's llvm_ad_mono variant (apt-get, when missing), the module built
-# by maturin, then pytest: the API, independent readers (nibabel, OpenImageIO) and the
+# and installed by `pip install ./bridge` (maturin), then pytest: the API, independent readers (nibabel, OpenImageIO) and the
 # Mitsuba cross-validation (in its own process). Idempotent and quiet: packages are
 # reinstalled only when the requirements file changes.
 # Environment: TOMOGRAF_VENV (default .venv), PYTHON (default python3), TOMOGRAF_BIN (the
@@ -32,7 +32,9 @@ if ! cmp -s bridge/requirements-test.txt "$stamp"; then
   cp bridge/requirements-test.txt "$stamp"
 fi
 export DRJIT_LIBLLVM_PATH="${DRJIT_LIBLLVM_PATH:-$(libllvm)}"
-(cd bridge && VIRTUAL_ENV="$venv" PATH="$venv/bin:$PATH" maturin develop --release -q)
+# The documented install (docs/python.md): a wheel built from bridge/ and installed, not an
+# editable build, so that what the tests import is what users get.
+"$venv/bin/python" -m pip install -q --disable-pip-version-check --force-reinstall --no-deps ./bridge
 # The CLI the tests drive: TOMOGRAF_BIN when the caller built it (scripts/test.sh), else built here.
 if [ -z "${TOMOGRAF_BIN:-}" ]; then
   cargo build --release --quiet --bin tomograf

@@ -7,9 +7,9 @@
 //! `i, i+n, i+2n, …`; items are independent, so shards produce the same bytes as one run.
 
 use crate::physics::{self, PhysicsArgs};
+use crate::progress::Bar;
 use anyhow::{Result, bail};
 use clap::Args;
-use indicatif::{ProgressBar, ProgressStyle};
 use std::path::PathBuf;
 use tomograf_datasets::anatomy::Profile;
 use tomograf_datasets::preprocess::HuWindow;
@@ -76,29 +76,7 @@ pub fn run(args: DatasetArgs) -> Result<()> {
 
 /// Runs a data-set job with a progress bar and a summary line.
 pub fn run_job(job: &DatasetJob) -> Result<()> {
-    let mine = job.mine().len();
-    let bar = ProgressBar::new(mine as u64).with_style(
-        ProgressStyle::with_template(
-            "{spinner} item {pos}/{len} [{bar:30}] {elapsed} (eta {eta}) {msg}",
-        )
-        .expect("valid template")
-        .progress_chars("=> "),
-    );
-    let summary = job.run(|index, _| {
-        bar.set_message(format!("{index:05}"));
-        bar.inc(1);
-    })?;
-    bar.finish_and_clear();
-    let (shard, shards) = job.shard;
-    eprintln!(
-        "{} item(s) made, {} already finished (shard {shard}/{shards}); manifest lists {} of {} item(s): {}",
-        summary.made,
-        summary.skipped,
-        summary.listed,
-        job.sources.len(),
-        job.output.join("manifest.jsonl").display()
-    );
-    Ok(())
+    job.make(&Bar::default()).map(|_| ())
 }
 
 /// The flags as a typed job (bad flags are named before any work).

@@ -4,15 +4,14 @@
 //! panel with noise; the checkpoint was trained on ideal DRRs) → 1-view TomoGRAF
 //! reconstruction with the shipped checkpoint → metrics next to the mean training volume,
 //! the PCA-MAP prior of the same training volumes, FDK and SART-TV (from zero and from the
-//! mean), and PNG figures.
+//! mean), and PNG figures. The flags become a [`Demo`] of `tomograf_eval::demo`.
 
-use crate::physics::PhysicsArgs;
-use anyhow::{Context, Result};
+use crate::progress::Bar;
+use anyhow::Result;
 use clap::Args;
 use std::path::PathBuf;
 use tomograf_datasets::anatomy::Profile;
-use tomograf_eval::evaluation::DEFAULT_PCA_NOISE;
-use tomograf_scene::dataset::DatasetJob;
+use tomograf_eval::demo::{Demo, demo};
 
 /// The checkpoint shipped in the repository (`model/checkpoints/demo`).
 pub const SHIPPED_CHECKPOINT: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/model/checkpoints/demo");
@@ -56,79 +55,20 @@ pub struct DemoArgs {
 }
 
 pub fn run(args: DemoArgs) -> Result<()> {
-    let device = tomograf_model::backend::device(
-        args.backend
-            .as_deref()
-            .unwrap_or(tomograf_model::backend::default_name()),
+    let md = demo(
+        &Demo {
+            output: args.output,
+            checkpoint: args.checkpoint,
+            phantoms: args.phantoms,
+            views: args.views,
+            iterations: (args.iterations > 0).then_some(args.iterations),
+            profile: Profile::parse(&args.profile)?,
+            train_phantoms: args.train_phantoms,
+            preset: args.preset,
+            backend: args.backend,
+        },
+        &Bar::default(),
     )?;
-    let mean = tomograf_model::checkpoint::load_mean(&args.checkpoint)
-        .with_context(|| format!("checkpoint {}", args.checkpoint.display()))?
-        .context("the checkpoint has no mean_volume.npy")?;
-    drop(device);
-    let size = mean.dims[0];
-    let test = args.output.join("test-set");
-    let train = args.output.join("train-set");
-    if args.train_phantoms > 0 {
-        eprintln!(
-            "1/3 remaking the checkpoint's training set ({} lidc phantoms, {size}³) for the PCA prior",
-            args.train_phantoms
-        );
-        crate::dataset::run_job(&DatasetJob::phantoms(
-            train.clone(),
-            (0, args.train_phantoms),
-            Profile::LidcCropped,
-            false,
-            (size, 36),
-            "train",
-            None,
-        ))?;
-    }
-    let pacemaker = args.profile == "full-chest";
-    eprintln!(
-        "2/3 making {} held-out {} phantoms{} and their projections ({size}³, every 36° + AP + lateral, {})",
-        args.phantoms,
-        args.profile,
-        if pacemaker { " with pacemakers" } else { "" },
-        args.preset
-    );
-    let acquisition = crate::physics::from_args(&PhysicsArgs {
-        preset: Some(args.preset.clone()),
-        ..PhysicsArgs::default()
-    })?;
-    crate::dataset::run_job(&DatasetJob::phantoms(
-        test.clone(),
-        (100_000, args.phantoms),
-        Profile::parse(&args.profile)?,
-        pacemaker,
-        (size, 10),
-        "test",
-        acquisition,
-    ))?;
-    eprintln!("3/3 reconstructing and scoring");
-    crate::evaluate::run(crate::evaluate::EvaluateArgs {
-        data: test,
-        checkpoint: Some(args.checkpoint),
-        output: args.output.clone(),
-        views: args.views,
-        split: None,
-        items: None,
-        iterations: (args.iterations > 0).then_some(args.iterations),
-        psnr_threshold: None,
-        tune: None,
-        refine: None,
-        seed: 0,
-        backend: args.backend,
-        shard: None,
-        no_baselines: false,
-        merge: false,
-        train_data: (args.train_phantoms > 0).then_some(train),
-        pca_noise: DEFAULT_PCA_NOISE,
-        scatter_correction: Default::default(),
-        scatter_prior_data: None,
-    })?;
-    eprintln!(
-        "results: {0}/results.md, figures: {0}/*_slices.png, {0}/*_profile.png",
-        args.output.display()
-    );
+    println!("{md}");
     Ok(())
 }

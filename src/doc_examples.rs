@@ -17,9 +17,9 @@
 //! A block of any other kind, or without one, fails: say what it is.
 
 use crate::Cli;
-use crate::physics;
 use clap::Parser;
 use std::path::{Path, PathBuf};
+use tomograf_scene::physics;
 use tomograf_scene::scene::{MeshPhysics, Scene};
 
 /// One fenced block: file, first line, info string, body.

@@ -1,11 +1,12 @@
 //! `tomograf evaluate`: parses the flags into a [`tomograf_eval::evaluation::Evaluation`],
 //! runs it and prints the merged results (the protocol itself is `tomograf_eval`).
 
+use crate::progress::Bar;
+use crate::reconstruct::InferArgs;
 use anyhow::Result;
 use clap::Args;
 use std::path::PathBuf;
 use tomograf_eval::evaluation::{DEFAULT_PCA_NOISE, Evaluation, evaluate, merge, parse_shard};
-use tomograf_model::config::{InferOverrides, Tune};
 use tomograf_model::scatter_correction::ScatterCorrection;
 
 #[derive(Debug, Args)]
@@ -27,20 +28,8 @@ pub struct EvaluateArgs {
     /// At most this many items.
     #[arg(long)]
     pub items: Option<usize>,
-    /// Override the checkpoint's inference iteration cap.
-    #[arg(long)]
-    pub iterations: Option<usize>,
-    /// Override the checkpoint's inference stopping threshold: the PSNR (dB) every input
-    /// view's rendered rays must reach (the paper's 25).
-    #[arg(long, allow_negative_numbers = true)]
-    pub psnr_threshold: Option<f64>,
-    /// What to fine-tune: codes-and-generator (default) or codes.
-    #[arg(long)]
-    pub tune: Option<Tune>,
-    /// Override the checkpoint's data-consistency sweeps after the network's fit (SART-TV
-    /// started from the network's volume; 0 = the network's volume as it is).
-    #[arg(long)]
-    pub refine: Option<usize>,
+    #[command(flatten)]
+    pub infer: InferArgs,
     /// Seed of inference.
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
@@ -92,6 +81,7 @@ pub fn run(args: EvaluateArgs) -> Result<()> {
         println!("{md}");
         return Ok(());
     }
+    let bar = Bar::default();
     let e = Evaluation {
         data: &args.data,
         checkpoint: args.checkpoint.as_deref(),
@@ -100,12 +90,7 @@ pub fn run(args: EvaluateArgs) -> Result<()> {
         views: &args.views,
         split: args.split.as_deref(),
         items: args.items,
-        infer: InferOverrides {
-            tune: args.tune,
-            iterations: args.iterations,
-            psnr_threshold: args.psnr_threshold,
-            refine_iterations: args.refine,
-        },
+        infer: args.infer.overrides(),
         seed: args.seed,
         backend: args.backend.as_deref(),
         shard,
@@ -113,7 +98,7 @@ pub fn run(args: EvaluateArgs) -> Result<()> {
         classical: !args.no_baselines,
         scatter_correction: args.scatter_correction,
         scatter_prior_data: args.scatter_prior_data.as_deref(),
-        show: true,
+        progress: &bar,
     };
     let made = evaluate(&e)?;
     if shard.1 > 1 {

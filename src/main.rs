@@ -5,15 +5,12 @@ mod dataset;
 mod demo;
 #[cfg(test)]
 mod doc_examples;
-mod dose;
 mod evaluate;
-mod output;
-mod phantom_devices;
 mod physics;
+mod progress;
 mod project;
 mod recon_cmd;
 mod reconstruct;
-mod scatter_images;
 mod study;
 mod tradeoff;
 mod train;

@@ -7,7 +7,6 @@ use anyhow::Result;
 use clap::Args;
 use tomograf_scene::Scene;
 pub use tomograf_scene::overrides::PhysicsOverrides;
-pub use tomograf_scene::physics::acquisition;
 use tomograf_sim::acquisition::Acquisition;
 
 /// Flags of `tomograf project` and `tomograf dataset` for real detector physics.

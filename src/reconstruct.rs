@@ -1,14 +1,45 @@
 //! `tomograf reconstruct`: a CT from 1–10 projections of a data-set item with a trained
 //! checkpoint, written as NIfTI in HU.
 
+use crate::progress::Bar;
 use anyhow::Result;
 use clap::Args;
 use std::path::PathBuf;
-use tomograf_eval::protocol::{correct_scatter, paper_poses, run_one, write_hu};
+use tomograf_eval::protocol::{ItemReconstruction, paper_poses, reconstruct_item, write_hu};
 use tomograf_model::config::{InferOverrides, Tune};
 use tomograf_model::scatter_correction::ScatterCorrection;
-use tomograf_model::{backend, checkpoint, data};
 use tomograf_sim::geometry::angles::parse_pose;
+
+/// Flags that override a checkpoint's inference settings (`reconstruct`, `evaluate`).
+#[derive(Debug, Args, Clone, Default)]
+pub struct InferArgs {
+    /// What to fine-tune: codes-and-generator (default, as the paper) or codes.
+    #[arg(long)]
+    pub tune: Option<Tune>,
+    /// Override the checkpoint's inference iteration cap.
+    #[arg(long)]
+    pub iterations: Option<usize>,
+    /// Override the checkpoint's inference stopping threshold: the PSNR (dB) every input
+    /// view's rendered rays must reach (the paper's 25).
+    #[arg(long, allow_negative_numbers = true)]
+    pub psnr_threshold: Option<f64>,
+    /// Override the checkpoint's data-consistency sweeps after the network's fit (SART-TV
+    /// started from the network's volume; 0 = the network's volume as it is).
+    #[arg(long)]
+    pub refine: Option<usize>,
+}
+
+impl InferArgs {
+    /// The flags as plain data.
+    pub fn overrides(&self) -> InferOverrides {
+        InferOverrides {
+            tune: self.tune,
+            iterations: self.iterations,
+            psnr_threshold: self.psnr_threshold,
+            refine_iterations: self.refine,
+        }
+    }
+}
 
 #[derive(Debug, Args)]
 pub struct ReconstructArgs {
@@ -27,20 +58,8 @@ pub struct ReconstructArgs {
     /// Explicit poses instead: e.g. `ap,lateral` or `0;45,10` (θ or θ,φ separated by ';').
     #[arg(long)]
     pub poses: Option<String>,
-    /// What to fine-tune: codes-and-generator (default, as the paper) or codes.
-    #[arg(long)]
-    pub tune: Option<Tune>,
-    /// Override the checkpoint's inference iteration cap.
-    #[arg(long)]
-    pub iterations: Option<usize>,
-    /// Override the checkpoint's inference stopping threshold: the PSNR (dB) every input
-    /// view's rendered rays must reach (the paper's 25).
-    #[arg(long, allow_negative_numbers = true)]
-    pub psnr_threshold: Option<f64>,
-    /// Override the checkpoint's data-consistency sweeps after the network's fit (SART-TV
-    /// started from the network's volume; 0 = the network's volume as it is).
-    #[arg(long)]
-    pub refine: Option<usize>,
+    #[command(flatten)]
+    pub infer: InferArgs,
     /// Seed of the initial codes and ray jitter.
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
@@ -55,8 +74,6 @@ pub struct ReconstructArgs {
 }
 
 pub fn run(args: ReconstructArgs) -> Result<()> {
-    let device = backend::device(args.backend.as_deref().unwrap_or(backend::default_name()))?;
-    let item = data::load_item(&args.item)?;
     let poses = match &args.poses {
         Some(text) => text
             .split(';')
@@ -64,30 +81,17 @@ pub fn run(args: ReconstructArgs) -> Result<()> {
             .collect::<Result<Vec<_>>>()?,
         None => paper_poses(args.views)?,
     };
-    let generator = checkpoint::load_generator(&args.checkpoint, &device)?;
-    let corrected = correct_scatter(
-        &item,
-        args.scatter_correction,
-        Some(&generator.prior),
-        &poses,
-        args.seed,
-        true,
-    )?;
-    let item = corrected.unwrap_or(item);
-    let infer = generator.config.infer.overridden(&InferOverrides {
-        tune: args.tune,
-        iterations: args.iterations,
-        psnr_threshold: args.psnr_threshold,
-        refine_iterations: args.refine,
-    })?;
-    let rec = run_one(
-        &args.checkpoint,
-        &item,
-        &poses,
-        Some(&infer),
-        args.seed,
-        &device,
-        true,
+    let (item, rec) = reconstruct_item(
+        &ItemReconstruction {
+            item: &args.item,
+            checkpoint: &args.checkpoint,
+            poses,
+            infer: args.infer.overrides(),
+            seed: args.seed,
+            backend: args.backend.as_deref(),
+            scatter_correction: args.scatter_correction,
+        },
+        &Bar::default(),
     )?;
     write_hu(&item, &rec.volume, &args.output)?;
     eprintln!(

@@ -2,6 +2,7 @@
 //! [`Study`] and runs the stages asked for (the studies themselves are
 //! `tomograf_eval::study`; docs/studies.md).
 
+use crate::progress::Bar;
 use anyhow::{Result, bail};
 use clap::{Args, Subcommand};
 use std::path::PathBuf;
@@ -147,15 +148,16 @@ pub fn run(command: StudyCommand) -> Result<()> {
         backend: common.backend.clone(),
     };
     study.check_settings()?;
+    let bar = Bar::default();
     let all = stage == Stage::All;
     if all || stage == Stage::Data {
-        study.data(shard, splits)?;
+        study.data(shard, splits, &bar)?;
     }
     if all || stage == Stage::Train {
-        study.train(shard)?;
+        study.train(shard, &bar)?;
     }
     if all || stage == Stage::Evaluate {
-        study.evaluate(shard)?;
+        study.evaluate(shard, &bar)?;
     }
     if all || stage == Stage::Report {
         study.report(common.partial)?;

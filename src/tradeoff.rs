@@ -1,14 +1,12 @@
 //! `tomograf tradeoff`: what each speed setting costs in accuracy on the user's own scene
-//! (`sim::tradeoff` does the measuring): the table, a CSV, a plot and a recommendation.
+//! (`tomograf_eval::tradeoff` writes the report): the flags become a [`Tradeoff`].
 
-use crate::physics;
-use crate::project::{ProjectArgs, load_hu, load_mu, resolve};
-use anyhow::{Context, Result, bail};
+use crate::progress::Bar;
+use crate::project::ProjectArgs;
+use anyhow::Result;
 use clap::Args;
-use indicatif::{ProgressBar, ProgressStyle};
-use std::fmt::Write as _;
 use std::path::PathBuf;
-use tomograf_sim::tradeoff::{self, Chain, Knob, Ladder, Options};
+use tomograf_eval::tradeoff::{Tradeoff, tradeoff};
 
 #[derive(Debug, Args)]
 pub struct TradeoffArgs {
@@ -39,224 +37,15 @@ pub struct TradeoffArgs {
 }
 
 pub fn run(args: TradeoffArgs) -> Result<()> {
-    if !(args.budget.is_finite() && args.budget > 0.0) {
-        bail!(
-            "--budget {}: give a relative RMS error > 0 (e.g. 0.01 for 1 %)",
-            args.budget
-        );
-    }
     let scene = crate::project::merge(&args.scene)?;
-    if !scene.mesh.is_empty() {
-        bail!("tradeoff measures voxel scenes: the scene's [[mesh]] objects are not supported yet");
-    }
-    let acquisition = physics::acquisition(&scene)?;
-    let options = Options {
-        steps: args.steps.clone(),
-        bins: args.bins.clone(),
-        scatter_fractions: args.scatter_fractions.clone(),
-        repeats: args.repeats.max(1),
+    let t = Tradeoff {
+        budget: args.budget,
+        steps: args.steps,
+        bins: args.bins,
+        scatter_fractions: args.scatter_fractions,
+        repeats: args.repeats,
+        report: args.report,
     };
-    let (vol, job) = match &acquisition {
-        None => {
-            let (mu, _) = load_mu(&scene)?;
-            let job = resolve(&scene, &mu)?;
-            (mu, job)
-        }
-        Some((acq, _)) => {
-            let (hu, _) = load_hu(&scene, acq.materials.calibration_kev)?;
-            // The views are resolved on the grid alone; HU or mu does not change them.
-            let job = resolve(&scene, &hu)?;
-            (hu, job)
-        }
-    };
-    let view = job.views.first().context("the scene has no view")?;
-    let chain = match &acquisition {
-        None => Chain::Ideal {
-            mu: &vol,
-            quantity: job.quantity,
-        },
-        Some((acq, seed)) => Chain::Acquisition {
-            hu: &vol,
-            acquisition: acq,
-            seed: *seed,
-        },
-    };
-    let bar = ProgressBar::new(0).with_style(
-        ProgressStyle::with_template("{spinner} setting {pos}/{len} [{bar:30}] {elapsed}")
-            .expect("valid template")
-            .progress_chars("=> "),
-    );
-    let ladder = tradeoff::ladder(chain, view, &options, |done, total| {
-        bar.set_length(total as u64);
-        bar.set_position(done as u64);
-    })?;
-    bar.finish_and_clear();
-    let combined = tradeoff::combine(&ladder, args.budget);
-    let (img, seconds) = tradeoff::render(chain, view, &combined, options.repeats)?;
-    let (rms, max) = tradeoff::errors(&img, &ladder.reference_image)?;
-
-    std::fs::create_dir_all(&args.report)
-        .with_context(|| format!("cannot create {}", args.report.display()))?;
-    let md = report(
-        &ladder,
-        &args,
-        view,
-        &combined,
-        seconds,
-        rms,
-        max,
-        acquisition.is_some(),
-    )?;
-    write(&args.report.join("tradeoff.md"), &md)?;
-    write(&args.report.join("tradeoff.csv"), &csv(&ladder))?;
-    plot(&ladder, args.budget, &args.report.join("tradeoff.png"))?;
-    println!("{md}");
-    eprintln!(
-        "wrote tradeoff.md, tradeoff.csv and tradeoff.png to {}",
-        args.report.display()
-    );
+    println!("{}", tradeoff(&scene, &t, &Bar::default())?);
     Ok(())
-}
-
-fn write(path: &std::path::Path, text: &str) -> Result<()> {
-    tomograf_datasets::atomic::write_atomic(path, |w| {
-        use std::io::Write;
-        w.write_all(text.as_bytes())
-    })?;
-    Ok(())
-}
-
-/// Speed-up against log₁₀ of the rms error, one series per knob, and the budget's line.
-fn plot(ladder: &Ladder, budget: f64, path: &std::path::Path) -> Result<()> {
-    let mut series: Vec<(&str, Vec<(f64, f64)>)> = Vec::new();
-    for k in [Knob::Projector, Knob::EnergyBins, Knob::Scatter, Knob::Blur] {
-        let mut pts: Vec<(f64, f64)> = ladder
-            .rungs
-            .iter()
-            .filter(|r| r.knob == k)
-            .map(|r| (r.reference_seconds / r.seconds, r.rms.log10()))
-            .collect();
-        if !pts.is_empty() {
-            pts.sort_by(|a, b| a.0.total_cmp(&b.0));
-            series.push((knob_name(k), pts));
-        }
-    }
-    let xs = series.iter().flat_map(|(_, p)| p.iter().map(|q| q.0));
-    let (lo, hi) = xs.fold((1.0f64, 1.0f64), |(a, b), x| (a.min(x), b.max(x)));
-    series.push(("budget", vec![(lo, budget.log10()), (hi, budget.log10())]));
-    tomograf_eval::figures::plot_points(
-        path,
-        &tomograf_eval::figures::Axes {
-            title: "Speed against accuracy (one knob changed from the reference)",
-            x: "speed-up over the reference (×)",
-            y: "log10 RMS error (relative)",
-        },
-        &series,
-    )
-}
-
-fn knob_name(k: Knob) -> &'static str {
-    match k {
-        Knob::Reference => "reference",
-        Knob::Projector => "projector",
-        Knob::EnergyBins => "energy bins",
-        Knob::Scatter => "scatter",
-        Knob::Blur => "blur",
-    }
-}
-
-/// The reference, the primary reference (when there is scatter), then every rung.
-fn rows(ladder: &Ladder) -> impl Iterator<Item = &tradeoff::Rung> {
-    std::iter::once(&ladder.reference)
-        .chain(&ladder.primary)
-        .chain(&ladder.rungs)
-}
-
-fn csv(ladder: &Ladder) -> String {
-    let mut s = String::from("knob,setting,seconds,speedup,rms_rel,max_rel\n");
-    for r in rows(ladder) {
-        let _ = writeln!(
-            s,
-            "{},\"{}\",{:.6},{:.3},{:.6e},{:.6e}",
-            knob_name(r.knob),
-            r.label,
-            r.seconds,
-            r.reference_seconds / r.seconds,
-            r.rms,
-            r.max
-        );
-    }
-    s
-}
-
-#[allow(clippy::too_many_arguments)]
-fn report(
-    ladder: &Ladder,
-    args: &TradeoffArgs,
-    view: &tomograf_sim::View,
-    combined: &tradeoff::Setting,
-    seconds: f64,
-    rms: f64,
-    max: f64,
-    physics: bool,
-) -> Result<String> {
-    let mut md = String::new();
-    writeln!(
-        md,
-        "# Speed against accuracy for this scene\n\n\
-         One view ({}×{} pixels); {}. Each row changes one setting from the reference \
-         (the most accurate); time is the median of {} renders of the view (one with \
-         scatter; the per-volume preparation excluded); errors are against the reference in \
-         the output quantity: rms = RMS(a − r)/RMS(r), max = max|a − r|/max|r|; the speed-up \
-         is against the reference the row is compared with.{}\n",
-        view.rows,
-        view.cols,
-        if physics {
-            "real detector physics, noise off in every render (noise is not a setting)"
-        } else {
-            "ideal DRR"
-        },
-        args.repeats.max(1),
-        if ladder.rungs.iter().any(|r| r.knob == Knob::Scatter) {
-            " Scatter adds the same image whatever the other settings, so the projector, \
-             energy-bin and blur rows are measured without it, against the reference without \
-             scatter; the scatter rows against the full reference, whose own Monte Carlo \
-             noise their error includes."
-        } else {
-            ""
-        }
-    )?;
-    writeln!(
-        md,
-        "| knob | setting | ms | speed-up | rms | max |\n|---|---|---:|---:|---:|---:|"
-    )?;
-    for r in rows(ladder) {
-        writeln!(
-            md,
-            "| {} | {} | {:.1} | {:.2}× | {:.2e} | {:.2e} |",
-            knob_name(r.knob),
-            r.label,
-            r.seconds * 1e3,
-            r.reference_seconds / r.seconds,
-            r.rms,
-            r.max
-        )?;
-    }
-    let verdict = if rms <= args.budget {
-        "within the budget"
-    } else {
-        "over the budget: the knobs' errors do not add independently here; use the reference's setting for the knob with the largest error above"
-    };
-    writeln!(
-        md,
-        "\n**For an error budget of {} (rms):** {} — measured {:.1} ms ({:.2}× the \
-         reference), rms {:.2e}, max {:.2e}: {verdict}.",
-        args.budget,
-        tradeoff::describe(combined, physics),
-        seconds * 1e3,
-        ladder.reference.seconds / seconds,
-        rms,
-        max
-    )?;
-    Ok(md)
 }

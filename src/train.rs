@@ -1,6 +1,7 @@
 //! `tomograf train`: parses the flags into a [`Training`] and runs it (the driver is
 //! `tomograf_eval::training`).
 
+use crate::progress::Bar;
 use anyhow::Result;
 use clap::Args;
 use std::path::PathBuf;
@@ -36,14 +37,17 @@ pub struct TrainArgs {
 }
 
 pub fn run(args: TrainArgs) -> Result<()> {
-    train(&Training {
-        data: &args.data,
-        output: &args.output,
-        config: &args.config,
-        iterations: args.iterations,
-        seed: args.seed,
-        split: args.split.as_deref(),
-        resume: args.resume,
-        backend: args.backend.as_deref(),
-    })
+    train(
+        &Training {
+            data: &args.data,
+            output: &args.output,
+            config: &args.config,
+            iterations: args.iterations,
+            seed: args.seed,
+            split: args.split.as_deref(),
+            resume: args.resume,
+            backend: args.backend.as_deref(),
+        },
+        &Bar::default(),
+    )
 }

@@ -1,6 +1,7 @@
 //! `tomograf validate tg195`: parses the flags and runs the TG-195 validation report
 //! (`tomograf_eval::tg195`; docs/validation.md).
 
+use crate::progress::Bar;
 use anyhow::Result;
 use clap::{Args, Subcommand};
 use std::path::PathBuf;
@@ -46,15 +47,18 @@ pub struct Tg195Args {
 pub fn run(cmd: ValidateCommand) -> Result<()> {
     let ValidateCommand::Tg195(args) = cmd;
     if args.replot {
-        return replot(&args.output);
+        return replot(&args.output, &Bar::default());
     }
-    validate(&Validation {
-        output: args.output,
-        cases: args.cases,
-        photons_case1: args.photons_case1,
-        photons_case2: args.photons_case2,
-        photons_case42: args.photons_case42,
-        seed: args.seed,
-        update: args.update,
-    })
+    validate(
+        &Validation {
+            output: args.output,
+            cases: args.cases,
+            photons_case1: args.photons_case1,
+            photons_case2: args.photons_case2,
+            photons_case42: args.photons_case42,
+            seed: args.seed,
+            update: args.update,
+        },
+        &Bar::default(),
+    )
 }

@@ -24,8 +24,10 @@
 mod dataset;
 pub mod errors;
 pub mod geometry;
+mod model;
 pub mod phantom;
 mod physics;
+mod progress;
 pub mod render;
 pub mod scatter;
 mod scene;
@@ -67,6 +69,9 @@ fn tomograf_py(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(scatter::scatter_matched, m)?)?;
     // Scenes (the same files `tomograf project --scene` renders).
     m.add_function(wrap_pyfunction!(scene::render_scene, m)?)?;
+    m.add_function(wrap_pyfunction!(scene::project_scene, m)?)?;
+    m.add_function(wrap_pyfunction!(model::reconstruct, m)?)?;
+    m.add_function(wrap_pyfunction!(model::evaluate, m)?)?;
     // Data-set items (the same files `tomograf dataset` writes).
     m.add_function(wrap_pyfunction!(dataset::make_item, m)?)?;
     // Meshes, reconstruction: register here.

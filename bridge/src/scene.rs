@@ -1,9 +1,10 @@
-//! `tomograf.render_scene`: a scene — a TOML file, or a dict of the same tables — rendered
-//! as `tomograf project --scene` renders it (both go through `tomograf_scene::prepare`), so
+//! `tomograf.render_scene` and `tomograf.project_scene`: a scene — a TOML file, or a dict of the same tables — rendered
+//! (and written) as `tomograf project --scene` renders it (both go through `tomograf_scene::prepare`), so
 //! the same scene gives the same bytes from Python and from the command line. Every key:
 //! docs/scene.md.
 
 use crate::errors;
+use crate::progress::PyProgress;
 use numpy::{IntoPyArray, PyArrayDyn};
 use pyo3::exceptions::{PyFileNotFoundError, PyUserWarning};
 use pyo3::prelude::*;
@@ -31,20 +32,7 @@ pub fn render_scene<'py>(
     py: Python<'py>,
     scene: &Bound<'py, PyAny>,
 ) -> PyResult<Bound<'py, PyArrayDyn<f32>>> {
-    let scene = if let Ok(d) = scene.cast::<PyDict>() {
-        let json: String = py.import("json")?.call_method1("dumps", (d,))?.extract()?;
-        serde_json::from_str::<Scene>(&json)
-            .map_err(|e| errors::value(format!("the scene dict is not a valid scene: {e}")))?
-    } else {
-        let path: PathBuf = scene.extract()?;
-        if !path.exists() {
-            return Err(PyFileNotFoundError::new_err(format!(
-                "scene file {} does not exist",
-                path.display()
-            )));
-        }
-        Scene::load(&path).map_err(|e| errors::value(format!("{e:#}")))?
-    };
+    let scene = scene_of(py, scene)?;
     let rendered = py.detach(|| -> anyhow::Result<_> {
         let prepared = tomograf_scene::prepare(&scene)?;
         let renderer = prepared.renderer()?;
@@ -86,4 +74,59 @@ pub fn render_scene<'py>(
     let arr =
         ndarray::ArrayD::from_shape_vec(shape, data).map_err(|e| errors::value(e.to_string()))?;
     Ok(arr.into_pyarray(py))
+}
+
+/// A scene from a TOML path or a dict of the same tables.
+fn scene_of(py: Python<'_>, scene: &Bound<'_, PyAny>) -> PyResult<Scene> {
+    Ok(if let Ok(d) = scene.cast::<PyDict>() {
+        let json: String = py.import("json")?.call_method1("dumps", (d,))?.extract()?;
+        serde_json::from_str::<Scene>(&json)
+            .map_err(|e| errors::value(format!("the scene dict is not a valid scene: {e}")))?
+    } else {
+        let path: PathBuf = scene.extract()?;
+        if !path.exists() {
+            return Err(PyFileNotFoundError::new_err(format!(
+                "scene file {} does not exist",
+                path.display()
+            )));
+        }
+        Scene::load(&path).map_err(|e| errors::value(format!("{e:#}")))?
+    })
+}
+
+/// Renders every view of a scene and writes its files, exactly as `tomograf project
+/// --scene` does (the same library function, `tomograf_scene::project`): the images in
+/// the ``[output]`` table's formats into its ``dir`` (default ``out``, prefix ``drr``), the
+/// ``.npy`` stack, the separate scatter images, the dose and the JSON sidecar. ``scene``
+/// is a TOML path or a dict, as for :func:`render_scene`.
+///
+/// ``progress``, if given, is called as ``progress(stage, done, total, message)`` while it
+/// runs (stage ``"view"``); an exception it raises is re-raised at the end. Warnings (geometry
+/// probably not meant, clipped pixels) are raised as ``UserWarning``; every line the
+/// command line would print (dose totals too) is in the returned ``notes``.
+///
+/// Returns a dict: ``views``, ``rows``, ``cols``, ``render_seconds``, ``load_seconds``,
+/// ``files`` (how many were written), ``dir`` and ``notes``.
+#[pyfunction]
+#[pyo3(signature = (scene, progress=None))]
+pub fn project_scene<'py>(
+    py: Python<'py>,
+    scene: &Bound<'py, PyAny>,
+    progress: Option<Py<PyAny>>,
+) -> PyResult<Bound<'py, PyDict>> {
+    let scene = scene_of(py, scene)?;
+    let reporter = PyProgress::new(progress);
+    let summary = py.detach(|| tomograf_scene::project(&scene, &reporter));
+    let notes = reporter.finish(py)?;
+    let summary = summary.map_err(|e| errors::value(format!("{e:#}")))?;
+    let d = PyDict::new(py);
+    d.set_item("views", summary.views)?;
+    d.set_item("rows", summary.rows)?;
+    d.set_item("cols", summary.cols)?;
+    d.set_item("render_seconds", summary.render_seconds)?;
+    d.set_item("load_seconds", summary.load_seconds)?;
+    d.set_item("files", summary.files)?;
+    d.set_item("dir", summary.dir.to_string_lossy().into_owned())?;
+    d.set_item("notes", notes)?;
+    Ok(d)
 }

@@ -1,6 +1,7 @@
 """Every Python block of README.md and docs/*.md, checked against the installed module.
 
-A block is compiled, then run in a temporary folder, unless it needs what CI does not have
+A block is compiled, then run in a temporary folder (where `model/` is the repository's,
+so that examples may name the shipped checkpoint as from the repository root), unless it needs what CI does not have
 (a Ray cluster): then it is only compiled and its skip says why. The TOML and shell blocks
 are checked by the Rust test `src/doc_examples.rs`.
 """
@@ -41,6 +42,9 @@ def test_python_example_runs(code, tmp_path):
     for marker, why in NOT_RUN.items():
         if marker in code:
             pytest.skip(f"compiled, not run: {why}")
+    # As from the repository root (the examples name the shipped checkpoint,
+    # model/checkpoints/demo), but writing into a temporary folder.
+    (tmp_path / "model").symlink_to(ROOT / "model")
     cwd = os.getcwd()
     os.chdir(tmp_path)
     try:

@@ -24,6 +24,7 @@ use tomograf_model::metrics::mean_std;
 use tomograf_model::pca::PcaMap;
 use tomograf_model::scatter_correction::ScatterCorrection;
 use tomograf_model::{backend, checkpoint, data};
+use tomograf_scene::Progress;
 use tomograf_sim::{Pose, Volume};
 
 /// The PCA-MAP prior's default projection noise (fraction of the largest line integral).
@@ -120,8 +121,8 @@ pub struct Evaluation<'a> {
     /// Without a checkpoint: the training set whose mean volume the `prior` scatter
     /// correction starts from (`None`: `train_data`'s).
     pub scatter_prior_data: Option<&'a Path>,
-    /// Show inference progress bars.
-    pub show: bool,
+    /// Where inference progress and notes go ([`tomograf_scene::Silent`]: nowhere).
+    pub progress: &'a dyn Progress,
 }
 
 /// Scores this shard's items not yet scored under `e.output/items/`; returns how many it
@@ -179,7 +180,8 @@ pub fn evaluate(e: &Evaluation) -> Result<usize> {
                 Some((_, _, _, proj_scale)) => *proj_scale,
                 None => tomograf_model::train::projection_scale(&train)?,
             };
-            eprintln!("PCA prior from {} training volumes", cts.len());
+            e.progress
+                .note(&format!("PCA prior from {} training volumes", cts.len()));
             Some(PcaMap::from_volumes(&cts, e.pca_noise, scale)?)
         }
         None => None,
@@ -243,16 +245,14 @@ pub fn evaluate(e: &Evaluation) -> Result<usize> {
             let grid = item.ct.as_ref().context("item has no ground-truth CT")?;
             let mut volumes: Vec<Volume> = Vec::new();
             if let Some((ck, infer, _, _)) = &model {
-                if e.show {
-                    eprintln!(
-                        "item {} ({}/{}), {count} view(s)",
-                        item.id,
-                        n + 1,
-                        items.len()
-                    );
-                }
+                e.progress.note(&format!(
+                    "item {} ({}/{}), {count} view(s)",
+                    item.id,
+                    n + 1,
+                    items.len()
+                ));
                 let t0 = Instant::now();
-                let rec = run_one(ck, item, &poses, Some(infer), e.seed, &device, e.show)?;
+                let rec = run_one(ck, item, &poses, Some(infer), e.seed, &device, e.progress)?;
                 let seconds = t0.elapsed().as_secs_f64();
                 rows.push(Row {
                     item: item.id.clone(),
@@ -264,13 +264,11 @@ pub fn evaluate(e: &Evaluation) -> Result<usize> {
                 });
                 volumes.push(rec.volume);
                 if let Some(net) = rec.network {
-                    if e.show {
-                        eprintln!(
-                            "  projection PSNR (dB) of the network's volume {:.1?}, after \
-                             data consistency {:.1?}",
-                            net.psnr, rec.psnr
-                        );
-                    }
+                    e.progress.note(&format!(
+                        "  projection PSNR (dB) of the network's volume {:.1?}, after data \
+                         consistency {:.1?}",
+                        net.psnr, rec.psnr
+                    ));
                     rows.push(Row {
                         item: item.id.clone(),
                         views: count,
@@ -323,7 +321,14 @@ fn correct_views(item: &Item, e: &Evaluation, prior: Option<&MeanVolume>) -> Res
             }
         }
     }
-    correct_scatter(item, e.scatter_correction, prior, &poses, e.seed, e.show)
+    correct_scatter(
+        item,
+        e.scatter_correction,
+        prior,
+        &poses,
+        e.seed,
+        e.progress,
+    )
 }
 
 fn item_path(output: &Path, id: &str) -> PathBuf {

@@ -14,9 +14,12 @@
 //! The scores themselves (PSNR, SSIM, RMSE in HU, whole volume and body) are
 //! `tomograf_model::metrics::score`.
 
+pub mod classical;
+pub mod demo;
 pub mod evaluation;
 pub mod figures;
 pub mod protocol;
 pub mod study;
 pub mod tg195;
+pub mod tradeoff;
 pub mod training;

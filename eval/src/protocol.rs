@@ -3,14 +3,14 @@
 //! correction of its views, one reconstruction from a checkpoint, and writing it in HU.
 
 use anyhow::{Context, Result, bail};
-use indicatif::{ProgressBar, ProgressStyle};
 use std::path::Path;
 use tomograf_model::baseline::{Baseline, MeanVolume};
 use tomograf_model::checkpoint;
-use tomograf_model::config::InferConfig;
+use tomograf_model::config::{InferConfig, InferOverrides};
 use tomograf_model::data::Item;
 use tomograf_model::reconstruct::{Reconstruction, Reference, reconstruct};
 use tomograf_model::scatter_correction::{ScatterCorrection, correct_item};
+use tomograf_scene::Progress;
 use tomograf_sim::{Pose, Volume};
 
 /// The paper's view sets (Methods 1.7), starting from the AP view.
@@ -57,7 +57,7 @@ pub fn correct_scatter(
     prior: Option<&MeanVolume>,
     poses: &[Pose],
     seed: u64,
-    show: bool,
+    progress: &dyn Progress,
 ) -> Result<Option<Item>> {
     if correction == ScatterCorrection::None {
         return Ok(None);
@@ -88,18 +88,17 @@ pub fn correct_scatter(
         .collect::<Result<Vec<usize>>>()?;
     indices.sort_unstable();
     indices.dedup();
-    if show {
-        eprintln!(
-            "item {}: correcting {} view(s) for scatter ({correction} estimate)",
-            item.id,
-            indices.len()
-        );
-    }
+    progress.note(&format!(
+        "item {}: correcting {} view(s) for scatter ({correction} estimate)",
+        item.id,
+        indices.len()
+    ));
     let seed = tomograf_sim::seed::frame_seed(seed, 0x5CA7);
     Ok(Some(correct_item(item, &estimate, &indices, seed)?))
 }
 
-/// Loads a checkpoint's generator and reconstructs `item` from `poses`.
+/// Loads a checkpoint's generator and reconstructs `item` from `poses` (stage
+/// "iteration" of `progress`).
 pub fn run_one(
     ck: &Path,
     item: &Item,
@@ -107,7 +106,7 @@ pub fn run_one(
     infer: Option<&InferConfig>,
     seed: u64,
     device: &tomograf_model::Device,
-    show: bool,
+    progress: &dyn Progress,
 ) -> Result<Reconstruction> {
     let generator = checkpoint::load_generator(ck, device)?;
     let infer = infer.cloned().unwrap_or(generator.config.infer.clone());
@@ -127,29 +126,76 @@ pub fn run_one(
         Ok,
     )?;
     let refs = references(item, poses)?;
-    let bar = if show {
-        ProgressBar::new(infer.iterations as u64)
-    } else {
-        ProgressBar::hidden()
-    };
-    bar.set_style(
-        ProgressStyle::with_template(
-            "{spinner} it {pos}/{len} [{bar:30}] {elapsed} (eta {eta}) {msg}",
-        )
-        .expect("valid template")
-        .progress_chars("=> "),
-    );
+    progress.start("iteration", infer.iterations as u64, 0);
     let rec = reconstruct(generator, &refs, &grid, &infer, seed, device, |i, loss| {
-        bar.set_position(i as u64);
-        bar.set_message(format!("loss {loss:.4}"));
-    })?;
-    bar.finish_and_clear();
-    Ok(rec)
+        progress.set(i as u64);
+        progress.set_message(&format!("loss {loss:.4}"));
+    });
+    progress.finish();
+    Ok(rec?)
+}
+
+/// A reconstruction of one data-set item with a checkpoint (`tomograf reconstruct`,
+/// Python's `tomograf.reconstruct`).
+#[derive(Debug, Clone)]
+pub struct ItemReconstruction<'a> {
+    /// Item folder of a data set (views.json, projections.npy; ct.nii.gz gives the grid).
+    pub item: &'a Path,
+    /// Checkpoint folder written by `tomograf train`.
+    pub checkpoint: &'a Path,
+    /// The views to use, by pose (the item must hold each; [`paper_poses`] for the paper's).
+    pub poses: Vec<Pose>,
+    /// Overrides of the checkpoint's inference settings.
+    pub infer: InferOverrides,
+    /// Seed of the initial codes and ray jitter.
+    pub seed: u64,
+    /// Backend name (`None`: the default).
+    pub backend: Option<&'a str>,
+    /// Correct the views for scatter first (`prior`: from the checkpoint's mean training
+    /// volume).
+    pub scatter_correction: ScatterCorrection,
+}
+
+/// Reconstructs the item (stage "iteration" of `progress`); returns the item as read (its
+/// window converts the normalised volume to HU: [`hu`]) and the reconstruction.
+pub fn reconstruct_item(
+    r: &ItemReconstruction,
+    progress: &dyn Progress,
+) -> Result<(Item, Reconstruction)> {
+    let device = tomograf_model::backend::device(
+        r.backend.unwrap_or(tomograf_model::backend::default_name()),
+    )?;
+    let item = tomograf_model::data::load_item(r.item)?;
+    let generator = checkpoint::load_generator(r.checkpoint, &device)?;
+    let corrected = correct_scatter(
+        &item,
+        r.scatter_correction,
+        Some(&generator.prior),
+        &r.poses,
+        r.seed,
+        progress,
+    )?;
+    let item = corrected.unwrap_or(item);
+    let infer = generator.config.infer.overridden(&r.infer)?;
+    let rec = run_one(
+        r.checkpoint,
+        &item,
+        &r.poses,
+        Some(&infer),
+        r.seed,
+        &device,
+        progress,
+    )?;
+    Ok((item, rec))
+}
+
+/// A normalised volume of `item`'s data set in HU.
+pub fn hu(item: &Item, volume: &Volume) -> Result<Volume> {
+    Ok(item.window.denormalize(volume)?)
 }
 
 /// Writes a normalised volume as NIfTI in HU.
 pub fn write_hu(item: &Item, volume: &Volume, path: &Path) -> Result<()> {
-    let hu = item.window.denormalize(volume)?;
-    tomograf_datasets::nifti::write_nifti(path, &hu)?;
+    tomograf_datasets::nifti::write_nifti(path, &hu(item, volume)?)?;
     Ok(())
 }

@@ -4,12 +4,12 @@
 
 use crate::figures::{Axes, plot_deviations, plot_points};
 use anyhow::{Context, Result};
-use indicatif::{ProgressBar, ProgressStyle};
 use std::fmt::Write as _;
 use std::io::Write as _;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 use tomograf_datasets::atomic::write_atomic;
+use tomograf_scene::Progress;
 use tomograf_sim::validation::tg195::{self, Beam, Comparison};
 
 /// What to run and where (`tomograf validate tg195`'s flags).
@@ -38,23 +38,23 @@ type Job = (
 );
 
 /// Redraws the figures from `dir`'s tg195.csv without running anything.
-pub fn replot(dir: &Path) -> Result<()> {
+pub fn replot(dir: &Path, progress: &dyn Progress) -> Result<()> {
     let path = dir.join("tg195.csv");
     let text = std::fs::read_to_string(&path)
         .with_context(|| format!("--replot reads {}", path.display()))?;
     let rows = from_csv(&text).with_context(|| format!("reading {}", path.display()))?;
     figures(dir, &rows)?;
-    eprintln!(
+    progress.note(&format!(
         "redrew the figures of {} row(s) in {}",
         rows.len(),
         dir.display()
-    );
+    ));
     Ok(())
 }
 
 /// Runs the cases, compares them with the four codes, and writes the table, the CSV and
 /// the figures into `args.output` (prints the summary).
-pub fn validate(args: &Validation) -> Result<()> {
+pub fn validate(args: &Validation, progress: &dyn Progress) -> Result<()> {
     for c in &args.cases {
         anyhow::ensure!(
             ["1", "2", "4.2"].contains(&c.as_str()),
@@ -112,22 +112,18 @@ pub fn validate(args: &Validation) -> Result<()> {
     }
     std::fs::create_dir_all(&args.output)
         .with_context(|| format!("cannot create {}", args.output.display()))?;
-    let bar = ProgressBar::new(jobs.len() as u64).with_style(
-        ProgressStyle::with_template("{spinner} run {pos}/{len} [{bar:30}] {elapsed} {msg}")
-            .expect("valid template")
-            .progress_chars("=> "),
-    );
+    progress.start("run", jobs.len() as u64, 0);
     let start = Instant::now();
     let mut rows = Vec::new();
     let mut times = Vec::new();
     for (label, job) in &jobs {
-        bar.set_message(label.clone());
+        progress.set_message(label);
         let t = Instant::now();
         rows.extend(job().with_context(|| label.clone())?);
         times.push((label.clone(), t.elapsed().as_secs_f64()));
-        bar.inc(1);
+        progress.inc();
     }
-    bar.finish_and_clear();
+    progress.finish();
     let total = start.elapsed().as_secs_f64();
     let ran: Vec<String> = ["1", "2", "4.2"]
         .iter()
@@ -173,7 +169,7 @@ pub fn validate(args: &Validation) -> Result<()> {
     })?;
     figures(&args.output, &rows)?;
     print!("{}", summary(&rows));
-    eprintln!("{settings}; written to {}", args.output.display());
+    progress.note(&format!("{settings}; written to {}", args.output.display()));
     Ok(())
 }
 

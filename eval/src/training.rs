@@ -4,7 +4,6 @@
 //! killed anywhere resumes with `resume` (tests/soak.rs).
 
 use anyhow::{Context, Result, bail};
-use indicatif::{ProgressBar, ProgressStyle};
 use std::io::Write;
 use std::path::Path;
 use std::time::Instant;
@@ -12,6 +11,7 @@ use tomograf_model::baseline::MeanVolume;
 use tomograf_model::config::TrainConfig;
 use tomograf_model::train::{StepMetrics, Trainer, projection_scale};
 use tomograf_model::{backend, checkpoint, data};
+use tomograf_scene::Progress;
 
 const HEADER: &str = "iteration,seconds,loss_d,loss_g,loss_volume,loss_projection,loss_code,\
 hinge_v,hinge_p,recon_v,recon_p,l1_volume,l1_patch";
@@ -35,8 +35,9 @@ pub struct Training<'a> {
     pub backend: Option<&'a str>,
 }
 
-/// Trains (or resumes) a run, showing progress; checkpoints are written atomically.
-pub fn train(args: &Training) -> Result<()> {
+/// Trains (or resumes) a run (stage "iteration" of `progress`); checkpoints are written
+/// atomically.
+pub fn train(args: &Training, progress: &dyn Progress) -> Result<()> {
     let device = backend::device(args.backend.unwrap_or(backend::default_name()))?;
     let items = data::load_dataset(args.data, args.split)
         .with_context(|| format!("loading the data set {}", args.data.display()))?;
@@ -46,20 +47,22 @@ pub fn train(args: &Training) -> Result<()> {
     if args.output.is_dir() {
         let stale = tomograf_datasets::atomic::remove_stale_temporaries(args.output)?;
         if stale > 0 {
-            eprintln!("removed {stale} temporary file(s) a killed run left");
+            progress.note(&format!(
+                "removed {stale} temporary file(s) a killed run left"
+            ));
         }
     }
     let resumable = args.resume && checkpoint::recover(&ck)?;
     if args.resume && !resumable {
-        eprintln!(
+        progress.note(&format!(
             "no checkpoint in {} yet: starting afresh",
             args.output.display()
-        );
+        ));
     }
     let mut trainer = if resumable {
         let (t, state) = checkpoint::load_trainer(&ck, &device)
             .with_context(|| format!("resuming from {}", ck.display()))?;
-        eprintln!("resuming at iteration {}", state.iteration);
+        progress.note(&format!("resuming at iteration {}", state.iteration));
         t
     } else {
         if ck.exists() {
@@ -87,21 +90,18 @@ pub fn train(args: &Training) -> Result<()> {
     let csv_path = args.output.join("metrics.csv");
     let mut rows = keep_rows(&csv_path, trainer.iteration)?;
     let (g, d) = trainer.parameter_counts();
-    eprintln!(
+    progress.note(&format!(
         "{} item(s), config '{}', {} generator and {} discriminator parameters",
         items.len(),
         trainer.config.name,
         g,
         d
-    );
+    ));
     let total = trainer.config.iterations;
-    let bar = ProgressBar::new(total as u64).with_position(trainer.iteration.min(total) as u64);
-    bar.set_style(
-        ProgressStyle::with_template(
-            "{spinner} it {pos}/{len} [{bar:30}] {elapsed} (eta {eta}) {msg}",
-        )
-        .expect("valid template")
-        .progress_chars("=> "),
+    progress.start(
+        "iteration",
+        total as u64,
+        trainer.iteration.min(total) as u64,
     );
     while trainer.iteration < total {
         let t0 = Instant::now();
@@ -109,7 +109,7 @@ pub fn train(args: &Training) -> Result<()> {
         let secs = t0.elapsed().as_secs_f64();
         if m.iteration % trainer.config.log_every == 0 || m.iteration == total {
             rows.push(row(&m, secs));
-            bar.set_message(format!(
+            progress.set_message(&format!(
                 "G {:.4} L1(V) {:.4} L1(P) {:.4}",
                 m.loss_g, m.l1_volume, m.l1_patch
             ));
@@ -117,16 +117,16 @@ pub fn train(args: &Training) -> Result<()> {
         if m.iteration % trainer.config.checkpoint_every == 0 || m.iteration == total {
             save(&trainer, scale, &ck, &csv_path, &rows, args.output)?;
         }
-        bar.inc(1);
+        progress.inc();
     }
-    bar.finish_and_clear();
+    progress.finish();
     save(&trainer, scale, &ck, &csv_path, &rows, args.output)?;
-    eprintln!(
+    progress.note(&format!(
         "trained {} iterations: {}, {}",
         trainer.iteration,
         ck.display(),
         csv_path.display()
-    );
+    ));
     Ok(())
 }
 

@@ -18,6 +18,7 @@
 //! Units: mm, keV, HU.
 
 use crate::physics::item_seed;
+use crate::progress::Progress;
 use crate::volume::load_volume_file;
 use anyhow::{Context, Result, bail};
 use serde::Serialize;
@@ -232,6 +233,29 @@ impl DatasetJob {
         (0..self.sources.len())
             .filter(|i| i % shards == shard)
             .collect()
+    }
+
+    /// [`DatasetJob::run`] reporting to `progress` (stage "item", the item's index as the
+    /// message), ending with a note of what was made and where the manifest is.
+    pub fn make(&self, progress: &dyn Progress) -> Result<DatasetSummary> {
+        progress.start("item", self.mine().len() as u64, 0);
+        let summary = self.run(|index, _| {
+            progress.inc();
+            progress.set_message(&format!("{index:05}"));
+        });
+        progress.finish();
+        let summary = summary?;
+        let (shard, shards) = self.shard;
+        progress.note(&format!(
+            "{} item(s) made, {} already finished (shard {shard}/{shards}); manifest lists {} \
+             of {} item(s): {}",
+            summary.made,
+            summary.skipped,
+            summary.listed,
+            self.sources.len(),
+            self.output.join("manifest.jsonl").display()
+        ));
+        Ok(summary)
     }
 
     /// Makes this shard's unfinished items (resumable: finished ones are skipped), then

@@ -7,18 +7,25 @@
 //! reference of every key; units are mm, keV, mm⁻¹ and HU throughout.
 //!
 //! Data flows one way: scene → volume and views ([`volume`], [`job`]) → the physics the
-//! scene asks for ([`physics`]) → [`prepare::SceneRenderer`] → images. [`dataset`] makes
+//! scene asks for ([`physics`]) → [`prepare::SceneRenderer`] → images, written by [`project()`] ([`outputs`]). [`dataset`] makes
 //! the model's training and test items (CT, projections, geometry) the same way.
 
 pub mod dataset;
 pub mod dose;
 pub mod job;
+pub mod outputs;
 pub mod overrides;
+pub mod phantom;
 pub mod physics;
 pub mod prepare;
+pub mod progress;
+pub mod project;
+pub mod projections;
 pub mod scatter;
 pub mod scene;
 pub mod volume;
 
 pub use prepare::{Frame, Prepared, SceneRenderer, prepare};
+pub use progress::{Progress, Silent};
+pub use project::project;
 pub use scene::Scene;

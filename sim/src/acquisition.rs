@@ -302,11 +302,7 @@ impl Acquisition {
             }
         }
         let mut absorption = match &self.detector.scintillator {
-            Some(s) => {
-                let m = material::by_name(&s.material)?;
-                let mu: Vec<f64> = table(&m)?.iter().map(|a| a * m.density() / 10.0).collect();
-                s.absorption(&mu)?
-            }
+            Some(s) => s.absorption_at(&energies)?,
             None => vec![1.0; energies.len()],
         };
         let e_top = energies.iter().copied().fold(1.0, f64::max);
@@ -328,19 +324,10 @@ impl Acquisition {
             let grid: Vec<f64> = (0..=e_max.ceil() as usize)
                 .map(|k| k as f64 + 1.0)
                 .collect();
-            let grid_table = |m: &Material| {
-                grid.iter()
-                    .map(|&e| m.mass_attenuation(e.min(500.0)))
-                    .collect::<Result<Vec<f64>>>()
-            };
             let absorption = match &self.detector.scintillator {
                 Some(s) => {
-                    let m = material::by_name(&s.material)?;
-                    let mu: Vec<f64> = grid_table(&m)?
-                        .iter()
-                        .map(|a| a * m.density() / 10.0)
-                        .collect();
-                    s.absorption(&mu)?
+                    let clamped: Vec<f64> = grid.iter().map(|&e| e.min(500.0)).collect();
+                    s.absorption_at(&clamped)?
                 }
                 None => vec![1.0; grid.len()],
             };

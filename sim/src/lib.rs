@@ -36,5 +36,5 @@ pub mod volume;
 pub use error::{Result, SimError};
 pub use geometry::{Beam, Detector, Geometry, Pose, View, ViewBeam};
 pub use ray::{GridRay, Ray};
-pub use render::{Projection, Projector, Quantity, Renderer};
+pub use render::{LineIntegrals, MassThicknesses, Projection, Projector, Quantity, Renderer};
 pub use volume::Volume;

@@ -1,28 +1,20 @@
 //! `tomograf project` (render views of a volume), with the commands that share its
 //! volume handling: `tomograf phantom` and `tomograf scan`. The scene, its volume, views
-//! and physics are `tomograf_scene`'s; this module merges the flags into a scene, shows
-//! progress and writes the files.
+//! and physics are `tomograf_scene`'s; this module merges the flags into a scene and
+//! hands it to [`tomograf_scene::project()`], which renders and writes the files.
 //!
 //! * [`phantom`] — the `phantom` and `scan` commands.
 
 mod phantom;
 
 pub use phantom::{PhantomArgs, ScanArgs, scan, write_phantom};
-pub use tomograf_scene::job::resolve;
-pub use tomograf_scene::volume::{load_hu, load_mu};
 
-use crate::output;
-use crate::output::{Format, Outputs};
 use crate::physics::PhysicsArgs;
-use crate::scatter_images::ScatterWriters;
+use crate::progress::Bar;
 use anyhow::{Result, bail};
 use clap::Args;
-use indicatif::{ProgressBar, ProgressStyle};
 use std::path::PathBuf;
-use std::time::Instant;
-use tomograf_datasets::sidecar::{self, PixelQuantity};
 use tomograf_scene::scene::Scene;
-use tomograf_sim::Projection;
 
 #[derive(Debug, Args)]
 pub struct ProjectArgs {
@@ -204,103 +196,7 @@ pub(crate) fn merge(args: &ProjectArgs) -> Result<Scene> {
 
 pub fn run(args: ProjectArgs) -> Result<()> {
     let scene = merge(&args)?;
-    let outputs = Outputs::from_scene(&scene)?;
-    let prepared = tomograf_scene::prepare(&scene)?;
-    for w in &prepared.warnings {
-        eprintln!("{w}");
-    }
-    let renderer = prepared.renderer()?;
-    let (job, acquisition) = (&prepared.job, &prepared.acquisition);
-    outputs.prepare()?;
-    let mut separate = ScatterWriters::new(
-        &outputs,
-        scene.scatter.as_ref().map_or(&[][..], |s| &s.images[..]),
-    );
-
-    let bar = ProgressBar::new(job.views.len() as u64).with_style(
-        ProgressStyle::with_template(
-            "{spinner} rendering view {pos}/{len} [{bar:30}] {elapsed} (eta {eta})",
-        )
-        .expect("valid template")
-        .progress_chars("=> "),
-    );
-    if job.views.len() < 2 {
-        bar.set_draw_target(indicatif::ProgressDrawTarget::hidden());
-    }
-    let mut render_time = std::time::Duration::ZERO;
-    let mut clipping = tomograf_sim::detector::Clipping::default();
-    let mut channels: Vec<Vec<Projection>> = Vec::new();
-    let mut channel_outputs: Vec<Outputs> = Vec::new();
-    for (i, view) in job.views.iter().enumerate() {
-        let t = Instant::now();
-        let tomograf_scene::Frame { images, parts } = renderer.render(i, view)?;
-        render_time += t.elapsed();
-        if let Some(parts) = &parts {
-            separate.write_view(i, parts)?;
-            clipping.add(
-                parts.clipped,
-                parts.saturated,
-                images.iter().map(|p| p.data.len()).sum(),
-            );
-        }
-        if channel_outputs.is_empty() {
-            channel_outputs = (0..images.len())
-                .map(|c| outputs.for_channel(c, images.len()))
-                .collect();
-            channels = vec![Vec::with_capacity(job.views.len()); images.len()];
-        }
-        for ((img, out), stack) in images.into_iter().zip(&channel_outputs).zip(&mut channels) {
-            out.write_view(i, &img)?;
-            stack.push(img);
-        }
-        bar.inc(1);
-    }
-    bar.finish_and_clear();
-    let mut sidecar = output::sidecar(&prepared.source, job);
-    if let Some((acq, seed)) = acquisition {
-        sidecar.quantity = PixelQuantity::Described("detector signal (see acquisition)".into());
-        sidecar.acquisition = Some(sidecar::acquisition_record(acq, *seed)?);
-        sidecar.clipped_pixels = Some(clipping.clipped as u64);
-        sidecar.saturated_pixels = Some(clipping.saturated as u64);
-        if let Some(w) = clipping.warning(acq.spectrum.mas, "[spectrum] mas or --mas") {
-            eprintln!("{w}");
-        }
-    }
-    let mut files = 0;
-    for (c, (out, images)) in channel_outputs.iter().zip(&channels).enumerate() {
-        let mut sc = sidecar.clone();
-        if channel_outputs.len() > 1 {
-            sc.channel = Some(c);
-        }
-        files += out.finish(images, sc)?;
-    }
-    if !separate.is_empty() {
-        files += separate.finish(&sidecar)?;
-    }
-    if let Some(d) = &scene.dose {
-        files += crate::dose::write(
-            d,
-            acquisition.as_ref(),
-            &prepared.volume,
-            &job.views,
-            &outputs,
-        )?;
-    }
-    eprintln!(
-        "rendered {} view(s) of {}×{} in {:.1} ms ({:.1} ms per view; loading {:.0} ms); wrote {} file(s) to {}",
-        job.views.len(),
-        job.views.first().map_or(0, |v| v.rows),
-        job.views.first().map_or(0, |v| v.cols),
-        render_time.as_secs_f64() * 1e3,
-        render_time.as_secs_f64() * 1e3 / job.views.len().max(1) as f64,
-        prepared.load_seconds * 1e3,
-        files,
-        outputs.dir.display()
-    );
+    let summary = tomograf_scene::project(&scene, &Bar::default())?;
+    eprintln!("{summary}");
     Ok(())
-}
-
-/// Formats named on the command line.
-pub fn parse_formats(names: &[String]) -> Result<Vec<Format>> {
-    names.iter().map(|n| Format::parse(n)).collect()
 }

@@ -1,12 +1,13 @@
-//! `tomograf phantom` (write the built-in or a procedural phantom) and `tomograf scan`.
+//! `tomograf phantom` (write the built-in or a procedural phantom:
+//! [`tomograf_scene::phantom`]) and `tomograf scan`.
 
 use super::{grid_dims, parse3};
-use tomograf_scene::volume::{PHANTOM_DIMS, PHANTOM_SPACING, phantom_volume};
-
-use anyhow::{Context, Result, bail};
+use crate::progress::Bar;
+use anyhow::Result;
 use clap::Args;
 use std::path::PathBuf;
-use tomograf_datasets::anatomy::{self, AnatomySpec, Profile};
+use tomograf_datasets::anatomy::Profile;
+use tomograf_scene::phantom::{self, PhantomFile};
 
 #[derive(Debug, Args)]
 pub struct PhantomArgs {
@@ -43,66 +44,18 @@ pub struct PhantomArgs {
 }
 
 pub fn write_phantom(args: PhantomArgs) -> Result<()> {
-    let dims = args
-        .dims
-        .map(grid_dims)
-        .transpose()?
-        .unwrap_or(PHANTOM_DIMS);
-    let spacing = args.spacing.unwrap_or(PHANTOM_SPACING);
-    let mut devices = Vec::new();
-    let vol = match &args.profile {
-        Some(profile) => {
-            let mut spec = AnatomySpec::new(args.seed, Profile::parse(profile)?, dims, spacing);
-            spec.table = args.table;
-            spec.pacemaker = args.pacemaker;
-            match &args.mesh_devices {
-                None => anatomy::generate(&spec)?,
-                Some(_) if !(args.table || args.pacemaker) => {
-                    bail!("--mesh-devices needs --pacemaker or --table (the devices it writes)")
-                }
-                Some(_) => {
-                    let (vol, meshes) = anatomy::generate_with_device_meshes(&spec)?;
-                    devices = meshes;
-                    vol
-                }
-            }
-        }
-        None => {
-            if args.table || args.pacemaker || args.mesh_devices.is_some() {
-                bail!(
-                    "--table, --pacemaker and --mesh-devices need a procedural patient: give --profile lidc or full-chest"
-                );
-            }
-            phantom_volume(dims, spacing)?
-        }
+    let p = PhantomFile {
+        output: args.output,
+        dicom: args.dicom,
+        profile: args.profile.as_deref().map(Profile::parse).transpose()?,
+        seed: args.seed,
+        table: args.table,
+        pacemaker: args.pacemaker,
+        mesh_devices: args.mesh_devices,
+        dims: args.dims.map(grid_dims).transpose()?,
+        spacing: args.spacing,
     };
-    if args.dicom {
-        // A fixed UID under the "2.25" (UUID-derived) root: the phantom is the same every time.
-        tomograf_datasets::dicom::write_dicom_series(
-            &args.output,
-            &vol,
-            "2.25.3141592653589793238462643383279",
-        )?;
-    } else {
-        tomograf_datasets::nifti::write_nifti(&args.output, &vol)
-            .with_context(|| format!("writing {}", args.output.display()))?;
-    }
-    eprintln!(
-        "wrote {} ({}×{}×{} voxels, HU)",
-        args.output.display(),
-        dims[0],
-        dims[1],
-        dims[2]
-    );
-    if let Some(dir) = &args.mesh_devices {
-        let scene = crate::phantom_devices::write(dir, &args.output, &devices)?;
-        eprintln!(
-            "wrote {} device mesh(es) and {}",
-            devices.len(),
-            scene.display()
-        );
-    }
-    Ok(())
+    phantom::write_phantom(&p, &Bar::default())
 }
 
 #[derive(Debug, Args)]

@@ -8,7 +8,7 @@ at the top in the beam's-eye view. Errors: ``ValueError`` for bad input,
 """
 
 from os import PathLike
-from typing import Any, List, Literal, Optional, Sequence, Tuple, Union
+from typing import Any, Callable, Dict, List, Literal, Optional, Sequence, Tuple, Union
 
 import numpy as np
 import numpy.typing as npt
@@ -284,6 +284,73 @@ def render_scene(scene: Union[str, "PathLike[str]", dict]) -> npt.NDArray[np.flo
     views axis. Output files are not written. UserWarning for geometry probably not meant
     and for starved or saturated pixels; ValueError for a bad scene, FileNotFoundError for
     a missing file."""
+
+def project_scene(
+    scene: Union[str, "PathLike[str]", dict],
+    progress: Optional[Callable[[str, int, int, str], object]] = None,
+) -> Dict[str, Any]:
+    """Renders every view of a scene and writes its files exactly as `tomograf project
+    --scene` does (the same library function): images in the ``[output]`` formats into its
+    ``dir`` (default ``out``, prefix ``drr``), the ``.npy`` stack, separate scatter images,
+    dose and the JSON sidecar. ``progress(stage, done, total, message)`` is called while it
+    runs (stage ``"view"``); an exception it raises is re-raised at the end. Warnings (geometry
+    probably not meant, clipped pixels) are raised as UserWarning; every line the command
+    line would print (dose totals too) is in the returned ``notes``. Returns
+    ``views``, ``rows``, ``cols``, ``render_seconds``, ``load_seconds``, ``files``,
+    ``dir`` and ``notes``."""
+
+def reconstruct(
+    item: Union[str, "PathLike[str]"],
+    checkpoint: Union[str, "PathLike[str]"],
+    *,
+    views: int = 1,
+    poses: Optional[Sequence[str]] = None,
+    iterations: Optional[int] = None,
+    psnr_threshold: Optional[float] = None,
+    refine: Optional[int] = None,
+    tune: Optional[Literal["codes-and-generator", "codes"]] = None,
+    seed: int = 0,
+    backend: Optional[str] = None,
+    scatter_correction: Literal["none", "prior", "oracle"] = "none",
+    progress: Optional[Callable[[str, int, int, str], object]] = None,
+) -> Dict[str, Any]:
+    """Reconstructs a CT from 1–10 projections of a data-set item (made by `tomograf
+    dataset` or make_item) with a checkpoint written by `tomograf train`, as `tomograf
+    reconstruct` does. ``views``: the paper's view sets (1 = AP, 2 = AP + lateral, 5 = every
+    72°, 10 = every 36°); ``poses`` (``["ap", "lateral"]``, ``["0", "45,10"]``: θ or θ,φ in
+    degrees) instead. The other keywords override the checkpoint's inference settings.
+    ``progress(stage, done, total, message)`` is called per iteration. Returns ``volume``
+    (a Volume in HU on the item's CT grid), ``iterations``, ``psnr_db`` (per input view)
+    and ``notes`` (the lines the command line prints)."""
+
+def evaluate(
+    data: Union[str, "PathLike[str]"],
+    output: Union[str, "PathLike[str]"],
+    *,
+    checkpoint: Optional[Union[str, "PathLike[str]"]] = None,
+    views: Sequence[int] = (1, 2, 5, 10),
+    train_data: Optional[Union[str, "PathLike[str]"]] = None,
+    split: Optional[str] = None,
+    items: Optional[int] = None,
+    classical: bool = True,
+    iterations: Optional[int] = None,
+    psnr_threshold: Optional[float] = None,
+    refine: Optional[int] = None,
+    tune: Optional[Literal["codes-and-generator", "codes"]] = None,
+    seed: int = 0,
+    backend: Optional[str] = None,
+    scatter_correction: Literal["none", "prior", "oracle"] = "none",
+    pca_noise: float = ...,
+    progress: Optional[Callable[[str, int, int, str], object]] = None,
+) -> Dict[str, Any]:
+    """Scores TomoGRAF (with ``checkpoint``) and the baselines — mean training volume,
+    PCA-MAP (with ``train_data``), FDK and SART-TV (``classical``) — on a test data set, per
+    item and view count, as `tomograf evaluate` does; files go to ``output`` and items
+    already scored there are skipped. Returns ``markdown`` (the results table), ``notes``
+    and ``rows``
+    (per item, view count and method: ``item``, ``views``, ``method``, ``psnr_db``,
+    ``ssim``, ``rmse_hu``, ``body_psnr_db``, ``body_ssim``, ``body_rmse_hu``,
+    ``iterations``, ``seconds``)."""
 
 def make_item(
     output: Union[str, "PathLike[str]"],

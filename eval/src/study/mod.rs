@@ -17,12 +17,12 @@ mod report;
 use crate::evaluation::{DEFAULT_PCA_NOISE, Evaluation, evaluate};
 use crate::training::{Training, train};
 use anyhow::{Context, Result, bail};
-use indicatif::{ProgressBar, ProgressStyle};
 use levels::DataSpec;
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 use tomograf_datasets::anatomy::Profile;
 use tomograf_scene::dataset::{DatasetJob, ItemSettings, ItemSource};
+use tomograf_scene::{Progress, Silent};
 
 /// Sizes of a study.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -178,14 +178,20 @@ impl Study {
     }
 
     /// Every data set of `splits`, or this shard's items of each.
-    pub fn data(&self, (i, n): (usize, usize), splits: &[&str]) -> Result<()> {
+    pub fn data(
+        &self,
+        (i, n): (usize, usize),
+        splits: &[&str],
+        progress: &dyn Progress,
+    ) -> Result<()> {
         for (split, specs) in [("train", &self.train), ("test", &self.test)] {
             if !splits.contains(&split) {
                 continue;
             }
             for spec in specs.iter().filter(|s| s.data_of.is_none()) {
-                eprintln!("data: {split} set '{}'", spec.name);
-                make(&self.dataset_job(split, spec, (i, n))?)
+                progress.note(&format!("data: {split} set '{}'", spec.name));
+                self.dataset_job(split, spec, (i, n))?
+                    .make(progress)
                     .with_context(|| format!("{split} set '{}'", spec.name))?;
             }
         }
@@ -194,42 +200,51 @@ impl Study {
 
     /// Makes sure a data set is complete (generating what a shard left out) and its
     /// manifest lists every item.
-    fn finish_data(&self, split: &str, spec: &DataSpec) -> Result<PathBuf> {
+    fn finish_data(
+        &self,
+        split: &str,
+        spec: &DataSpec,
+        progress: &dyn Progress,
+    ) -> Result<PathBuf> {
         let job = self.dataset_job(split, spec, (0, 1))?;
-        make(&job).with_context(|| format!("{split} set '{}'", spec.name))?;
+        job.make(progress)
+            .with_context(|| format!("{split} set '{}'", spec.name))?;
         Ok(job.output)
     }
 
     /// Trains every model not yet trained (this shard's: model k goes to shard k mod N).
-    pub fn train(&self, (i, n): (usize, usize)) -> Result<()> {
+    pub fn train(&self, (i, n): (usize, usize), progress: &dyn Progress) -> Result<()> {
         for (k, spec) in self.train.iter().enumerate() {
             if k % n != i {
                 continue;
             }
             let dir = self.model_dir(spec);
             if dir.join("done.json").exists() {
-                eprintln!("train: model '{}' already trained", spec.name);
+                progress.note(&format!("train: model '{}' already trained", spec.name));
                 continue;
             }
-            let data = self.finish_data("train", spec)?;
+            let data = self.finish_data("train", spec, progress)?;
             // `--resume` continues the checkpoint when there is one (putting back one whose
             // save was killed) and starts afresh otherwise.
             let resume = true;
-            eprintln!(
+            progress.note(&format!(
                 "train: model '{}' ({})",
                 spec.name,
                 if resume { "resuming" } else { "new" }
-            );
-            train(&Training {
-                data: &data,
-                output: &dir,
-                config: &self.settings.scale.config,
-                iterations: None,
-                seed: Some(self.settings.seed),
-                split: None,
-                resume,
-                backend: self.backend.as_deref(),
-            })
+            ));
+            train(
+                &Training {
+                    data: &data,
+                    output: &dir,
+                    config: &self.settings.scale.config,
+                    iterations: None,
+                    seed: Some(self.settings.seed),
+                    split: None,
+                    resume,
+                    backend: self.backend.as_deref(),
+                },
+                progress,
+            )
             .with_context(|| format!("training model '{}'", spec.name))?;
             tomograf_datasets::atomic::write_json(
                 &dir.join("done.json"),
@@ -241,7 +256,7 @@ impl Study {
 
     /// Scores every model and the classical baselines on every test set (this shard's
     /// items of each).
-    pub fn evaluate(&self, shard: (usize, usize)) -> Result<()> {
+    pub fn evaluate(&self, shard: (usize, usize), progress: &dyn Progress) -> Result<()> {
         for spec in &self.train {
             if !self.model_dir(spec).join("done.json").exists() {
                 bail!(
@@ -255,7 +270,7 @@ impl Study {
         // training set holds the same CTs).
         let prior_data = self.train.first().map(|m| self.data_dir("train", m));
         for test in &self.test {
-            let data = self.finish_data("test", test)?;
+            let data = self.finish_data("test", test, progress)?;
             let mut cells: Vec<(Option<PathBuf>, PathBuf, Option<PathBuf>)> =
                 vec![(None, self.eval_dir(test.name, None), None)];
             for m in &self.train {
@@ -266,7 +281,7 @@ impl Study {
                 ));
             }
             for (checkpoint, output, train_data) in &cells {
-                eprintln!("evaluate: {}", output.display());
+                progress.note(&format!("evaluate: {}", output.display()));
                 scored += evaluate(&Evaluation {
                     data: &data,
                     checkpoint: checkpoint.as_deref(),
@@ -283,11 +298,13 @@ impl Study {
                     classical: checkpoint.is_none(),
                     scatter_correction: test.correction,
                     scatter_prior_data: prior_data.as_deref(),
-                    show: false,
+                    progress: &Silent,
                 })?;
             }
         }
-        eprintln!("evaluate: {scored} item evaluation(s) run, the rest were already scored");
+        progress.note(&format!(
+            "evaluate: {scored} item evaluation(s) run, the rest were already scored"
+        ));
         Ok(())
     }
 }
@@ -299,25 +316,6 @@ impl Study {
     pub fn report(&self, partial: bool) -> Result<()> {
         report::write(self, partial)
     }
-}
-
-/// Makes a data-set job's missing items with a progress bar.
-fn make(job: &DatasetJob) -> Result<()> {
-    let bar = ProgressBar::new(job.mine().len() as u64).with_style(
-        ProgressStyle::with_template("{spinner} item {pos}/{len} [{bar:30}] {elapsed} (eta {eta})")
-            .expect("valid template")
-            .progress_chars("=> "),
-    );
-    let summary = job.run(|_, _| bar.inc(1))?;
-    bar.finish_and_clear();
-    eprintln!(
-        "{} item(s) made, {} already finished; manifest lists {} of {} item(s)",
-        summary.made,
-        summary.skipped,
-        summary.listed,
-        job.sources.len()
-    );
-    Ok(())
 }
 
 /// Whether `path` is inside the study folder `dir` (for relative links in the report).

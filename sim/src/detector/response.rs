@@ -153,6 +153,18 @@ impl Scintillator {
         Ok(())
     }
 
+    /// η(E) at `energies_kev` (keV), from the layer's material in the material library
+    /// ([`crate::material::by_name`]): its mass attenuation (cm²/g) times its density
+    /// (g/cm³) is μ in cm⁻¹, a tenth of that in mm⁻¹ ([`Scintillator::absorption`]).
+    pub fn absorption_at(&self, energies_kev: &[f64]) -> Result<Vec<f64>> {
+        let m = crate::material::by_name(&self.material)?;
+        let mu = energies_kev
+            .iter()
+            .map(|&e| Ok(m.mass_attenuation(e)? * m.density() / 10.0))
+            .collect::<Result<Vec<f64>>>()?;
+        self.absorption(&mu)
+    }
+
     /// η(E) for the layer's linear attenuation `mu_per_mm` (mm⁻¹, one per energy bin, as
     /// the materials data give it for this material and density).
     pub fn absorption(&self, mu_per_mm: &[f64]) -> Result<Vec<f64>> {

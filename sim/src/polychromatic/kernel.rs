@@ -13,6 +13,17 @@ pub(super) struct RowOut<'a> {
     pub(super) second: Vec<&'a mut [f64]>,
 }
 
+impl RowOut<'_> {
+    /// Pixel `c` sees the open field: each channel's unattenuated moments `open[ch]`
+    /// (mean, second) times the pixel's exposure factor `f`.
+    pub(super) fn set_open(&mut self, c: usize, open: &[(f64, f64)], f: f64) {
+        for (ch, &(m1, m2)) in open.iter().enumerate() {
+            self.mean[ch][c] = m1 * f;
+            self.second[ch][c] = m2 * f;
+        }
+    }
+}
+
 /// A row of pixels: for pixel `c`, the transmission per bin behind thicknesses
 /// `t[c·k..(c+1)·k]` (g/cm², k materials), each channel's two dot products with it, times
 /// `factors[c]`, into `out`; pixels with nothing in the way get the open field. One body
@@ -61,10 +72,7 @@ fn row_body<const FMA: bool, const AVX512: bool>(
         let t = &t[c * k..(c + 1) * k];
         if t.iter().all(|&x| x == 0.0) {
             // Nothing in the way (air): the open field.
-            for (ch, &(m1, m2)) in integrator.open.iter().enumerate() {
-                out.mean[ch][c] = m1 * f;
-                out.second[ch][c] = m2 * f;
-            }
+            out.set_open(c, &integrator.open, f);
             continue;
         }
         transmission_on::<FMA, AVX512>(mass_att, bins, t, att);

@@ -266,11 +266,8 @@ impl SpectralIntegrator {
     /// [`SpectralIntegrator::unattenuated`] times each pixel's exposure factor.
     pub fn open(&self, view: &View, mas: f64) -> Result<ExpectedImage> {
         self.image(view, mas, |_, factors, out| {
-            for (ch, &(m1, m2)) in self.open.iter().enumerate() {
-                for (c, &f) in factors.iter().enumerate() {
-                    out.mean[ch][c] = m1 * f;
-                    out.second[ch][c] = m2 * f;
-                }
+            for (c, &f) in factors.iter().enumerate() {
+                out.set_open(c, &self.open, f);
             }
         })
     }

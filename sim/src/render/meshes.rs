@@ -14,7 +14,7 @@
 //! difference is exact to rounding, ~1e-15 of the line integral; per-material sums are
 //! clamped at 0 against that rounding).
 
-use super::{Projector, Renderer};
+use super::{Projector, Renderer, Sums};
 use crate::accel::intervals::Interval;
 use crate::accel::{siddon_over, trilinear_in, trilinear_materials_in};
 use crate::mesh::object::{Scratch, subtract};
@@ -22,7 +22,7 @@ use crate::mesh::{MeshInterval, MeshScene};
 use crate::ray::GridRay;
 use crate::trace::{LineIntegral, MaterialPaths};
 
-impl Renderer<'_> {
+impl<S: Sums> Renderer<'_, S> {
     /// ∫mu ds of one pixel: its clipped ray `g` (already traced whole by the packets when
     /// `packet` holds the value; `inside`: the voxels inside the mesh intervals, when also
     /// traced by the packets) and its mesh intervals `iv`.

@@ -6,8 +6,10 @@
 
 mod image;
 mod meshes;
+mod sums;
 
 pub use image::Projection;
+pub use sums::{LineIntegrals, MassThicknesses, Sums};
 
 use crate::accel::{EmptySpace, SkipOptions};
 use crate::composition::Composition;
@@ -19,6 +21,7 @@ use crate::trace::{LineIntegral, MaterialPaths, packet, siddon, trilinear};
 use crate::volume::Volume;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
+use std::marker::PhantomData;
 use std::sync::Arc;
 
 /// Smallest trilinear step, voxels: 1000 samples per voxel (the Mitsuba cross-check
@@ -135,11 +138,14 @@ impl MassThickness {
     }
 }
 
-/// Renders line integrals of an attenuation volume (mm⁻¹), or per-material mass
-/// thicknesses of a [`Composition`].
+/// Renders line integrals of an attenuation volume (mm⁻¹; `Renderer<LineIntegrals>`, made
+/// by [`Renderer::new`]), or per-material mass thicknesses of a [`Composition`]
+/// (`Renderer<MassThicknesses>`, made by [`Renderer::for_composition`]): what is summed
+/// along a ray is the type parameter `S` ([`Sums`]), so each renderer offers only the
+/// images it can make.
 #[derive(Debug, Clone)]
-pub struct Renderer<'a> {
-    /// mu (mm⁻¹), or a packed composition when `materials > 0`.
+pub struct Renderer<'a, S: Sums = LineIntegrals> {
+    /// mu (mm⁻¹), or a packed composition ([`MassThicknesses`]).
     mu: &'a Volume,
     /// Number of materials of a composition; 0 for an attenuation volume.
     materials: usize,
@@ -158,9 +164,10 @@ pub struct Renderer<'a> {
     mesh_columns: Vec<(usize, f64)>,
     /// Over a composition: number of mesh material columns.
     mesh_materials: usize,
+    sums: PhantomData<S>,
 }
 
-impl<'a> Renderer<'a> {
+impl<'a> Renderer<'a, LineIntegrals> {
     /// A renderer over `mu` (linear attenuation, mm⁻¹, see [`crate::attenuation`]).
     pub fn new(mu: &'a Volume, projector: Projector) -> Result<Self> {
         let renderer = Self::build(mu, projector)?;
@@ -178,6 +185,88 @@ impl<'a> Renderer<'a> {
         Self::build_with(mu, projector, || mu.occupied())
     }
 
+    /// Turns empty-space skipping on (`Some`, building the brick map now) or off
+    /// (`None`). Results are unchanged: see [`crate::accel`] for how exact that is.
+    pub fn with_skipping(mut self, options: Option<SkipOptions>) -> Result<Self> {
+        self.skip = match options {
+            None => None,
+            Some(o) => Some(Arc::new(match self.projector {
+                Projector::Siddon => EmptySpace::for_siddon(self.mu, o)?,
+                Projector::Trilinear { .. } => EmptySpace::for_trilinear(self.mu, o)?,
+            })),
+        };
+        if self.projector == Projector::Siddon {
+            // Rays are clipped to the non-zero voxels' box and, with skipping, to the
+            // occupied bricks' box too: with a threshold above 0 that is where a real CT's
+            // noisy air stops counting.
+            let bricks = self.skip.as_deref().map(|s| s.map().occupied_box());
+            self.bounds = match (self.mu.occupied(), bricks) {
+                (b, None) => b,
+                (Some(v), Some(Some(b))) => v.intersect(&b),
+                _ => None,
+            };
+        }
+        Ok(self)
+    }
+
+    /// ∫mu ds along one ray (f64; 0 when the ray misses the volume).
+    pub fn line_integral(&self, ray: &Ray) -> f64 {
+        let g = self.clip(ray);
+        let mut iv = Vec::new();
+        if let Some(m) = self.meshes.as_deref() {
+            m.intervals(ray, &mut iv);
+        }
+        self.pixel(None, None, g.as_ref(), &iv)
+    }
+
+    /// Line-integral image of one view.
+    pub fn render(&self, view: &View) -> Result<Projection> {
+        let sums = self.trace(view)?;
+        Ok(Projection {
+            rows: view.rows,
+            cols: view.cols,
+            data: sums.into_iter().map(|v| v as f32).collect(),
+        })
+    }
+}
+
+impl<'a> Renderer<'a, MassThicknesses> {
+    /// A renderer of per-material mass thickness over `composition`
+    /// ([`Renderer::mass_thickness`]). Both projectors apply: exact Siddon over the
+    /// nearest-neighbour material grid, and trilinear marching of each material's partial
+    /// density field.
+    pub fn for_composition(composition: &'a Composition, projector: Projector) -> Result<Self> {
+        let mut r = Self::build_with(composition.packed(), projector, || composition.occupied())?;
+        r.materials = composition.materials().len();
+        Ok(r)
+    }
+
+    /// Per-material mass thickness image of one view (a renderer made with
+    /// [`Renderer::for_composition`]).
+    pub fn mass_thickness(&self, view: &View, materials: &[String]) -> Result<MassThickness> {
+        let k = self.materials + self.mesh_materials;
+        if materials.len() != k {
+            return Err(SimError::OutOfRange(format!(
+                "mass thickness needs a renderer over a composition of {} materials (voxel \
+                 materials, then mesh materials); this one has {} + {}",
+                materials.len(),
+                self.materials,
+                self.mesh_materials
+            )));
+        }
+        let mut data = self.trace(view)?;
+        // g/cm³ · mm → g/cm².
+        data.iter_mut().for_each(|v| *v *= 0.1);
+        Ok(MassThickness {
+            rows: view.rows,
+            cols: view.cols,
+            materials: materials.to_vec(),
+            data,
+        })
+    }
+}
+
+impl<'a, S: Sums> Renderer<'a, S> {
     /// As [`Renderer::build`], with the box of non-zero voxels from `occupied` (called only
     /// for Siddon).
     fn build_with(
@@ -202,6 +291,7 @@ impl<'a> Renderer<'a> {
         Ok(Self {
             mu,
             materials: 0,
+            sums: PhantomData,
             projector,
             packet_threshold: packet::default_threshold(),
             bounds,
@@ -222,7 +312,7 @@ impl<'a> Renderer<'a> {
     ///   [`Renderer::mass_thickness`] then takes the voxel material names followed by the
     ///   mesh material names.
     pub fn with_meshes(mut self, meshes: Arc<MeshScene>) -> Result<Self> {
-        if self.materials > 0 {
+        if S::PER_MATERIAL {
             let (names, index) = meshes.materials();
             self.mesh_columns = meshes
                 .objects
@@ -251,45 +341,6 @@ impl<'a> Renderer<'a> {
         Ok(self)
     }
 
-    /// Turns empty-space skipping on (`Some`, building the brick map now) or off
-    /// (`None`). Results are unchanged: see [`crate::accel`] for how exact that is.
-    pub fn with_skipping(mut self, options: Option<SkipOptions>) -> Result<Self> {
-        if self.materials > 0 && options.is_some() {
-            return Err(SimError::OutOfRange(
-                "empty-space skipping of a material composition is not supported yet".into(),
-            ));
-        }
-        self.skip = match options {
-            None => None,
-            Some(o) => Some(Arc::new(match self.projector {
-                Projector::Siddon => EmptySpace::for_siddon(self.mu, o)?,
-                Projector::Trilinear { .. } => EmptySpace::for_trilinear(self.mu, o)?,
-            })),
-        };
-        if self.projector == Projector::Siddon {
-            // Rays are clipped to the non-zero voxels' box and, with skipping, to the
-            // occupied bricks' box too: with a threshold above 0 that is where a real CT's
-            // noisy air stops counting.
-            let bricks = self.skip.as_deref().map(|s| s.map().occupied_box());
-            self.bounds = match (self.mu.occupied(), bricks) {
-                (b, None) => b,
-                (Some(v), Some(Some(b))) => v.intersect(&b),
-                _ => None,
-            };
-        }
-        Ok(self)
-    }
-
-    /// A renderer of per-material mass thickness over `composition`
-    /// ([`Renderer::mass_thickness`]). Both projectors apply: exact Siddon over the
-    /// nearest-neighbour material grid, and trilinear marching of each material's partial
-    /// density field.
-    pub fn for_composition(composition: &'a Composition, projector: Projector) -> Result<Self> {
-        let mut r = Self::build_with(composition.packed(), projector, || composition.occupied())?;
-        r.materials = composition.materials().len();
-        Ok(r)
-    }
-
     /// Sets the crossings per voxel layer from which exact Siddon traces a packet of rays
     /// with the SIMD tracer (default [`packet::default_threshold`]; `f64::INFINITY`
     /// never does). Results agree either way to ~1e-12 relative; this is for tuning.
@@ -301,16 +352,6 @@ impl<'a> Renderer<'a> {
     /// The projector in use.
     pub fn projector(&self) -> Projector {
         self.projector
-    }
-
-    /// ∫mu ds along one ray (f64; 0 when the ray misses the volume).
-    pub fn line_integral(&self, ray: &Ray) -> f64 {
-        let g = self.clip(ray);
-        let mut iv = Vec::new();
-        if let Some(m) = self.meshes.as_deref() {
-            m.intervals(ray, &mut iv);
-        }
-        self.pixel(None, None, g.as_ref(), &iv)
     }
 
     /// `ray` clipped to the part of the grid this projector integrates.
@@ -341,53 +382,12 @@ impl<'a> Renderer<'a> {
         }
     }
 
-    /// Line-integral image of one view.
-    pub fn render(&self, view: &View) -> Result<Projection> {
-        if self.materials > 0 {
-            return Err(SimError::OutOfRange(
-                "this renderer traces a material composition: ask it for mass_thickness, \
-                 not line integrals"
-                    .into(),
-            ));
-        }
-        let sums = self.trace(view)?;
-        Ok(Projection {
-            rows: view.rows,
-            cols: view.cols,
-            data: sums.into_iter().map(|v| v as f32).collect(),
-        })
-    }
-
-    /// Per-material mass thickness image of one view (a renderer made with
-    /// [`Renderer::for_composition`]).
-    pub fn mass_thickness(&self, view: &View, materials: &[String]) -> Result<MassThickness> {
-        let k = self.materials + self.mesh_materials;
-        if self.materials == 0 || materials.len() != k {
-            return Err(SimError::OutOfRange(format!(
-                "mass thickness needs a renderer over a composition of {} materials (voxel \
-                 materials, then mesh materials); this one has {} + {}",
-                materials.len(),
-                self.materials,
-                self.mesh_materials
-            )));
-        }
-        let mut data = self.trace(view)?;
-        // g/cm³ · mm → g/cm².
-        data.iter_mut().for_each(|v| *v *= 0.1);
-        Ok(MassThickness {
-            rows: view.rows,
-            cols: view.cols,
-            materials: materials.to_vec(),
-            data,
-        })
-    }
-
     /// The sums of every pixel (pixel-major): the line integral (one per pixel, over an
     /// attenuation volume) or Σρ·ℓ per material, voxel materials then mesh materials
     /// (g/cm³ · mm, over a composition).
     fn trace(&self, view: &View) -> Result<Vec<f64>> {
         view.validate()?;
-        let packed = self.materials > 0;
+        let packed = S::PER_MATERIAL;
         let k = self.materials.max(1);
         let stride = k + self.mesh_materials;
         let mut data = vec![0.0f64; view.rows * view.cols * stride];

@@ -1,17 +1,20 @@
-//! Output files of `tomograf project`: per-view EXR / TIFF / PNG, one NPY stack, and the
+//! Output files of a projection run ([`crate::project`], `tomograf project`): per-view EXR / TIFF / PNG, one NPY stack, and the
 //! JSON sidecar that records every view's geometry so any image can be reproduced.
 //!
 //! Every file is written to a temporary name and renamed into place, so an interrupted
 //! run never leaves a half-written file.
 
+pub mod dose;
+pub mod scatter;
+
+use crate::job::Job;
+use crate::scene::Scene;
+use crate::volume::VolumeSource;
 use anyhow::{Context, Result, bail};
 use serde::Serialize;
 use std::path::PathBuf;
 use tomograf_datasets::image;
 use tomograf_datasets::sidecar::{FilesRecord, Sidecar, ViewRecord};
-use tomograf_scene::job::Job;
-use tomograf_scene::scene::Scene;
-use tomograf_scene::volume::VolumeSource;
 use tomograf_sim::Projection;
 
 /// An output file format.
@@ -39,6 +42,7 @@ impl Format {
         }
     }
 
+    /// The format named `name` (case-insensitive; `tif` is `tiff`).
     pub fn parse(name: &str) -> Result<Self> {
         Ok(match name.trim().to_ascii_lowercase().as_str() {
             "exr" => Self::Exr,
@@ -50,6 +54,11 @@ impl Format {
     }
 }
 
+/// Formats by name (`exr`, `tiff`/`tif`, `npy`, `png`).
+pub fn parse_formats(names: &[String]) -> Result<Vec<Format>> {
+    names.iter().map(|n| Format::parse(n)).collect()
+}
+
 /// Where and how images are written.
 pub struct Outputs {
     pub dir: PathBuf,
@@ -59,13 +68,15 @@ pub struct Outputs {
 }
 
 impl Outputs {
+    /// The outputs the scene's `[output]` table asks for (default: exr, npy, png into
+    /// `out/` with prefix `drr`).
     pub fn from_scene(scene: &Scene) -> Result<Self> {
         let o = &scene.output;
         let names = o
             .formats
             .clone()
             .unwrap_or_else(|| vec!["exr".into(), "npy".into(), "png".into()]);
-        let mut formats = crate::project::parse_formats(&names)?;
+        let mut formats = parse_formats(&names)?;
         formats.dedup();
         if formats.is_empty() {
             bail!("no output format given");
@@ -87,6 +98,7 @@ impl Outputs {
         })
     }
 
+    /// Creates the output folder.
     pub fn prepare(&self) -> Result<()> {
         std::fs::create_dir_all(&self.dir)
             .with_context(|| format!("cannot create output folder {}", self.dir.display()))

@@ -1,5 +1,5 @@
 //! The separate primary / scatter images `tomograf project` writes beside its main output
-//! (the scene's `[scatter] images`, [`tomograf_scene::scatter`]).
+//! (the scene's `[scatter] images`, [`crate::scatter`]).
 //!
 //! `[scatter]` holds the simulator's [`ScatterModel`] (`model`, `photons`, `grid`, …) plus
 //! two keys of its own: `images` (which separate images to write) and the
@@ -11,10 +11,10 @@
 //! `{prefix}_{image}_NNN.<ext>`, `{prefix}_{image}.npy` and `{prefix}_{image}.json` (with
 //! `_ch{c}` after the image name for multi-channel detectors), in the main output's formats.
 
-use crate::output::Outputs;
+use super::Outputs;
+use crate::scatter::ScatterImage;
 use anyhow::Result;
 use tomograf_datasets::sidecar::{PixelQuantity, Sidecar};
-use tomograf_scene::scatter::ScatterImage;
 use tomograf_sim::Projection;
 use tomograf_sim::acquisition::{Acquired, add_into};
 use tomograf_sim::detector::ExpectedImage;

@@ -1,15 +1,16 @@
-//! The scene's `[dose]` table: the absorbed dose the acquisition delivers to the CT,
+//! The files of the scene's `[dose]` table ([`crate::dose`]): the absorbed dose the acquisition delivers to the CT,
 //! written beside the images as `{prefix}_dose.nii.gz` (Gy, the CT's grid, all views) and
 //! `{prefix}_dose.json` (per view: energy imparted and source photons; totals).
 //! The Monte Carlo is `tomograf_sim::scatter::dose` (docs/scatter.md, "Dose").
 
-use crate::output::Outputs;
+use super::Outputs;
+use crate::dose::DoseSection;
+use crate::progress::Progress;
 use anyhow::{Context, Result, bail};
 
 use std::io::Write as _;
 use tomograf_datasets::atomic::write_atomic;
 use tomograf_datasets::nifti::write_nifti;
-use tomograf_scene::dose::DoseSection;
 use tomograf_sim::acquisition::Acquisition;
 use tomograf_sim::geometry::View;
 use tomograf_sim::volume::Volume;
@@ -22,15 +23,16 @@ pub fn write(
     hu: &Volume,
     views: &[View],
     outputs: &Outputs,
+    progress: &dyn Progress,
 ) -> Result<usize> {
     let Some((acq, seed)) = acquisition else {
         bail!("[dose] needs real detector physics (an [acquisition] preset or a [spectrum])");
     };
     let photons = section.photons();
-    eprintln!(
+    progress.note(&format!(
         "dose: {photons} histories per view × {} view(s) …",
         views.len()
-    );
+    ));
     let dose = acq
         .dose(hu, views, photons, *seed)
         .context("[dose] Monte Carlo")?;
@@ -57,11 +59,11 @@ pub fn write(
     let path = outputs.dir.join(format!("{}_dose.json", outputs.prefix));
     let text = serde_json::to_string_pretty(&json)?;
     write_atomic(&path, |w| w.write_all(text.as_bytes()))?;
-    eprintln!(
+    progress.note(&format!(
         "dose: {:.3e} J imparted, max {:.3e} Gy → {}",
         dose.energy_joule,
         max,
         nii.display()
-    );
+    ));
     Ok(2)
 }
