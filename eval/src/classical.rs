@@ -78,12 +78,11 @@ pub struct Classical {
 /// Reconstructs and writes `c.output` (iterative methods: stage "iteration" of
 /// `progress`, the relative residual as its message).
 pub fn reconstruct_classical(c: &Classical, progress: &dyn Progress) -> Result<()> {
-    let args = c;
-    let input = read_projections(&args.input)?;
-    let pick: Vec<usize> = if args.views.is_empty() {
+    let input = read_projections(&c.input)?;
+    let pick: Vec<usize> = if c.views.is_empty() {
         (0..input.views.len()).collect()
     } else {
-        args.views.clone()
+        c.views.clone()
     };
     if let Some(&i) = pick.iter().find(|&&i| i >= input.views.len()) {
         bail!(
@@ -93,7 +92,7 @@ pub fn reconstruct_classical(c: &Classical, progress: &dyn Progress) -> Result<(
     }
     let images: Vec<Projection> = pick.iter().map(|&i| input.images[i].clone()).collect();
     let views: Vec<View> = pick.iter().map(|&i| input.views[i]).collect();
-    let template = match (&args.grid, input.grid) {
+    let template = match (&c.grid, input.grid) {
         (Grid::Like(p), _) => nifti::read_nifti(p)?.map(|_| 0.0)?,
         (&Grid::Centred { dims, spacing_mm }, _) => {
             let count = tomograf_sim::volume::checked_voxel_count(dims)
@@ -104,30 +103,30 @@ pub fn reconstruct_classical(c: &Classical, progress: &dyn Progress) -> Result<(
         (Grid::Recorded, Some(g)) => g,
         (Grid::Recorded, None) => bail!(
             "no output grid: {} records none; give --like ct.nii.gz or --dims",
-            args.input.display()
+            c.input.display()
         ),
     };
-    let volume = match args.method {
+    let volume = match c.method {
         Method::Fdk => {
             let (Some(g), Some(poses)) = (input.geometry, &input.poses) else {
                 bail!(
                     "FDK needs the set-up's geometry and every view's pose, which {} does not hold; use --method sart",
-                    args.input.display()
+                    c.input.display()
                 );
             };
             let poses: Vec<Pose> = pick.iter().map(|&i| poses[i]).collect();
-            recon::fdk(&images, &g, &poses, &args.fdk, &template)?
+            recon::fdk(&images, &g, &poses, &c.fdk, &template)?
         }
         m => {
             let opts = SartOptions {
-                iterations: args.iterations,
-                subsets: if m == Method::Sirt { 1 } else { args.subsets },
-                relaxation: args.relaxation,
+                iterations: c.iterations,
+                subsets: if m == Method::Sirt { 1 } else { c.subsets },
+                relaxation: c.relaxation,
                 nonnegative: true,
-                tolerance: args.tolerance,
-                tv: (m == Method::SartTv).then_some(args.tv),
+                tolerance: c.tolerance,
+                tv: (m == Method::SartTv).then_some(c.tv),
             };
-            progress.start("iteration", args.iterations as u64, 0);
+            progress.start("iteration", c.iterations as u64, 0);
             let rec = recon::sart_tv_with_progress(&images, &views, &opts, &template, |r| {
                 progress.set(r.iteration as u64);
                 progress.set_message(&format!("residual {:.4}", r.residual));
@@ -143,22 +142,22 @@ pub fn reconstruct_classical(c: &Classical, progress: &dyn Progress) -> Result<(
             rec.volume
         }
     };
-    let out = if args.mu {
+    let out = if c.mu {
         volume
     } else {
-        recon::mu_to_hu_at_kev(&volume, args.energy_kev)?
+        recon::mu_to_hu_at_kev(&volume, c.energy_kev)?
     };
-    if let Some(dir) = args.output.parent().filter(|d| !d.as_os_str().is_empty()) {
+    if let Some(dir) = c.output.parent().filter(|d| !d.as_os_str().is_empty()) {
         std::fs::create_dir_all(dir)
             .with_context(|| format!("cannot create the output folder {}", dir.display()))?;
     }
-    nifti::write_nifti(&args.output, &out)?;
+    nifti::write_nifti(&c.output, &out)?;
     progress.note(&format!(
         "wrote {} ({} from {} views, {})",
-        args.output.display(),
-        args.method.label(),
+        c.output.display(),
+        c.method.label(),
         views.len(),
-        if args.mu { "mm⁻¹" } else { "HU" }
+        if c.mu { "mm⁻¹" } else { "HU" }
     ));
     Ok(())
 }

@@ -34,11 +34,10 @@ pub struct Tradeoff {
 /// ladder, and writes `tradeoff.md`, `tradeoff.csv` and `tradeoff.png` into `t.report`
 /// (stage "setting" of `progress`); returns the markdown report.
 pub fn tradeoff(scene: &Scene, t: &Tradeoff, progress: &dyn Progress) -> Result<String> {
-    let args = t;
-    if !(args.budget.is_finite() && args.budget > 0.0) {
+    if !(t.budget.is_finite() && t.budget > 0.0) {
         bail!(
             "--budget {}: give a relative RMS error > 0 (e.g. 0.01 for 1 %)",
-            args.budget
+            t.budget
         );
     }
     if !scene.mesh.is_empty() {
@@ -46,10 +45,10 @@ pub fn tradeoff(scene: &Scene, t: &Tradeoff, progress: &dyn Progress) -> Result<
     }
     let acquisition = acquisition(scene)?;
     let options = Options {
-        steps: args.steps.clone(),
-        bins: args.bins.clone(),
-        scatter_fractions: args.scatter_fractions.clone(),
-        repeats: args.repeats.max(1),
+        steps: t.steps.clone(),
+        bins: t.bins.clone(),
+        scatter_fractions: t.scatter_fractions.clone(),
+        repeats: t.repeats.max(1),
     };
     let (vol, job) = match &acquisition {
         None => {
@@ -86,15 +85,15 @@ pub fn tradeoff(scene: &Scene, t: &Tradeoff, progress: &dyn Progress) -> Result<
     });
     progress.finish();
     let ladder = ladder?;
-    let combined = tradeoff::combine(&ladder, args.budget);
+    let combined = tradeoff::combine(&ladder, t.budget);
     let (img, seconds) = tradeoff::render(chain, view, &combined, options.repeats)?;
     let (rms, max) = tradeoff::errors(&img, &ladder.reference_image)?;
 
-    std::fs::create_dir_all(&args.report)
-        .with_context(|| format!("cannot create {}", args.report.display()))?;
+    std::fs::create_dir_all(&t.report)
+        .with_context(|| format!("cannot create {}", t.report.display()))?;
     let md = report(
         &ladder,
-        args,
+        t,
         view,
         &combined,
         seconds,
@@ -102,12 +101,12 @@ pub fn tradeoff(scene: &Scene, t: &Tradeoff, progress: &dyn Progress) -> Result<
         max,
         acquisition.is_some(),
     )?;
-    write(&args.report.join("tradeoff.md"), &md)?;
-    write(&args.report.join("tradeoff.csv"), &csv(&ladder))?;
-    plot(&ladder, args.budget, &args.report.join("tradeoff.png"))?;
+    write(&t.report.join("tradeoff.md"), &md)?;
+    write(&t.report.join("tradeoff.csv"), &csv(&ladder))?;
+    plot(&ladder, t.budget, &t.report.join("tradeoff.png"))?;
     progress.note(&format!(
         "wrote tradeoff.md, tradeoff.csv and tradeoff.png to {}",
-        args.report.display()
+        t.report.display()
     ));
     Ok(md)
 }
@@ -186,7 +185,7 @@ fn csv(ladder: &Ladder) -> String {
 #[allow(clippy::too_many_arguments)]
 fn report(
     ladder: &Ladder,
-    args: &Tradeoff,
+    t: &Tradeoff,
     view: &tomograf_sim::View,
     combined: &tradeoff::Setting,
     seconds: f64,
@@ -210,7 +209,7 @@ fn report(
         } else {
             "ideal DRR"
         },
-        args.repeats.max(1),
+        t.repeats.max(1),
         if ladder.rungs.iter().any(|r| r.knob == Knob::Scatter) {
             " Scatter adds the same image whatever the other settings, so the projector, \
              energy-bin and blur rows are measured without it, against the reference without \
@@ -236,7 +235,7 @@ fn report(
             r.max
         )?;
     }
-    let verdict = if rms <= args.budget {
+    let verdict = if rms <= t.budget {
         "within the budget"
     } else {
         "over the budget: the knobs' errors do not add independently here; use the reference's setting for the knob with the largest error above"
@@ -245,7 +244,7 @@ fn report(
         md,
         "\n**For an error budget of {} (rms):** {} — measured {:.1} ms ({:.2}× the \
          reference), rms {:.2e}, max {:.2e}: {verdict}.",
-        args.budget,
+        t.budget,
         tradeoff::describe(combined, physics),
         seconds * 1e3,
         ladder.reference.seconds / seconds,

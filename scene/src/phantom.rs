@@ -36,18 +36,17 @@ pub struct PhantomFile {
 
 /// Writes the phantom `p` asks for (and its device meshes, with `mesh_devices`).
 pub fn write_phantom(p: &PhantomFile, progress: &dyn Progress) -> Result<()> {
-    let args = p;
-    let dims = args.dims.unwrap_or(PHANTOM_DIMS);
-    let spacing = args.spacing.unwrap_or(PHANTOM_SPACING);
+    let dims = p.dims.unwrap_or(PHANTOM_DIMS);
+    let spacing = p.spacing.unwrap_or(PHANTOM_SPACING);
     let mut devices = Vec::new();
-    let vol = match args.profile {
+    let vol = match p.profile {
         Some(profile) => {
-            let mut spec = AnatomySpec::new(args.seed, profile, dims, spacing);
-            spec.table = args.table;
-            spec.pacemaker = args.pacemaker;
-            match &args.mesh_devices {
+            let mut spec = AnatomySpec::new(p.seed, profile, dims, spacing);
+            spec.table = p.table;
+            spec.pacemaker = p.pacemaker;
+            match &p.mesh_devices {
                 None => anatomy::generate(&spec)?,
-                Some(_) if !(args.table || args.pacemaker) => {
+                Some(_) if !(p.table || p.pacemaker) => {
                     bail!("--mesh-devices needs --pacemaker or --table (the devices it writes)")
                 }
                 Some(_) => {
@@ -58,7 +57,7 @@ pub fn write_phantom(p: &PhantomFile, progress: &dyn Progress) -> Result<()> {
             }
         }
         None => {
-            if args.table || args.pacemaker || args.mesh_devices.is_some() {
+            if p.table || p.pacemaker || p.mesh_devices.is_some() {
                 bail!(
                     "--table, --pacemaker and --mesh-devices need a procedural patient: give --profile lidc or full-chest"
                 );
@@ -66,26 +65,26 @@ pub fn write_phantom(p: &PhantomFile, progress: &dyn Progress) -> Result<()> {
             phantom_volume(dims, spacing)?
         }
     };
-    if args.dicom {
+    if p.dicom {
         // A fixed UID under the "2.25" (UUID-derived) root: the phantom is the same every time.
         tomograf_datasets::dicom::write_dicom_series(
-            &args.output,
+            &p.output,
             &vol,
             "2.25.3141592653589793238462643383279",
         )?;
     } else {
-        tomograf_datasets::nifti::write_nifti(&args.output, &vol)
-            .with_context(|| format!("writing {}", args.output.display()))?;
+        tomograf_datasets::nifti::write_nifti(&p.output, &vol)
+            .with_context(|| format!("writing {}", p.output.display()))?;
     }
     progress.note(&format!(
         "wrote {} ({}×{}×{} voxels, HU)",
-        args.output.display(),
+        p.output.display(),
         dims[0],
         dims[1],
         dims[2]
     ));
-    if let Some(dir) = &args.mesh_devices {
-        let scene = write_devices(dir, &args.output, &devices)?;
+    if let Some(dir) = &p.mesh_devices {
+        let scene = write_devices(dir, &p.output, &devices)?;
         progress.note(&format!(
             "wrote {} device mesh(es) and {}",
             devices.len(),
