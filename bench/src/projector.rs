@@ -96,7 +96,9 @@ pub fn header(args: &Options) -> Result<String> {
         md,
         "Measured by `tomograf bench{}` on {cpu}, {threads} threads, SIMD kernel {}; median of {} renders.\n\n\
          Exact Siddon clips each ray to the box of non-zero attenuation (air adds exactly nothing) and \
-         traces rows in packets of rays (`sim/src/trace/packet/`). The phantom's air is exactly 0; a real \
+         traces rows in packets of rays (`sim/src/trace/packet/`) or, where the widest SIMD kernel is AVX2, \
+         the rows of AP views as ray sheets (`sim/src/trace/sheet/`, docs/projector.md). \"Scalar tracer \
+         only\" is neither. The phantom's air is exactly 0; a real \
          CT's air is noise around −1000 HU, so nothing can be skipped there — the column \"air at 1e-6 mm⁻¹\" \
          measures that case. \"Voxel steps\" count every voxel of the whole grid a ray crosses (as a full \
          traversal would, and as plastimatch does); the rate divides them by the render time.\n",
@@ -165,7 +167,9 @@ pub fn page(args: &Options) -> Result<String> {
     )?;
     writeln!(md, "|---|---:|---:|---:|---:|---:|")?;
     let siddon = Renderer::new(&mu, Projector::Siddon)?;
-    let scalar = Renderer::new(&mu, Projector::Siddon)?.with_packet_threshold(f64::INFINITY);
+    let scalar = Renderer::new(&mu, Projector::Siddon)?
+        .with_packet_threshold(f64::INFINITY)
+        .with_sheets(false);
     // A real CT's air is noise around −1000 HU, not exact zeros: nothing can be skipped.
     let mu_noisy_air = mu.map(|v| v + 1e-6)?;
     let noisy_air = Renderer::new(&mu_noisy_air, Projector::Siddon)?;

@@ -1,0 +1,183 @@
+//! The sheet kernel on four lanes of f64 (AVX2 + FMA): the operations of
+//! `Kernel::piece`, in the same order, so the results are the same bits.
+//!
+//! A ray meets at most two voxels of a line per segment, and they are neighbours. Where the
+//! lines are contiguous in memory (the sheet fans out along the grid's fastest axis, as in
+//! AP views), each lane reads both with one 8-byte load at the lower of the two
+//! (`PAIRS`); otherwise it reads each voxel on its own.
+
+use super::{Kernel, Rays, Segment};
+use std::arch::x86_64::*;
+
+/// Whether this CPU has AVX2 and FMA (read once).
+pub fn available() -> bool {
+    static AVX2: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
+    *AVX2.get_or_init(|| {
+        std::is_x86_feature_detected!("avx2") && std::is_x86_feature_detected!("fma")
+    })
+}
+
+/// As `Kernel::integrate`, four rays at a time.
+///
+/// # Safety
+/// The CPU must have AVX2 and FMA, and `kernel.field` fewer than 2³¹ values.
+pub unsafe fn integrate(kernel: &Kernel, segments: &[Segment], rays: &Rays, acc: &mut [f64]) {
+    // Pairs need two voxels per line inside the box.
+    let pairs = kernel.stride == 1.0 && kernel.a_hi > kernel.a_lo;
+    let loads = crate::trace::packet::scalar_voxel_loads();
+    // SAFETY: the caller's guarantees.
+    unsafe {
+        match (pairs, loads) {
+            (true, true) => integrate_with::<true, true>(kernel, segments, rays, acc),
+            (true, false) => integrate_with::<true, false>(kernel, segments, rays, acc),
+            (false, true) => integrate_with::<false, true>(kernel, segments, rays, acc),
+            (false, false) => integrate_with::<false, false>(kernel, segments, rays, acc),
+        }
+    }
+}
+
+/// `integrate`, reading a lane's two voxels as one pair (`PAIRS`; lines contiguous and at
+/// least two voxels long in the box) or one by one, with scalar loads (`LOADS`) or gathers.
+#[target_feature(enable = "avx2,fma")]
+unsafe fn integrate_with<const PAIRS: bool, const LOADS: bool>(
+    kernel: &Kernel,
+    segments: &[Segment],
+    rays: &Rays,
+    acc: &mut [f64],
+) {
+    assert!(
+        rays.len().is_multiple_of(4) && acc.len() == rays.len(),
+        "rays and sums disagree"
+    );
+    let (a_lo, a_hi) = (_mm256_set1_pd(kernel.a_lo), _mm256_set1_pd(kernel.a_hi));
+    let pair_hi = _mm256_set1_pd(kernel.a_hi - 1.0);
+    let (stride, zero) = (_mm256_set1_pd(kernel.stride), _mm256_setzero_pd());
+    let field = kernel.field;
+    // The voxels the rays read lie on one line per segment, and consecutive segments' lines
+    // are a row or a slice apart: a stride the hardware prefetchers do not follow for
+    // these loads, so each segment fetches the line `AHEAD` segments on, one cache line at
+    // a time, over the box's extent along a.
+    const AHEAD: usize = 2;
+    let span = (kernel.a_lo * kernel.stride) as usize..=(kernel.a_hi * kernel.stride) as usize;
+    let step = if kernel.stride == 1.0 {
+        16
+    } else {
+        kernel.stride as usize
+    };
+    for (k, s) in segments.iter().enumerate() {
+        if let Some(ahead) = segments.get(k + AHEAD) {
+            let base = ahead.base as usize;
+            for i in span.clone().step_by(step) {
+                // SAFETY: a prefetch reads nothing; the address stays inside the field.
+                unsafe { _mm_prefetch::<_MM_HINT_T0>(field.as_ptr().add(base + i).cast()) };
+            }
+        }
+        let (b0, b1, base) = (
+            _mm256_set1_pd(s.b0),
+            _mm256_set1_pd(s.b1),
+            _mm256_set1_pd(s.base),
+        );
+        let db_whole = _mm256_set1_pd(s.b1 - s.b0);
+        for (g, sums) in acc.chunks_exact_mut(4).enumerate() {
+            let r = 4 * g;
+            // SAFETY: r + 4 ≤ rays.len(), the length of every array (asserted above);
+            // indices are clamped into the box, so below field.len() < 2³¹.
+            unsafe {
+                let ld = |v: &[f64]| _mm256_loadu_pd(v[r..r + 4].as_ptr());
+                // Inside every lane's range (most segments), the clipped ends are the
+                // segment's own: the same values, without the work.
+                let (lo, hi, db) = if s.b0 >= rays.group_lo[g] && s.b1 <= rays.group_hi[g] {
+                    (b0, b1, db_whole)
+                } else {
+                    let lo = _mm256_max_pd(b0, ld(&rays.b_lo));
+                    let hi = _mm256_min_pd(b1, ld(&rays.b_hi));
+                    (lo, hi, _mm256_max_pd(_mm256_sub_pd(hi, lo), zero))
+                };
+                let (a0, slope) = (ld(&rays.a0), ld(&rays.slope));
+                let x0 = _mm256_fmadd_pd(slope, lo, a0);
+                let x1 = _mm256_fmadd_pd(slope, hi, a0);
+                let (f0, f1) = (_mm256_floor_pd(x0), _mm256_floor_pd(x1));
+                let (mu0, mu1) = if PAIRS {
+                    // The pair starts at the lower voxel, kept one short of the box's end;
+                    // a lane's voxel is the pair's upper one where its floor is above the
+                    // pair's start (the clamped index would pick the same one).
+                    let first = _mm256_min_pd(_mm256_max_pd(_mm256_min_pd(f0, f1), a_lo), pair_hi);
+                    let (lower, upper) = pair::<LOADS>(field, _mm256_add_pd(first, base));
+                    let pick =
+                        |f| _mm256_blendv_pd(lower, upper, _mm256_cmp_pd::<_CMP_GT_OQ>(f, first));
+                    (pick(f0), pick(f1))
+                } else {
+                    let i0 = _mm256_min_pd(_mm256_max_pd(f0, a_lo), a_hi);
+                    let i1 = _mm256_min_pd(_mm256_max_pd(f1, a_lo), a_hi);
+                    (
+                        gather::<LOADS>(field, _mm256_fmadd_pd(i0, stride, base)),
+                        gather::<LOADS>(field, _mm256_fmadd_pd(i1, stride, base)),
+                    )
+                };
+                let w = _mm256_mul_pd(
+                    _mm256_sub_pd(_mm256_max_pd(f0, f1), x0),
+                    ld(&rays.inv_slope),
+                );
+                let w = _mm256_min_pd(_mm256_max_pd(w, zero), db);
+                let piece = _mm256_fmadd_pd(w, _mm256_sub_pd(mu0, mu1), _mm256_mul_pd(db, mu1));
+                let p = sums.as_mut_ptr();
+                _mm256_storeu_pd(p, _mm256_add_pd(_mm256_loadu_pd(p), piece));
+            }
+        }
+    }
+}
+
+/// The four voxels at `index` (whole numbers in f64, each < field.len()), as f64.
+#[inline]
+#[target_feature(enable = "avx2,fma")]
+unsafe fn gather<const LOADS: bool>(field: &[f32], index: __m256d) -> __m256d {
+    let index = _mm256_cvtpd_epi32(index);
+    // SAFETY: the caller's indices are in bounds and below 2³¹; 4 i32 into a local array
+    // of that size.
+    unsafe {
+        let g = if LOADS {
+            let mut idx = [0i32; 4];
+            _mm_storeu_si128(idx.as_mut_ptr().cast(), index);
+            let v = |l: usize| *field.get_unchecked(idx[l] as usize);
+            _mm_setr_ps(v(0), v(1), v(2), v(3))
+        } else {
+            _mm_i32gather_ps::<4>(field.as_ptr(), index)
+        };
+        _mm256_cvtps_pd(g)
+    }
+}
+
+/// The voxels at `index` and `index + 1` of each lane (whole numbers in f64, `index + 1 <
+/// field.len()`), as two vectors of f64.
+#[inline]
+#[target_feature(enable = "avx2,fma")]
+unsafe fn pair<const LOADS: bool>(field: &[f32], index: __m256d) -> (__m256d, __m256d) {
+    let index = _mm256_cvtpd_epi32(index);
+    // SAFETY: the caller's indices and their successors are in bounds and below 2³¹; 4 i32
+    // into a local array of that size.
+    let both = unsafe {
+        if LOADS {
+            let mut idx = [0i32; 4];
+            _mm_storeu_si128(idx.as_mut_ptr().cast(), index);
+            let v = |l: usize| {
+                field
+                    .as_ptr()
+                    .add(idx[l] as usize)
+                    .cast::<i64>()
+                    .read_unaligned()
+            };
+            _mm256_setr_epi64x(v(0), v(1), v(2), v(3))
+        } else {
+            _mm256_i32gather_epi64::<4>(field.as_ptr().cast(), index)
+        }
+    };
+    // [l0 u0 l1 u1 l2 u2 l3 u3] → [l0 l1 l2 l3 | u0 u1 u2 u3].
+    let split = _mm256_permutevar8x32_ps(
+        _mm256_castsi256_ps(both),
+        _mm256_setr_epi32(0, 2, 4, 6, 1, 3, 5, 7),
+    );
+    (
+        _mm256_cvtps_pd(_mm256_castps256_ps128(split)),
+        _mm256_cvtps_pd(_mm256_extractf128_ps::<1>(split)),
+    )
+}

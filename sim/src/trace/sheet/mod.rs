@@ -1,0 +1,355 @@
+//! Exact tracing of a *ray sheet*: rays that share one path in the plane of two grid axes
+//! and fan out along the third.
+//!
+//! The rays of one detector row of an AP or lateral view do: the source and the row's
+//! pixels lie in one plane that contains the row's direction, a grid axis `a`, so seen
+//! along `a` (in the plane of the other two axes `b` and `c`) every ray of the row follows
+//! the same line. That line crosses the `b` and `c` grid planes at the same places for all
+//! of them, so those crossings are found once per row (a 2-D Siddon walk, [`Sheet`]), and
+//! between two of them every ray stays in one line of voxels along `a` (contiguous in memory
+//! when `a` is the grid's fastest axis). What is left per ray and segment is where the ray
+//! is along `a` at the segment's two ends: one voxel, or two with the plane between them
+//! (a ray moves less than one voxel along `a` per segment, which the sheet requires).
+//!
+//! The integral is Siddon's, exact: the same voxels with the same lengths as
+//! [`crate::trace::siddon`], up to rounding (both match the brute-force reference to 1e-9
+//! relative, `sim/tests/sheet.rs`). Rows are parametrised by the grid coordinate `b` rather
+//! than by distance: ∫mu dt = (dt/db) · ∫mu db.
+//!
+//! One case no f64 tracer settles: a ray within ~1e-13 voxels of a plane of `a` at a slope
+//! of ~1e-15 (the rounding of a view's basis, e.g. the central column of an odd-width
+//! detector over a grid of even width, centred). Where it crosses that plane is then
+//! uncertain by a voxel, and the sheet and the per-ray tracers may split its length between
+//! the two voxels differently.
+//!
+//! A group of rays is a sheet when, for every ray, the line it follows in the `b`–`c`
+//! plane, `c = C + m_c·b`, is the group's within 1e-10 voxels over the box, and its slope
+//! along `a`, `|da/db|`, is below 1. The sheet uses its middle ray's line for all rays,
+//! so the tolerance bounds the error at 1e-10 voxels of plane position (≈ 1e-13 relative
+//! for a chest-sized path).
+
+#[cfg(target_arch = "x86_64")]
+mod avx2;
+
+use crate::ray::{GridBox, GridRay};
+
+/// Largest difference between a ray's line in the `b`–`c` plane and its sheet's, in voxels
+/// anywhere in the box, for the ray to belong to the sheet.
+const LINE_TOLERANCE: f64 = 1e-10;
+
+/// The line shared by a sheet's rays in the plane of axes `b` and `c`, and the segments
+/// into which the grid planes of `b` and `c` cut it.
+#[derive(Debug, Clone)]
+pub struct Sheet {
+    /// The axis the rays fan out along (the voxel lines' axis).
+    a: usize,
+    /// Segments: `[b_start, b_end]` in grid units of `b` and the linear index of the voxel
+    /// at `a = 0` of the line of voxels the segment runs through.
+    segments: Vec<Segment>,
+    /// Per ray: where it is along `a`, and its range along `b`.
+    rays: Vec<SheetRay>,
+    /// The rays' positions in the caller's list (those that hit the box).
+    slots: Vec<usize>,
+    /// Length of the caller's list.
+    len: usize,
+}
+
+#[derive(Debug, Clone, Copy)]
+struct Segment {
+    b0: f64,
+    b1: f64,
+    base: f64,
+}
+
+/// One ray of a sheet: `a = a0 + slope·b` for `b ∈ [b_lo, b_hi]`; `mm_per_b` converts
+/// the integral over `b` to one over distance (mm).
+#[derive(Debug, Clone, Copy)]
+struct SheetRay {
+    a0: f64,
+    slope: f64,
+    /// `1 / slope`, or 0 when the slope is 0 (no plane of `a` is ever crossed).
+    inv_slope: f64,
+    b_lo: f64,
+    b_hi: f64,
+    mm_per_b: f64,
+}
+
+impl Sheet {
+    /// The sheet of `rays` (already clipped to `bounds`, the box the renderer integrates
+    /// over; `None`: the ray misses) in a grid of `dims` voxels, if they form one: see the
+    /// module documentation. Rays that miss are left out (their integral is 0).
+    pub fn new(rays: &[Option<GridRay>], dims: [usize; 3], bounds: &GridBox) -> Option<Self> {
+        let hits: Vec<(usize, &GridRay)> = rays
+            .iter()
+            .enumerate()
+            .filter_map(|(n, r)| r.as_ref().map(|r| (n, r)))
+            .collect();
+        let (_, reference) = *hits.get(hits.len() / 2)?;
+        (0..3).find_map(|a| Self::along(a, reference, &hits, rays.len(), dims, bounds))
+    }
+
+    /// The sheet fanning out along axis `a`, if the rays form one.
+    fn along(
+        a: usize,
+        reference: &GridRay,
+        hits: &[(usize, &GridRay)],
+        hits_len: usize,
+        dims: [usize; 3],
+        bounds: &GridBox,
+    ) -> Option<Self> {
+        let (p, q) = ((a + 1) % 3, (a + 2) % 3);
+        // b: the axis of the plane along which the reference ray advances faster.
+        let (b, c) = if reference.gd[p].abs() >= reference.gd[q].abs() {
+            (p, q)
+        } else {
+            (q, p)
+        };
+        let line = |r: &GridRay| {
+            let m = r.gd[c] / r.gd[b];
+            (r.g0[c] - r.g0[b] * m, m)
+        };
+        if reference.gd[b] == 0.0 {
+            return None;
+        }
+        let (c0, mc) = line(reference);
+        let b_far = (bounds.lo[b] as f64).abs().max(bounds.hi[b] as f64);
+        let mut sheet_rays = Vec::with_capacity(hits.len());
+        let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+        for (_, r) in hits {
+            if r.gd[b] == 0.0 {
+                return None;
+            }
+            let (rc0, rmc) = line(r);
+            // Distance between the ray's line and the sheet's at the box's ends along b.
+            let off = (rc0 - c0).abs() + (rmc - mc).abs() * b_far;
+            let slope = r.gd[a] / r.gd[b];
+            if !(off <= LINE_TOLERANCE && slope.abs() < 1.0) {
+                return None;
+            }
+            let (e, x) = (r.g0[b] + r.t_enter * r.gd[b], r.g0[b] + r.t_exit * r.gd[b]);
+            let (b_lo, b_hi) = (e.min(x), e.max(x));
+            lo = lo.min(b_lo);
+            hi = hi.max(b_hi);
+            sheet_rays.push(SheetRay {
+                a0: r.g0[a] - r.g0[b] * slope,
+                slope,
+                inv_slope: if slope == 0.0 { 0.0 } else { 1.0 / slope },
+                b_lo,
+                b_hi,
+                mm_per_b: 1.0 / r.gd[b].abs(),
+            });
+        }
+        let strides = [1, dims[0], dims[0] * dims[1]];
+        let segments = walk(lo, hi, c0, mc, b, c, bounds, strides);
+        Some(Self {
+            a,
+            segments,
+            rays: sheet_rays,
+            slots: hits.iter().map(|(n, _)| *n).collect(),
+            len: hits_len,
+        })
+    }
+
+    /// Writes each ray's ∫mu ds (mu per mm, lengths in mm) into `out` (one value per ray
+    /// given to [`Sheet::new`]; 0 for rays that miss). `field` is indexed
+    /// `i + nx·(j + ny·k)` over `dims` voxels and `bounds` is the box the rays were clipped
+    /// to.
+    pub fn line_integrals(
+        &self,
+        field: &[f32],
+        dims: [usize; 3],
+        bounds: &GridBox,
+        out: &mut [f64],
+    ) {
+        self.line_integrals_with(true, field, dims, bounds, out);
+    }
+
+    /// As [`Sheet::line_integrals`], with the SIMD kernel where the CPU has one (`simd`) or
+    /// the portable one: the two give the same bits (`sim/tests/sheet.rs`).
+    pub fn line_integrals_with(
+        &self,
+        simd: bool,
+        field: &[f32],
+        dims: [usize; 3],
+        bounds: &GridBox,
+        out: &mut [f64],
+    ) {
+        assert_eq!(
+            field.len(),
+            dims.iter().product::<usize>(),
+            "field and dims disagree"
+        );
+        assert_eq!(out.len(), self.len, "one sum per ray given to Sheet::new");
+        let stride = [1, dims[0], dims[0] * dims[1]][self.a] as f64;
+        let (a_lo, a_hi) = (bounds.lo[self.a] as f64, (bounds.hi[self.a] - 1) as f64);
+        let ray = Rays::new(&self.rays);
+        let mut acc = vec![0.0f64; ray.len()];
+        let kernel = Kernel {
+            field,
+            stride,
+            a_lo,
+            a_hi,
+        };
+        #[cfg(target_arch = "x86_64")]
+        let done = simd && avx2::available() && field.len() < (1 << 31) && {
+            // SAFETY: AVX2 and FMA are present (checked just above).
+            unsafe { avx2::integrate(&kernel, &self.segments, &ray, &mut acc) };
+            true
+        };
+        #[cfg(not(target_arch = "x86_64"))]
+        let done = {
+            let _ = simd;
+            false
+        };
+        if !done {
+            kernel.integrate(&self.segments, &ray, &mut acc);
+        }
+        out.fill(0.0);
+        for (r, slot) in self.slots.iter().enumerate() {
+            out[*slot] = acc[r] * self.rays[r].mm_per_b;
+        }
+    }
+
+    /// Number of segments of the shared line (for tests and benchmarks).
+    pub fn segments(&self) -> usize {
+        self.segments.len()
+    }
+
+    /// The axis the rays fan out along (0, 1, 2 = i, j, k).
+    pub fn axis(&self) -> usize {
+        self.a
+    }
+}
+
+/// The segments of the line `c = c0 + mc·b` for `b ∈ [lo, hi]` between consecutive planes
+/// of `b` and `c`, each with the linear index of its voxel line's `a = 0` voxel.
+#[allow(clippy::too_many_arguments)] // the line, its two axes, the box and the strides
+fn walk(
+    lo: f64,
+    hi: f64,
+    c0: f64,
+    mc: f64,
+    b: usize,
+    c: usize,
+    bounds: &GridBox,
+    strides: [usize; 3],
+) -> Vec<Segment> {
+    let mut segments = Vec::with_capacity((hi - lo).max(0.0) as usize + 16);
+    let (jb_lo, jb_hi) = (bounds.lo[b] as f64, (bounds.hi[b] - 1) as f64);
+    let (jc_lo, jc_hi) = (bounds.lo[c] as f64, (bounds.hi[c] - 1) as f64);
+    let mut b0 = lo;
+    while b0 < hi {
+        // The next plane of b, and the next plane of c if the line crosses one first. A
+        // slab of b holds at most one plane of c (|mc| ≤ 1), and every step moves forward.
+        let mut b1 = (b0.floor() + 1.0).min(hi);
+        if mc != 0.0 {
+            let cb = c0 + mc * b0;
+            let plane = if mc > 0.0 {
+                cb.floor() + 1.0
+            } else {
+                cb.ceil() - 1.0
+            };
+            let bc = (plane - c0) / mc;
+            if bc > b0 && bc < b1 {
+                b1 = bc;
+            }
+        }
+        // The voxel from the segment's midpoint: half-open voxels [i, i+1), and a line
+        // lying in a plane of c belongs to the voxel above it, as in the other tracers.
+        let mid = 0.5 * (b0 + b1);
+        let jb = mid.floor().clamp(jb_lo, jb_hi) as usize;
+        let jc = (c0 + mc * mid).floor().clamp(jc_lo, jc_hi) as usize;
+        segments.push(Segment {
+            b0,
+            b1,
+            base: (jb * strides[b] + jc * strides[c]) as f64,
+        });
+        b0 = b1;
+    }
+    segments
+}
+
+/// The sheet's rays as arrays, padded to a multiple of [`Rays::PAD`] with rays that add
+/// nothing (an empty range below the grid, so that every value stays finite).
+struct Rays {
+    a0: Vec<f64>,
+    slope: Vec<f64>,
+    inv_slope: Vec<f64>,
+    b_lo: Vec<f64>,
+    b_hi: Vec<f64>,
+    /// Per group of four rays: the range along b where all four are inside.
+    group_lo: Vec<f64>,
+    group_hi: Vec<f64>,
+}
+
+impl Rays {
+    const PAD: usize = 8;
+
+    fn new(rays: &[SheetRay]) -> Self {
+        let n = rays.len().div_ceil(Self::PAD) * Self::PAD;
+        let column = |f: fn(&SheetRay) -> f64, pad: f64| -> Vec<f64> {
+            let mut v: Vec<f64> = rays.iter().map(f).collect();
+            v.resize(n, pad);
+            v
+        };
+        let (b_lo, b_hi) = (column(|r| r.b_lo, -1.0), column(|r| r.b_hi, -1.0));
+        let group = |v: &[f64], f: fn(f64, f64) -> f64| -> Vec<f64> {
+            v.chunks(4)
+                .map(|c| c.iter().copied().reduce(f).unwrap())
+                .collect()
+        };
+        Self {
+            a0: column(|r| r.a0, 0.0),
+            slope: column(|r| r.slope, 0.0),
+            inv_slope: column(|r| r.inv_slope, 0.0),
+            group_lo: group(&b_lo, f64::max),
+            group_hi: group(&b_hi, f64::min),
+            b_lo,
+            b_hi,
+        }
+    }
+
+    fn len(&self) -> usize {
+        self.a0.len()
+    }
+}
+
+/// What the per-segment arithmetic reads: the field, the voxel lines' stride, and the box's
+/// first and last voxel along `a`.
+struct Kernel<'a> {
+    field: &'a [f32],
+    stride: f64,
+    a_lo: f64,
+    a_hi: f64,
+}
+
+impl Kernel<'_> {
+    /// Σ over segments of ∫mu db for every ray (portable; the AVX2 kernel computes the
+    /// same operations, fused multiply-adds included, so gives the same bits).
+    fn integrate(&self, segments: &[Segment], rays: &Rays, acc: &mut [f64]) {
+        for s in segments {
+            for (r, sum) in acc.iter_mut().enumerate() {
+                *sum += self.piece(s, rays, r);
+            }
+        }
+    }
+
+    /// ∫mu db of ray `r` over segment `s`: the ray enters at `x0` and leaves at `x1` along
+    /// `a`; if those lie in different voxels, the plane between them (`max` of the two
+    /// floors) splits the segment, and `w` (in units of b) is the part before it.
+    #[inline(always)]
+    fn piece(&self, s: &Segment, rays: &Rays, r: usize) -> f64 {
+        let lo = s.b0.max(rays.b_lo[r]);
+        let hi = s.b1.min(rays.b_hi[r]);
+        let db = (hi - lo).max(0.0);
+        let x0 = rays.slope[r].mul_add(lo, rays.a0[r]);
+        let x1 = rays.slope[r].mul_add(hi, rays.a0[r]);
+        let (f0, f1) = (x0.floor(), x1.floor());
+        let i0 = f0.max(self.a_lo).min(self.a_hi);
+        let i1 = f1.max(self.a_lo).min(self.a_hi);
+        let mu0 = self.field[i0.mul_add(self.stride, s.base) as usize] as f64;
+        let mu1 = self.field[i1.mul_add(self.stride, s.base) as usize] as f64;
+        let w = ((f0.max(f1) - x0) * rays.inv_slope[r]).max(0.0).min(db);
+        w.mul_add(mu0 - mu1, db * mu1)
+    }
+}
