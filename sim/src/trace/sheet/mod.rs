@@ -46,8 +46,10 @@ pub struct Sheet {
     /// Segments: `[b_start, b_end]` in grid units of `b` and the linear index of the voxel
     /// at `a = 0` of the line of voxels the segment runs through.
     segments: Vec<Segment>,
-    /// Per ray: where it is along `a`, and its range along `b`.
-    rays: Vec<SheetRay>,
+    /// Per ray: where it is along `a`, and its range along `b` (as the kernels read them).
+    rays: Rays,
+    /// Per ray: mm of path per unit of `b`.
+    mm_per_b: Vec<f64>,
     /// The rays' positions in the caller's list (those that hit the box).
     slots: Vec<usize>,
     /// Length of the caller's list.
@@ -144,7 +146,8 @@ impl Sheet {
         Some(Self {
             a,
             segments,
-            rays: sheet_rays,
+            rays: Rays::new(&sheet_rays),
+            mm_per_b: sheet_rays.iter().map(|r| r.mm_per_b).collect(),
             slots: hits.iter().map(|(n, _)| *n).collect(),
             len: hits_len,
         })
@@ -182,7 +185,7 @@ impl Sheet {
         assert_eq!(out.len(), self.len, "one sum per ray given to Sheet::new");
         let stride = [1, dims[0], dims[0] * dims[1]][self.a] as f64;
         let (a_lo, a_hi) = (bounds.lo[self.a] as f64, (bounds.hi[self.a] - 1) as f64);
-        let ray = Rays::new(&self.rays);
+        let ray = &self.rays;
         let mut acc = vec![0.0f64; ray.len()];
         let kernel = Kernel {
             field,
@@ -193,7 +196,7 @@ impl Sheet {
         #[cfg(target_arch = "x86_64")]
         let done = simd && avx2::available() && field.len() < (1 << 31) && {
             // SAFETY: AVX2 and FMA are present (checked just above).
-            unsafe { avx2::integrate(&kernel, &self.segments, &ray, &mut acc) };
+            unsafe { avx2::integrate(&kernel, &self.segments, ray, &mut acc) };
             true
         };
         #[cfg(not(target_arch = "x86_64"))]
@@ -202,11 +205,11 @@ impl Sheet {
             false
         };
         if !done {
-            kernel.integrate(&self.segments, &ray, &mut acc);
+            kernel.integrate(&self.segments, ray, &mut acc);
         }
         out.fill(0.0);
         for (r, slot) in self.slots.iter().enumerate() {
-            out[*slot] = acc[r] * self.rays[r].mm_per_b;
+            out[*slot] = acc[r] * self.mm_per_b[r];
         }
     }
 
@@ -271,6 +274,7 @@ fn walk(
 
 /// The sheet's rays as arrays, padded to a multiple of [`Rays::PAD`] with rays that add
 /// nothing (an empty range below the grid, so that every value stays finite).
+#[derive(Debug, Clone)]
 struct Rays {
     a0: Vec<f64>,
     slope: Vec<f64>,
