@@ -36,8 +36,16 @@ pub unsafe fn integrate(kernel: &Kernel, segments: &[Segment], rays: &Rays, acc:
     }
 }
 
-/// `integrate`, reading a lane's two voxels as one pair (`PAIRS`; lines contiguous and at
-/// least two voxels long in the box) or one by one, with scalar loads (`LOADS`) or gathers.
+/// Segments handled together per group of rays: the group's rays stay in registers over
+/// the block, and inside the group's range each segment's exit is the next one's entry.
+const BLOCK: usize = 8;
+
+/// `integrate`, in blocks of [`BLOCK`] segments: per block and group of four rays, the
+/// rays and their sums are loaded once, and where the whole block lies inside every lane's
+/// range a segment's entry (`x0` and its floor) is the previous segment's exit, the same
+/// bits as computed anew (consecutive segments share their ends). A lane's two voxels are
+/// read as one pair (`PAIRS`; lines contiguous and at least two voxels long in the box) or
+/// one by one, with scalar loads (`LOADS`) or gathers.
 #[target_feature(enable = "avx2,fma")]
 unsafe fn integrate_with<const PAIRS: bool, const LOADS: bool>(
     kernel: &Kernel,
@@ -53,75 +61,87 @@ unsafe fn integrate_with<const PAIRS: bool, const LOADS: bool>(
     let pair_hi = _mm256_set1_pd(kernel.a_hi - 1.0);
     let (stride, zero) = (_mm256_set1_pd(kernel.stride), _mm256_setzero_pd());
     let field = kernel.field;
-    // The voxels the rays read lie on one line per segment, and consecutive segments' lines
-    // are a row or a slice apart: a stride the hardware prefetchers do not follow for
-    // these loads, so each segment fetches the line `AHEAD` segments on, one cache line at
-    // a time, over the box's extent along a.
-    const AHEAD: usize = 2;
     let span = (kernel.a_lo * kernel.stride) as usize..=(kernel.a_hi * kernel.stride) as usize;
     let step = if kernel.stride == 1.0 {
         16
     } else {
         kernel.stride as usize
     };
-    for (k, s) in segments.iter().enumerate() {
-        if let Some(ahead) = segments.get(k + AHEAD) {
-            let base = ahead.base as usize;
-            for i in span.clone().step_by(step) {
-                // SAFETY: a prefetch reads nothing; the address stays inside the field.
-                unsafe { _mm_prefetch::<_MM_HINT_T0>(field.as_ptr().add(base + i).cast()) };
-            }
-        }
-        let (b0, b1, base) = (
-            _mm256_set1_pd(s.b0),
-            _mm256_set1_pd(s.b1),
-            _mm256_set1_pd(s.base),
-        );
-        let db_whole = _mm256_set1_pd(s.b1 - s.b0);
+    let blocks: Vec<&[Segment]> = segments.chunks(BLOCK).collect();
+    let groups = acc.len() / 4;
+    let lines = span.clone().step_by(step).count();
+    for (n, block) in blocks.iter().enumerate() {
+        // The next block's voxel lines, one cache line at a time over the box's extent,
+        // spread over the groups so that few are in flight at once.
+        let next: &[Segment] = blocks.get(n + 1).copied().unwrap_or(&[]);
+        let total = next.len() * lines;
+        let per_group = total.div_ceil(groups.max(1));
+        let (mut row, mut line) = (0usize, 0usize);
+        let (first_b0, last_b1) = (block[0].b0, block[block.len() - 1].b1);
         for (g, sums) in acc.chunks_exact_mut(4).enumerate() {
+            for _ in 0..per_group {
+                if row < next.len() {
+                    let at = next[row].base as usize + *span.start() + line * step;
+                    // SAFETY: a prefetch reads nothing; the address stays inside the field.
+                    unsafe { _mm_prefetch::<_MM_HINT_T0>(field.as_ptr().add(at).cast()) };
+                    line += 1;
+                    if line == lines {
+                        (row, line) = (row + 1, 0);
+                    }
+                }
+            }
             let r = 4 * g;
             // SAFETY: r + 4 ≤ rays.len(), the length of every array (asserted above);
             // indices are clamped into the box, so below field.len() < 2³¹.
             unsafe {
                 let ld = |v: &[f64]| _mm256_loadu_pd(v[r..r + 4].as_ptr());
-                // Inside every lane's range (most segments), the clipped ends are the
-                // segment's own: the same values, without the work.
-                let (lo, hi, db) = if s.b0 >= rays.group_lo[g] && s.b1 <= rays.group_hi[g] {
-                    (b0, b1, db_whole)
-                } else {
-                    let lo = _mm256_max_pd(b0, ld(&rays.b_lo));
-                    let hi = _mm256_min_pd(b1, ld(&rays.b_hi));
-                    (lo, hi, _mm256_max_pd(_mm256_sub_pd(hi, lo), zero))
+                let (a0, slope, inv_slope) = (ld(&rays.a0), ld(&rays.slope), ld(&rays.inv_slope));
+                let mut sum = _mm256_loadu_pd(sums.as_ptr());
+                // ∫mu db over one segment, given the clipped ends and their positions.
+                let piece = |s: &Segment, x0: __m256d, f0: __m256d, f1: __m256d, db: __m256d| {
+                    let base = _mm256_set1_pd(s.base);
+                    let (mu0, mu1) = if PAIRS {
+                        let first =
+                            _mm256_min_pd(_mm256_max_pd(_mm256_min_pd(f0, f1), a_lo), pair_hi);
+                        let (lower, upper) = pair::<LOADS>(field, _mm256_add_pd(first, base));
+                        let pick = |f| {
+                            _mm256_blendv_pd(lower, upper, _mm256_cmp_pd::<_CMP_GT_OQ>(f, first))
+                        };
+                        (pick(f0), pick(f1))
+                    } else {
+                        let i0 = _mm256_min_pd(_mm256_max_pd(f0, a_lo), a_hi);
+                        let i1 = _mm256_min_pd(_mm256_max_pd(f1, a_lo), a_hi);
+                        (
+                            gather::<LOADS>(field, _mm256_fmadd_pd(i0, stride, base)),
+                            gather::<LOADS>(field, _mm256_fmadd_pd(i1, stride, base)),
+                        )
+                    };
+                    let w = _mm256_mul_pd(_mm256_sub_pd(_mm256_max_pd(f0, f1), x0), inv_slope);
+                    let w = _mm256_min_pd(_mm256_max_pd(w, zero), db);
+                    _mm256_fmadd_pd(w, _mm256_sub_pd(mu0, mu1), _mm256_mul_pd(db, mu1))
                 };
-                let (a0, slope) = (ld(&rays.a0), ld(&rays.slope));
-                let x0 = _mm256_fmadd_pd(slope, lo, a0);
-                let x1 = _mm256_fmadd_pd(slope, hi, a0);
-                let (f0, f1) = (_mm256_floor_pd(x0), _mm256_floor_pd(x1));
-                let (mu0, mu1) = if PAIRS {
-                    // The pair starts at the lower voxel, kept one short of the box's end;
-                    // a lane's voxel is the pair's upper one where its floor is above the
-                    // pair's start (the clamped index would pick the same one).
-                    let first = _mm256_min_pd(_mm256_max_pd(_mm256_min_pd(f0, f1), a_lo), pair_hi);
-                    let (lower, upper) = pair::<LOADS>(field, _mm256_add_pd(first, base));
-                    let pick =
-                        |f| _mm256_blendv_pd(lower, upper, _mm256_cmp_pd::<_CMP_GT_OQ>(f, first));
-                    (pick(f0), pick(f1))
+                if first_b0 >= rays.group_lo[g] && last_b1 <= rays.group_hi[g] {
+                    let mut x0 = _mm256_fmadd_pd(slope, _mm256_set1_pd(first_b0), a0);
+                    let mut f0 = _mm256_floor_pd(x0);
+                    for s in block.iter() {
+                        let x1 = _mm256_fmadd_pd(slope, _mm256_set1_pd(s.b1), a0);
+                        let f1 = _mm256_floor_pd(x1);
+                        sum = _mm256_add_pd(sum, piece(s, x0, f0, f1, _mm256_set1_pd(s.db)));
+                        (x0, f0) = (x1, f1);
+                    }
                 } else {
-                    let i0 = _mm256_min_pd(_mm256_max_pd(f0, a_lo), a_hi);
-                    let i1 = _mm256_min_pd(_mm256_max_pd(f1, a_lo), a_hi);
-                    (
-                        gather::<LOADS>(field, _mm256_fmadd_pd(i0, stride, base)),
-                        gather::<LOADS>(field, _mm256_fmadd_pd(i1, stride, base)),
-                    )
-                };
-                let w = _mm256_mul_pd(
-                    _mm256_sub_pd(_mm256_max_pd(f0, f1), x0),
-                    ld(&rays.inv_slope),
-                );
-                let w = _mm256_min_pd(_mm256_max_pd(w, zero), db);
-                let piece = _mm256_fmadd_pd(w, _mm256_sub_pd(mu0, mu1), _mm256_mul_pd(db, mu1));
-                let p = sums.as_mut_ptr();
-                _mm256_storeu_pd(p, _mm256_add_pd(_mm256_loadu_pd(p), piece));
+                    let (b_lo, b_hi) = (ld(&rays.b_lo), ld(&rays.b_hi));
+                    for s in block.iter() {
+                        let lo = _mm256_max_pd(_mm256_set1_pd(s.b0), b_lo);
+                        let hi = _mm256_min_pd(_mm256_set1_pd(s.b1), b_hi);
+                        let db = _mm256_max_pd(_mm256_sub_pd(hi, lo), zero);
+                        let x0 = _mm256_fmadd_pd(slope, lo, a0);
+                        let x1 = _mm256_fmadd_pd(slope, hi, a0);
+                        let (f0, f1) = (_mm256_floor_pd(x0), _mm256_floor_pd(x1));
+                        sum = _mm256_add_pd(sum, piece(s, x0, f0, f1, db));
+                    }
+                }
+                _mm256_storeu_pd(sums.as_mut_ptr(), sum);
             }
         }
     }

@@ -60,6 +60,8 @@ pub struct Sheet {
 struct Segment {
     b0: f64,
     b1: f64,
+    /// `b1 - b0`.
+    db: f64,
     base: f64,
 }
 
@@ -265,6 +267,7 @@ fn walk(
         segments.push(Segment {
             b0,
             b1,
+            db: b1 - b0,
             base: (jb * strides[b] + jc * strides[c]) as f64,
         });
         b0 = b1;
