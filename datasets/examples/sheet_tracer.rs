@@ -9,33 +9,19 @@
 //!
 //! `cargo run --release -p tomograf-datasets --example sheet_tracer -- CT.nii.gz [θ°]`
 
+#[path = "common/chest.rs"]
+mod chest;
 #[path = "common/timing.rs"]
 mod timing;
 
 use std::time::Instant;
-use tomograf_sim::attenuation::Attenuation;
 use tomograf_sim::*;
 
 fn main() {
     let (path, theta): (String, f64) = timing::args("sheet_tracer CT.nii.gz [θ°]", 0.0);
-    let n: usize = std::env::var("N")
-        .ok()
-        .and_then(|s| s.parse().ok())
-        .unwrap_or(21)
-        .max(1);
-    let hu = tomograf_datasets::nifti::read_nifti(std::path::Path::new(&path)).expect("reads");
-    let mu = Attenuation::hounsfield_at_kev(60.0)
-        .unwrap()
-        .to_mu(hu)
-        .unwrap();
-    let g = Geometry {
-        beam: Beam::Cone {
-            sad_mm: 1000.0,
-            sid_mm: 1500.0,
-        },
-        detector: Detector::new(256, 256, 2.6),
-        isocentre: mu.centre(),
-    };
+    let n = chest::repeats(21);
+    let mu = chest::mu(&path);
+    let g = chest::geometry(&mu);
     let view = g.view(Pose::new(theta, 0.0)).unwrap();
     let renderer = |sheets: bool| {
         Renderer::new(&mu, Projector::Siddon)

@@ -4,6 +4,7 @@
 //! Each pixel is computed independently from the same inputs, so images are bit-identical
 //! whatever the number of threads.
 
+mod columns;
 mod image;
 mod meshes;
 mod sums;
@@ -20,6 +21,7 @@ use crate::ray::{GridBox, GridRay, Ray};
 use crate::trace::sheet::Sheet;
 use crate::trace::{LineIntegral, MaterialPaths, packet, siddon, trilinear};
 use crate::volume::Volume;
+use columns::KFastest;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 use std::marker::PhantomData;
@@ -154,6 +156,9 @@ pub struct Renderer<'a, S: Sums = LineIntegrals> {
     packet_threshold: f64,
     /// Whether exact Siddon traces detector rows that form a [`Sheet`] as one.
     sheets: bool,
+    /// The volume stored k-fastest, for tracing detector columns as sheets
+    /// ([`Renderer::with_column_sheets`]); `None`: columns are not traced as sheets.
+    columns: Option<Arc<KFastest>>,
     /// Where rays are clipped: for Siddon the box of non-zero mu (air adds exactly
     /// nothing), for the trilinear field the whole grid (it is non-zero half a voxel
     /// beyond). `None`: nothing to integrate.
@@ -298,6 +303,7 @@ impl<'a, S: Sums> Renderer<'a, S> {
             projector,
             packet_threshold: packet::default_threshold(),
             sheets: sheets_by_default(),
+            columns: None,
             bounds,
             skip: None,
             meshes: None,
@@ -363,6 +369,26 @@ impl<'a, S: Sums> Renderer<'a, S> {
         self
     }
 
+    /// Whether exact Siddon traces the detector columns of views whose rows are not sheets
+    /// as sheets along k (any gantry angle of a circular orbit about the grid's k axis
+    /// without tilt; see [`crate::trace::sheet`]), over a k-fastest copy of the volume made now (`true`:
+    /// a pass over the volume and as much memory again) or dropped (`false`, the default).
+    /// Made only where row sheets are on ([`Renderer::with_sheets`]) and the renderer has no
+    /// skipping and no meshes (set those first); `TG_COLUMN_SHEETS=off` (read once) turns it
+    /// off everywhere, for measuring. Worth it for jobs of many
+    /// views of one volume (docs/projector.md, "Column sheets"); results agree with the
+    /// other tracers to rounding.
+    pub fn with_column_sheets(mut self, on: bool) -> Self {
+        let able = self.sheets
+            && column_sheets_allowed()
+            && self.projector == Projector::Siddon
+            && !S::PER_MATERIAL
+            && self.skip.is_none()
+            && self.meshes.is_none();
+        self.columns = (on && able).then(|| Arc::new(KFastest::new(self.mu)));
+        self
+    }
+
     /// The projector in use.
     pub fn projector(&self) -> Projector {
         self.projector
@@ -414,6 +440,12 @@ impl<'a, S: Sums> Renderer<'a, S> {
             && !packed
             && self.skip.is_none()
             && self.meshes.is_none();
+        if let Some(columns) = self.columns.as_deref().filter(|_| sheets)
+            && !self.rows_are_sheets(view)
+            && let Some(data) = self.trace_columns(columns, view)
+        {
+            return Ok(data);
+        }
         data.par_chunks_mut(view.cols * stride * rows_per_task)
             .enumerate()
             .for_each(|(task, row)| {
@@ -545,4 +577,11 @@ fn sheets_by_default() -> bool {
         Ok("off") => false,
         _ => packet::kernel() == Some(packet::Kernel::Avx2),
     })
+}
+
+/// Whether [`Renderer::with_column_sheets`] may make its copy: unless `TG_COLUMN_SHEETS=off`
+/// (read once; for measuring a job with and without).
+fn column_sheets_allowed() -> bool {
+    static ON: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
+    *ON.get_or_init(|| std::env::var("TG_COLUMN_SHEETS").as_deref() != Ok("off"))
 }

@@ -1,0 +1,235 @@
+//! Detector columns traced as ray sheets, over a copy of the volume with k fastest.
+//!
+//! In a circular orbit about the grid's k axis without tilt, the source and the pixels of
+//! one detector column lie in a plane that contains the k direction: seen along k, every ray
+//! of the column follows the same line in the i–j plane, and the column is a ray sheet
+//! fanning out along k ([`crate::trace::sheet`]), at every gantry angle. The sheet kernel
+//! reads the voxels of each segment's line along the fan's axis, which must be contiguous
+//! in memory to pay; k is the grid's slowest axis, so the columns are traced over a copy of
+//! the volume stored k-fastest ([`KFastest`]). The copy costs a pass over the volume and as
+//! much memory again, which a job rendering many views earns back (docs/projector.md,
+//! "Column sheets"); a renderer makes it only when asked
+//! ([`super::Renderer::with_column_sheets`]).
+
+use super::{Renderer, Sums};
+use crate::geometry::View;
+use crate::ray::{GridBox, GridRay};
+use crate::trace::sheet::Sheet;
+use crate::volume::Volume;
+use rayon::prelude::*;
+
+/// The copy's axis n is the volume's axis `AXES[n]`: (k, i, j).
+const AXES: [usize; 3] = [2, 0, 1];
+
+fn permute<T: Copy>(v: [T; 3]) -> [T; 3] {
+    AXES.map(|a| v[a])
+}
+
+/// A volume's voxels stored k-fastest: voxel (i, j, k) at `k + nz·(i + nx·j)`.
+pub(super) struct KFastest {
+    data: Vec<f32>,
+    /// The copy's dimensions, `[nz, nx, ny]`.
+    dims: [usize; 3],
+}
+
+impl KFastest {
+    /// The copy of `volume`, made in parallel, one plane of constant j per task (each read
+    /// runs along i, each write within the plane's 4·nx·nz bytes).
+    pub(super) fn new(volume: &Volume) -> Self {
+        let [nx, ny, nz] = volume.dims();
+        let data = volume.data();
+        let mut out = vec![0.0f32; data.len()];
+        out.par_chunks_mut(nz * nx)
+            .enumerate()
+            .for_each(|(j, plane)| {
+                for k in 0..nz {
+                    let line = &data[nx * (j + ny * k)..][..nx];
+                    for (i, &v) in line.iter().enumerate() {
+                        plane[k + nz * i] = v;
+                    }
+                }
+            });
+        Self {
+            data: out,
+            dims: permute(volume.dims()),
+        }
+    }
+
+    /// The integrals of the rays of detector column `rays` (clipped to `bounds` in the
+    /// volume's grid; `None` misses) into `out`, if they form a sheet fanning out along k
+    /// (or all miss): `false` otherwise.
+    pub(super) fn column(
+        &self,
+        rays: &[Option<GridRay>],
+        bounds: &GridBox,
+        out: &mut [f64],
+    ) -> bool {
+        let rays: Vec<Option<GridRay>> = rays
+            .iter()
+            .map(|g| {
+                g.as_ref().map(|g| GridRay {
+                    g0: permute(g.g0),
+                    gd: permute(g.gd),
+                    inv: permute(g.inv),
+                    ..*g
+                })
+            })
+            .collect();
+        let bounds = GridBox {
+            lo: permute(bounds.lo),
+            hi: permute(bounds.hi),
+        };
+        match Sheet::new(&rays, self.dims, &bounds) {
+            Some(sheet) if sheet.axis() == 0 => {
+                sheet.line_integrals(&self.data, self.dims, &bounds, out);
+                true
+            }
+            None if rays.iter().all(Option::is_none) => {
+                out.fill(0.0);
+                true
+            }
+            _ => false,
+        }
+    }
+}
+
+impl std::fmt::Debug for KFastest {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "KFastest({:?} voxels)", self.dims)
+    }
+}
+
+impl<S: Sums> Renderer<'_, S> {
+    /// Whether `view`'s rows are traced as sheets (as in AP and PA views): the first and
+    /// last rows that meet the volume form sheets along the grid's fastest axis. (Not the
+    /// middle row: at the source's height, a row of any view lies in a plane of k, which
+    /// makes a sheet along i of it too.)
+    pub(super) fn rows_are_sheets(&self, view: &View) -> bool {
+        let Some(bounds) = self.bounds.as_ref() else {
+            return true;
+        };
+        let row = |r: usize| -> Vec<Option<GridRay>> {
+            (0..view.cols)
+                .map(|c| self.clip(&view.ray(r as f64, c as f64)))
+                .collect()
+        };
+        let sheet = |rays: &[Option<GridRay>]| {
+            rays.iter().all(Option::is_none)
+                || Sheet::new(rays, self.mu.dims(), bounds).is_some_and(|s| s.axis() == 0)
+        };
+        let hit = |rays: &Vec<Option<GridRay>>| rays.iter().any(Option::is_some);
+        let first = (0..view.rows).map(row).find(hit);
+        let last = (0..view.rows).rev().map(row).find(hit);
+        first.is_none_or(|r| sheet(&r)) && last.is_none_or(|r| sheet(&r))
+    }
+
+    /// The line integrals of every pixel of `view` (pixel-major), each detector column
+    /// traced as a sheet over `columns`, if every column forms one.
+    pub(super) fn trace_columns(&self, columns: &KFastest, view: &View) -> Option<Vec<f64>> {
+        let bounds = self.bounds.as_ref()?;
+        let traced: Vec<Vec<f64>> = (0..view.cols)
+            .into_par_iter()
+            .map(|c| {
+                let rays: Vec<Option<GridRay>> = (0..view.rows)
+                    .map(|r| self.clip(&view.ray(r as f64, c as f64)))
+                    .collect();
+                let mut out = vec![0.0; view.rows];
+                columns.column(&rays, bounds, &mut out).then_some(out)
+            })
+            .collect::<Option<_>>()?;
+        Some(
+            (0..view.rows * view.cols)
+                .map(|p| traced[p % view.cols][p / view.cols])
+                .collect(),
+        )
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geometry::{Beam, Detector, Geometry, Pose};
+    use crate::render::Projector;
+    use glam::{DMat3, DVec3};
+
+    /// A volume of pseudo-random mu (mm⁻¹) whose outer voxels are 0, so that rays are
+    /// clipped to a box inside the grid.
+    fn volume() -> Volume {
+        let dims = [31, 26, 17];
+        let mut state = 12345u64;
+        let data = (0..dims.iter().product::<usize>())
+            .map(|n| {
+                let (i, j, k) = (n % 31, n / 31 % 26, n / (31 * 26));
+                state = state
+                    .wrapping_mul(6364136223846793005)
+                    .wrapping_add(1442695040888963407);
+                let inside = (2..29).contains(&i) && (3..24).contains(&j) && (1..16).contains(&k);
+                if inside {
+                    (state >> 40) as f32 / (1u64 << 24) as f32 * 0.05
+                } else {
+                    0.0
+                }
+            })
+            .collect();
+        let spacing = DVec3::new(0.9, 1.1, 2.3);
+        Volume::new(
+            dims,
+            spacing,
+            DVec3::new(-12.0, 7.0, 3.0),
+            DMat3::IDENTITY,
+            data,
+        )
+        .unwrap()
+    }
+
+    #[test]
+    fn columns_are_traced_as_sheets_at_any_angle_and_agree_with_the_other_tracers() {
+        let vol = volume();
+        let geometry = Geometry {
+            beam: Beam::Cone {
+                sad_mm: 250.0,
+                sid_mm: 400.0,
+            },
+            detector: Detector::new(23, 29, 2.1),
+            // Off the centre: no ray runs within rounding of a grid plane (see the sheet
+            // module's documentation).
+            isocentre: vol.centre() + DVec3::new(0.0123, 0.0456, 0.0078),
+        };
+        let plain = Renderer::new(&vol, Projector::Siddon)
+            .unwrap()
+            .with_sheets(false);
+        let with = Renderer::new(&vol, Projector::Siddon)
+            .unwrap()
+            .with_sheets(true)
+            .with_column_sheets(true);
+        let columns = with.columns.as_deref().expect("the k-fastest copy");
+        let mut traced = 0;
+        for theta in [0.0, 17.0, 45.0, 90.0, 133.0, 200.0, 301.0] {
+            let view = geometry.view(Pose::new(theta, 0.0)).unwrap();
+            let expected = plain.trace(&view).unwrap();
+            assert!(expected.iter().any(|&v| v > 0.0) && expected.contains(&0.0));
+            let got = with
+                .trace_columns(columns, &view)
+                .expect("every column a sheet");
+            for (n, (a, b)) in got.iter().zip(&expected).enumerate() {
+                assert!(
+                    (a - b).abs() <= 1e-9 * b.abs() + 1e-13,
+                    "θ = {theta}°, pixel {n}: columns {a}, other tracers {b}"
+                );
+            }
+            // The renderer takes the columns where the rows are not sheets (not at 0°).
+            assert_eq!(with.rows_are_sheets(&view), theta == 0.0, "θ = {theta}°");
+            let image = with.trace(&view).unwrap();
+            assert_eq!(image.len(), expected.len());
+            traced += 1;
+        }
+        assert_eq!(traced, 7);
+        // A tilted orbit's columns are not sheets along k: the renderer falls back.
+        let view = geometry.view(Pose::new(30.0, 15.0)).unwrap();
+        assert!(with.trace_columns(columns, &view).is_none());
+        let (a, b) = (with.trace(&view).unwrap(), plain.trace(&view).unwrap());
+        for (x, y) in a.iter().zip(&b) {
+            assert!((x - y).abs() <= 1e-9 * y.abs() + 1e-13);
+        }
+    }
+}
