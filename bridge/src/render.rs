@@ -84,7 +84,9 @@ pub fn project<'py>(
     let vol = &mu.inner;
     let out = py.detach(|| -> PyResult<Vec<f32>> {
         check_mu(vol)?;
-        let renderer = Renderer::new(vol, proj).map_err(errors::sim)?;
+        let renderer = Renderer::new(vol, proj)
+            .map_err(errors::sim)?
+            .for_views(list.len());
         let mut data = Vec::new();
         for view in &list {
             let img = renderer.render(view).map_err(errors::sim)?;

@@ -28,12 +28,6 @@ use tomograf_sim::geometry::coverage::{Coverage, coverage};
 use tomograf_sim::mesh::MeshScene;
 use tomograf_sim::{Projection, Renderer, View, Volume};
 
-/// From how many views a job traces detector columns as ray sheets over a k-fastest copy
-/// of the volume (`Renderer::with_column_sheets`, where the renderer traces sheets at all):
-/// the copy took about as long as 6 views at 30° gain, and less than one lateral view gains
-/// (chest CT, 256² views, AMD EPYC with AVX2; docs/projector.md, "Column sheets").
-const COLUMN_SHEET_VIEWS: usize = 8;
-
 /// A scene resolved against its volume; [`Prepared::renderer`] renders its views.
 pub struct Prepared {
     /// The scene it was made from.
@@ -152,9 +146,7 @@ impl Prepared {
                 if let Some(m) = self.meshes(MeshPhysics::Monochromatic { energy_kev })? {
                     r = r.with_meshes(m)?;
                 }
-                if self.job.views.len() >= COLUMN_SHEET_VIEWS {
-                    r = r.with_column_sheets(true);
-                }
+                r = r.for_views(self.job.views.len());
                 SceneRenderer::Ideal {
                     renderer: r,
                     quantity: self.job.quantity,

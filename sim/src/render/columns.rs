@@ -203,6 +203,17 @@ mod tests {
             .with_sheets(true)
             .with_column_sheets(true);
         let columns = with.columns.as_deref().expect("the k-fastest copy");
+        // Jobs ask for the copy from `COLUMN_SHEET_VIEWS` views on.
+        let for_views = |n| {
+            Renderer::new(&vol, Projector::Siddon)
+                .unwrap()
+                .with_sheets(true)
+                .for_views(n)
+                .columns
+                .is_some()
+        };
+        assert!(!for_views(super::super::COLUMN_SHEET_VIEWS - 1));
+        assert!(for_views(super::super::COLUMN_SHEET_VIEWS));
         let mut traced = 0;
         for theta in [0.0, 17.0, 45.0, 90.0, 133.0, 200.0, 301.0] {
             let view = geometry.view(Pose::new(theta, 0.0)).unwrap();
