@@ -34,11 +34,14 @@ pub(super) struct KFastest {
 
 impl KFastest {
     /// The copy of `volume`, made in parallel, one plane of constant j per task (each read
-    /// runs along i, each write within the plane's 4·nx·nz bytes).
-    pub(super) fn new(volume: &Volume) -> Self {
+    /// runs along i, each write within the plane's 4·nx·nz bytes); `None` where the memory
+    /// for it cannot be had (the copy only saves time, so the renderer goes without).
+    pub(super) fn new(volume: &Volume) -> Option<Self> {
         let [nx, ny, nz] = volume.dims();
         let data = volume.data();
-        let mut out = vec![0.0f32; data.len()];
+        let mut out = Vec::new();
+        out.try_reserve_exact(data.len()).ok()?;
+        out.resize(data.len(), 0.0f32);
         out.par_chunks_mut(nz * nx)
             .enumerate()
             .for_each(|(j, plane)| {
@@ -49,10 +52,10 @@ impl KFastest {
                     }
                 }
             });
-        Self {
+        Some(Self {
             data: out,
             dims: permute(volume.dims()),
-        }
+        })
     }
 
     /// The integrals of the rays of detector column `rays` (clipped to `bounds` in the
@@ -235,6 +238,24 @@ mod tests {
             traced += 1;
         }
         assert_eq!(traced, 7);
+        // A parallel beam's columns are sheets too (every ray of one at the same slope, 0).
+        let parallel = Geometry {
+            beam: Beam::Parallel,
+            ..geometry
+        };
+        for theta in [0.0, 38.0, 90.0] {
+            let view = parallel.view(Pose::new(theta, 0.0)).unwrap();
+            let expected = plain.trace(&view).unwrap();
+            let got = with
+                .trace_columns(columns, &view)
+                .expect("every column a sheet");
+            for (a, b) in got.iter().zip(&expected) {
+                assert!(
+                    (a - b).abs() <= 1e-9 * b.abs() + 1e-13,
+                    "parallel, θ = {theta}°"
+                );
+            }
+        }
         // A tilted orbit's columns are not sheets along k: the renderer falls back.
         let view = geometry.view(Pose::new(30.0, 15.0)).unwrap();
         assert!(with.trace_columns(columns, &view).is_none());

@@ -375,8 +375,9 @@ impl<'a, S: Sums> Renderer<'a, S> {
 
     /// Whether exact Siddon traces the detector columns of views whose rows are not sheets
     /// as sheets along k (any gantry angle of a circular orbit about the grid's k axis
-    /// without tilt; see [`crate::trace::sheet`]), over a k-fastest copy of the volume made now (`true`:
-    /// a pass over the volume and as much memory again) or dropped (`false`, the default).
+    /// without tilt; see [`crate::trace::sheet`]), over a k-fastest copy of the volume made
+    /// now (`true`: a pass over the volume and as much memory again; skipped where that
+    /// memory cannot be had) or dropped (`false`, the default).
     /// Made only where row sheets are on ([`Renderer::with_sheets`]) and the renderer has no
     /// skipping and no meshes (set those first); `TG_COLUMN_SHEETS=off` (read once) turns it
     /// off everywhere, for measuring. Worth it for jobs of many
@@ -389,7 +390,9 @@ impl<'a, S: Sums> Renderer<'a, S> {
             && !S::PER_MATERIAL
             && self.skip.is_none()
             && self.meshes.is_none();
-        self.columns = (on && able).then(|| Arc::new(KFastest::new(self.mu)));
+        self.columns = (on && able)
+            .then(|| KFastest::new(self.mu).map(Arc::new))
+            .flatten();
         self
     }
 
