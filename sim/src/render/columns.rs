@@ -117,8 +117,7 @@ impl<S: Sums> Renderer<'_, S> {
                 .collect()
         };
         let sheet = |rays: &[Option<GridRay>]| {
-            rays.iter().all(Option::is_none)
-                || Sheet::new(rays, self.mu.dims(), bounds).is_some_and(|s| s.axis() == 0)
+            Sheet::new(rays, self.mu.dims(), bounds).is_some_and(|s| s.axis() == 0)
         };
         let hit = |rays: &Vec<Option<GridRay>>| rays.iter().any(Option::is_some);
         let first = (0..view.rows).map(row).find(hit);

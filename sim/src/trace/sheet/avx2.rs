@@ -67,13 +67,13 @@ unsafe fn integrate_with<const PAIRS: bool, const LOADS: bool>(
     } else {
         kernel.stride as usize
     };
-    let blocks: Vec<&[Segment]> = segments.chunks(BLOCK).collect();
     let groups = acc.len() / 4;
     let lines = span.clone().step_by(step).count();
-    for (n, block) in blocks.iter().enumerate() {
+    for (n, block) in segments.chunks(BLOCK).enumerate() {
         // The next block's voxel lines, one cache line at a time over the box's extent,
         // spread over the groups so that few are in flight at once.
-        let next: &[Segment] = blocks.get(n + 1).copied().unwrap_or(&[]);
+        let next = segments.get((n + 1) * BLOCK..).unwrap_or(&[]);
+        let next = &next[..next.len().min(BLOCK)];
         let total = next.len() * lines;
         let per_group = total.div_ceil(groups.max(1));
         let (mut row, mut line) = (0usize, 0usize);
