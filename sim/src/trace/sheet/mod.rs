@@ -287,6 +287,9 @@ struct Rays {
     /// Per group of four rays: the range along b where all four are inside.
     group_lo: Vec<f64>,
     group_hi: Vec<f64>,
+    /// Per group of four rays: the range along b where any of the four is inside.
+    reach_lo: Vec<f64>,
+    reach_hi: Vec<f64>,
 }
 
 impl Rays {
@@ -311,6 +314,8 @@ impl Rays {
             inv_slope: column(|r| r.inv_slope, 0.0),
             group_lo: group(&b_lo, f64::max),
             group_hi: group(&b_hi, f64::min),
+            reach_lo: group(&b_lo, f64::min),
+            reach_hi: group(&b_hi, f64::max),
             b_lo,
             b_hi,
         }
