@@ -86,7 +86,7 @@ pub fn project<'py>(
         check_mu(vol)?;
         let renderer = Renderer::new(vol, proj)
             .map_err(errors::sim)?
-            .for_views(list.len());
+            .for_views(&list);
         let mut data = Vec::new();
         for view in &list {
             let img = renderer.render(view).map_err(errors::sim)?;

@@ -339,7 +339,7 @@ pub fn make_item(
     let mut stack = Vec::with_capacity(views.len() * size * size);
     let quantity = match acquisition {
         None => {
-            let renderer = Renderer::new(&mu, Projector::Siddon)?.for_views(views.len());
+            let renderer = Renderer::new(&mu, Projector::Siddon)?.for_views(&views);
             for v in &views {
                 stack.extend(renderer.render(v)?.data);
             }

@@ -146,7 +146,7 @@ impl Prepared {
                 if let Some(m) = self.meshes(MeshPhysics::Monochromatic { energy_kev })? {
                     r = r.with_meshes(m)?;
                 }
-                r = r.for_views(self.job.views.len());
+                r = r.for_views(&self.job.views);
                 SceneRenderer::Ideal {
                     renderer: r,
                     quantity: self.job.quantity,

@@ -67,21 +67,7 @@ impl KFastest {
         bounds: &GridBox,
         out: &mut [f64],
     ) -> bool {
-        let rays: Vec<Option<GridRay>> = rays
-            .iter()
-            .map(|g| {
-                g.as_ref().map(|g| GridRay {
-                    g0: permute(g.g0),
-                    gd: permute(g.gd),
-                    inv: permute(g.inv),
-                    ..*g
-                })
-            })
-            .collect();
-        let bounds = GridBox {
-            lo: permute(bounds.lo),
-            hi: permute(bounds.hi),
-        };
+        let (rays, bounds) = permuted(rays, bounds);
         match Sheet::new(&rays, self.dims, &bounds) {
             Some(sheet) if sheet.axis() == 0 => {
                 sheet.line_integrals(&self.data, self.dims, &bounds, out);
@@ -94,6 +80,26 @@ impl KFastest {
             _ => false,
         }
     }
+}
+
+/// `rays` and `bounds` in the grid of the k-fastest copy.
+fn permuted(rays: &[Option<GridRay>], bounds: &GridBox) -> (Vec<Option<GridRay>>, GridBox) {
+    let rays = rays
+        .iter()
+        .map(|g| {
+            g.as_ref().map(|g| GridRay {
+                g0: permute(g.g0),
+                gd: permute(g.gd),
+                inv: permute(g.inv),
+                ..*g
+            })
+        })
+        .collect();
+    let bounds = GridBox {
+        lo: permute(bounds.lo),
+        hi: permute(bounds.hi),
+    };
+    (rays, bounds)
 }
 
 impl std::fmt::Debug for KFastest {
@@ -123,6 +129,32 @@ impl<S: Sums> Renderer<'_, S> {
         let first = (0..view.rows).map(row).find(hit);
         let last = (0..view.rows).rev().map(row).find(hit);
         first.is_none_or(|r| sheet(&r)) && last.is_none_or(|r| sheet(&r))
+    }
+
+    /// Whether column sheets would trace `view`: its rows are not sheets, and its first
+    /// and last detector columns that meet the volume are sheets along k (as in any view
+    /// of a circular orbit about k without tilt). A prediction from two columns, for
+    /// deciding whether the k-fastest copy pays; tracing still checks every column.
+    pub(super) fn columns_would_trace(&self, view: &View) -> bool {
+        let Some(bounds) = self.bounds.as_ref() else {
+            return false;
+        };
+        let column = |c: usize| -> Vec<Option<GridRay>> {
+            (0..view.rows)
+                .map(|r| self.clip(&view.ray(r as f64, c as f64)))
+                .collect()
+        };
+        let dims = permute(self.mu.dims());
+        let sheet = |rays: &[Option<GridRay>]| {
+            let (rays, bounds) = permuted(rays, bounds);
+            Sheet::new(&rays, dims, &bounds).is_some_and(|s| s.axis() == 0)
+        };
+        let hit = |rays: &Vec<Option<GridRay>>| rays.iter().any(Option::is_some);
+        let first = (0..view.cols).map(column).find(hit);
+        let last = (0..view.cols).rev().map(column).find(hit);
+        !self.rows_are_sheets(view)
+            && first.is_some_and(|c| sheet(&c))
+            && last.is_some_and(|c| sheet(&c))
     }
 
     /// The line integrals of every pixel of `view` (pixel-major), each detector column
@@ -205,17 +237,33 @@ mod tests {
             .with_sheets(true)
             .with_column_sheets(true);
         let columns = with.columns.as_deref().expect("the k-fastest copy");
-        // Jobs ask for the copy from `COLUMN_SHEET_VIEWS` views on.
-        let for_views = |n| {
+        // Jobs ask for the copy from `COLUMN_SHEET_VIEWS` views that would use it on:
+        // views of an orbit about k, not AP or PA views (rows are sheets there) nor views
+        // of a tilted orbit (columns are not sheets there).
+        let for_views = |poses: &[Pose]| {
+            let views: Vec<View> = poses.iter().map(|&p| geometry.view(p).unwrap()).collect();
             Renderer::new(&vol, Projector::Siddon)
                 .unwrap()
                 .with_sheets(true)
-                .for_views(n)
+                .for_views(&views)
                 .columns
                 .is_some()
         };
-        assert!(!for_views(super::super::COLUMN_SHEET_VIEWS - 1));
-        assert!(for_views(super::super::COLUMN_SHEET_VIEWS));
+        let n = super::super::COLUMN_SHEET_VIEWS;
+        let orbit = |n: usize, tilt: f64| -> Vec<Pose> {
+            (0..n)
+                .map(|v| Pose::new(20.0 + 10.0 * v as f64, tilt))
+                .collect()
+        };
+        assert!(!for_views(&orbit(n - 1, 0.0)));
+        assert!(for_views(&orbit(n, 0.0)));
+        assert!(!for_views(&orbit(n, 15.0)));
+        let ap_pa: Vec<Pose> = (0..n)
+            .map(|v| Pose::new(180.0 * (v % 2) as f64, 0.0))
+            .collect();
+        assert!(!for_views(&ap_pa));
+        let mixed: Vec<Pose> = [orbit(n - 1, 0.0), vec![Pose::new(0.0, 0.0)]].concat();
+        assert!(!for_views(&mixed));
         let mut traced = 0;
         for theta in [0.0, 17.0, 45.0, 90.0, 133.0, 200.0, 301.0] {
             let view = geometry.view(Pose::new(theta, 0.0)).unwrap();

@@ -384,28 +384,44 @@ impl<'a, S: Sums> Renderer<'a, S> {
     /// views of one volume (docs/projector.md, "Column sheets"); results agree with the
     /// other tracers to rounding.
     pub fn with_column_sheets(mut self, on: bool) -> Self {
-        let able = self.sheets
-            && column_sheets_allowed()
-            && self.projector == Projector::Siddon
-            && !S::PER_MATERIAL
-            && self.skip.is_none()
-            && self.meshes.is_none();
-        self.columns = (on && able)
+        self.columns = (on && self.column_sheets_possible())
             .then(|| KFastest::new(self.mu).map(Arc::new))
             .flatten();
         self
     }
 
-    /// Prepares for rendering `views` views of this volume: column sheets
-    /// ([`Renderer::with_column_sheets`]) from [`COLUMN_SHEET_VIEWS`] views on. The copy
-    /// took about as long as 6 views at 30° gain, and less than one lateral view gains
-    /// (chest CT, 256² views, AMD EPYC with AVX2; docs/projector.md, "Column sheets").
-    pub fn for_views(self, views: usize) -> Self {
-        if views >= COLUMN_SHEET_VIEWS {
+    /// Prepares for rendering `views` with this renderer: column sheets
+    /// ([`Renderer::with_column_sheets`]) where [`COLUMN_SHEET_VIEWS`] of the views or more
+    /// would be traced by them (rows not sheets, columns sheets along k: views of a
+    /// circular orbit about k without tilt, other than AP and PA), as judged from each
+    /// view's first and last columns. The copy took about as long as 6 views at 30° gain,
+    /// and less than one lateral view gains (chest CT, 256² views, AMD EPYC with AVX2;
+    /// docs/projector.md, "Column sheets"); views that cannot use it (a tilted orbit) do
+    /// not pay for it.
+    pub fn for_views(self, views: &[View]) -> Self {
+        if views.len() < COLUMN_SHEET_VIEWS || !self.column_sheets_possible() {
+            return self;
+        }
+        let users = views
+            .iter()
+            .filter(|v| self.columns_would_trace(v))
+            .take(COLUMN_SHEET_VIEWS)
+            .count();
+        if users >= COLUMN_SHEET_VIEWS {
             self.with_column_sheets(true)
         } else {
             self
         }
+    }
+
+    /// Whether this renderer can take column sheets (see [`Renderer::with_column_sheets`]).
+    fn column_sheets_possible(&self) -> bool {
+        self.sheets
+            && column_sheets_allowed()
+            && self.projector == Projector::Siddon
+            && !S::PER_MATERIAL
+            && self.skip.is_none()
+            && self.meshes.is_none()
     }
 
     /// The projector in use.
