@@ -108,6 +108,16 @@ impl std::fmt::Debug for KFastest {
     }
 }
 
+/// The clipped rays of one detector row or column (`None`: misses).
+type LineRays = Vec<Option<GridRay>>;
+
+/// A detector row or column.
+#[derive(Clone, Copy)]
+enum Line {
+    Row,
+    Column,
+}
+
 impl<S: Sums> Renderer<'_, S> {
     /// Whether `view`'s rows are traced as sheets (as in AP and PA views): the first and
     /// last rows that meet the volume form sheets along the grid's fastest axis. (Not the
@@ -117,18 +127,35 @@ impl<S: Sums> Renderer<'_, S> {
         let Some(bounds) = self.bounds.as_ref() else {
             return true;
         };
-        let row = |r: usize| -> Vec<Option<GridRay>> {
-            (0..view.cols)
-                .map(|c| self.clip(&view.ray(r as f64, c as f64)))
-                .collect()
-        };
         let sheet = |rays: &[Option<GridRay>]| {
             Sheet::new(rays, self.mu.dims(), bounds).is_some_and(|s| s.axis() == 0)
         };
-        let hit = |rays: &Vec<Option<GridRay>>| rays.iter().any(Option::is_some);
-        let first = (0..view.rows).map(row).find(hit);
-        let last = (0..view.rows).rev().map(row).find(hit);
+        let (first, last) = self.first_and_last_hits(view, Line::Row);
         first.is_none_or(|r| sheet(&r)) && last.is_none_or(|r| sheet(&r))
+    }
+
+    /// The clipped rays of `view`'s first and last rows (or columns) that meet the volume.
+    fn first_and_last_hits(&self, view: &View, line: Line) -> (Option<LineRays>, Option<LineRays>) {
+        let (lines, along) = match line {
+            Line::Row => (view.rows, view.cols),
+            Line::Column => (view.cols, view.rows),
+        };
+        let rays = |n: usize| -> LineRays {
+            (0..along)
+                .map(|m| {
+                    let (r, c) = match line {
+                        Line::Row => (n, m),
+                        Line::Column => (m, n),
+                    };
+                    self.clip(&view.ray(r as f64, c as f64))
+                })
+                .collect()
+        };
+        let hit = |rays: &LineRays| rays.iter().any(Option::is_some);
+        (
+            (0..lines).map(rays).find(hit),
+            (0..lines).rev().map(rays).find(hit),
+        )
     }
 
     /// Whether column sheets would trace `view`: its rows are not sheets, and its first
@@ -139,22 +166,16 @@ impl<S: Sums> Renderer<'_, S> {
         let Some(bounds) = self.bounds.as_ref() else {
             return false;
         };
-        let column = |c: usize| -> Vec<Option<GridRay>> {
-            (0..view.rows)
-                .map(|r| self.clip(&view.ray(r as f64, c as f64)))
-                .collect()
-        };
+        if self.rows_are_sheets(view) {
+            return false;
+        }
         let dims = permute(self.mu.dims());
         let sheet = |rays: &[Option<GridRay>]| {
             let (rays, bounds) = permuted(rays, bounds);
             Sheet::new(&rays, dims, &bounds).is_some_and(|s| s.axis() == 0)
         };
-        let hit = |rays: &Vec<Option<GridRay>>| rays.iter().any(Option::is_some);
-        let first = (0..view.cols).map(column).find(hit);
-        let last = (0..view.cols).rev().map(column).find(hit);
-        !self.rows_are_sheets(view)
-            && first.is_some_and(|c| sheet(&c))
-            && last.is_some_and(|c| sheet(&c))
+        let (first, last) = self.first_and_last_hits(view, Line::Column);
+        first.is_some_and(|c| sheet(&c)) && last.is_some_and(|c| sheet(&c))
     }
 
     /// The line integrals of every pixel of `view` (pixel-major), each detector column

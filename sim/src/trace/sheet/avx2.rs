@@ -44,9 +44,9 @@ const BLOCK: usize = 8;
 /// rays and their sums are loaded once, and where the whole block lies inside every lane's
 /// range a segment's entry (`x0` and its floor) is the previous segment's exit, the same
 /// bits as computed anew (consecutive segments share their ends); groups whose rays all
-/// miss the block skip it (at a chest CT's AP view, 14 % of the group-blocks). A lane's two voxels are
-/// read as one pair (`PAIRS`; lines contiguous and at least two voxels long in the box) or
-/// one by one, with scalar loads (`LOADS`) or gathers.
+/// miss the block skip it (at a chest CT's AP view, 14 % of the group-blocks). A lane's
+/// two voxels are read as one pair (`PAIRS`; lines contiguous and at least two voxels long
+/// in the box) or one by one, with scalar loads (`LOADS`) or gathers.
 #[target_feature(enable = "avx2,fma")]
 unsafe fn integrate_with<const PAIRS: bool, const LOADS: bool>(
     kernel: &Kernel,
