@@ -145,8 +145,8 @@ pub fn skipping(args: &Options, md: &mut String) -> Result<()> {
          a threshold of 1e-5 mm⁻¹ skips the air at a bounded cost (≤ threshold × skipped length \
          per ray); the last column is the measured max abs. line-integral difference. The SIMD \
          packets take each ray trimmed to its first and last occupied brick; the scalar tracer \
-         skips every empty brick; the ray sheets (the default without skipping at AP where the \
-         widest SIMD kernel is AVX2) do not skip, so skipping turns them off.\n"
+         skips every empty brick; the ray sheets (the default without skipping at AP with a \
+         SIMD kernel) skip only exact zeros, by rows, so skipping bricks turns them off.\n"
     )?;
     writeln!(md, "| tracer | skipping | render ms | × | max abs. diff |")?;
     writeln!(md, "|---|---|---:|---:|---:|")?;

@@ -96,7 +96,7 @@ pub fn header(args: &Options) -> Result<String> {
         md,
         "Measured by `tomograf bench{}` on {cpu}, {threads} threads, SIMD kernel {}; median of {} renders.\n\n\
          Exact Siddon clips each ray to the box of non-zero attenuation (air adds exactly nothing) and \
-         traces rows in packets of rays (`sim/src/trace/packet/`) or, where the widest SIMD kernel is AVX2, \
+         traces rows in packets of rays (`sim/src/trace/packet/`) or, with a SIMD kernel (AVX2 or AVX-512), \
          the rows of AP views as ray sheets (`sim/src/trace/sheet/`, docs/projector.md). \"Scalar tracer \
          only\" is neither. The phantom's air is exactly 0; a real \
          CT's air is noise around −1000 HU, so nothing can be skipped there — the column \"air at 1e-6 mm⁻¹\" \

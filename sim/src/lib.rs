@@ -19,6 +19,7 @@ pub mod geometry;
 pub mod material;
 pub mod memory;
 pub mod mesh;
+pub mod occupancy;
 pub mod phantom;
 pub mod polychromatic;
 pub mod ray;

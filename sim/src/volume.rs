@@ -233,32 +233,7 @@ impl Volume {
     /// The smallest box of voxels holding every non-zero value, or `None` if all are zero.
     /// Tracers that integrate the values may clip rays to it: outside it they add nothing.
     pub fn occupied(&self) -> Option<GridBox> {
-        use rayon::prelude::*;
-        let [nx, ny, _] = self.dims;
-        self.data
-            .par_chunks(nx * ny)
-            .enumerate()
-            .filter_map(|(k, plane)| {
-                let mut b: Option<GridBox> = None;
-                for (j, row) in plane.chunks(nx).enumerate() {
-                    let Some(first) = row.iter().position(|&v| v != 0.0) else {
-                        continue;
-                    };
-                    let last = row.iter().rposition(|&v| v != 0.0).unwrap_or(first);
-                    let e = b.get_or_insert(GridBox {
-                        lo: [first, j, k],
-                        hi: [last + 1, j + 1, k + 1],
-                    });
-                    e.lo[0] = e.lo[0].min(first);
-                    e.hi[0] = e.hi[0].max(last + 1);
-                    e.hi[1] = j + 1;
-                }
-                b
-            })
-            .reduce_with(|a, b| GridBox {
-                lo: std::array::from_fn(|d| a.lo[d].min(b.lo[d])),
-                hi: std::array::from_fn(|d| a.hi[d].max(b.hi[d])),
-            })
+        crate::occupancy::RowExtents::of(self).bounding_box()
     }
 
     /// Smallest and largest value.

@@ -7,7 +7,7 @@ mod common;
 
 use common::*;
 use glam::DVec3;
-use tomograf_sim::trace::sheet::Sheet;
+use tomograf_sim::trace::{packet, sheet::Sheet};
 use tomograf_sim::{
     Beam, Detector, Geometry, GridRay, Pose, Projector, Ray, Renderer, Volume, ray::GridBox,
 };
@@ -29,21 +29,25 @@ fn check_row(vol: &Volume, world: &[Ray], sheet: &Sheet) {
     let dims = vol.dims();
     let mut out = vec![f64::NAN; world.len()];
     sheet.line_integrals(vol.data(), dims, &GridBox::whole(dims), &mut out);
-    // The SIMD kernel (where the CPU has one) and the portable one give the same bits.
+    // Every SIMD kernel the CPU has and the portable one give the same bits.
     let mut portable = vec![f64::NAN; world.len()];
-    sheet.line_integrals_with(
-        false,
-        vol.data(),
-        dims,
-        &GridBox::whole(dims),
-        &mut portable,
-    );
-    for (c, (a, b)) in out.iter().zip(&portable).enumerate() {
-        assert_eq!(
-            a.to_bits(),
-            b.to_bits(),
-            "column {c}: SIMD {a} vs portable {b}"
+    sheet.line_integrals_with(None, vol.data(), dims, &GridBox::whole(dims), &mut portable);
+    for kernel in packet::supported() {
+        let mut simd = vec![f64::NAN; world.len()];
+        sheet.line_integrals_with(
+            Some(kernel),
+            vol.data(),
+            dims,
+            &GridBox::whole(dims),
+            &mut simd,
         );
+        for (c, (a, b)) in simd.iter().zip(&portable).enumerate() {
+            assert_eq!(
+                a.to_bits(),
+                b.to_bits(),
+                "column {c}: {kernel:?} {a} vs portable {b}"
+            );
+        }
     }
     for (c, w) in world.iter().enumerate() {
         let reference = brute_force(vol, w);
@@ -251,4 +255,101 @@ fn long_sheets_of_few_rays_match_reference() {
             check_row(&vol, &world, &sheet);
         }
     }
+}
+
+/// A volume whose values are zero outside an elliptic cylinder about k (as a CT's air below
+/// −1000 HU and the scanner's field of view), with a slice of zeros and a few isolated
+/// non-zero voxels in the air.
+fn body_in_air(r: &mut rand_chacha::ChaCha8Rng, dims: [usize; 3]) -> Volume {
+    use rand::Rng;
+    let [nx, ny, nz] = dims;
+    let mut data = vec![0.0f32; nx * ny * nz];
+    for k in 0..nz {
+        for j in 0..ny {
+            for i in 0..nx {
+                let (u, v) = (
+                    (i as f64 + 0.5 - nx as f64 / 2.0) / (0.4 * nx as f64),
+                    (j as f64 + 0.5 - ny as f64 / 2.0) / (0.35 * ny as f64),
+                );
+                let body = u * u + v * v <= 1.0 && k != nz / 2;
+                if body || r.random_bool(0.002) {
+                    data[i + nx * (j + ny * k)] = r.random_range(0.005f32..0.05);
+                }
+            }
+        }
+    }
+    Volume::new(
+        dims,
+        DVec3::new(0.8, 0.8, 2.0),
+        DVec3::ZERO,
+        glam::DMat3::IDENTITY,
+        data,
+    )
+    .unwrap()
+}
+
+#[test]
+fn skipping_zeros_changes_no_bits() {
+    // The kernels skip groups of rays over blocks of segments where every voxel they can
+    // meet is zero (`Sheet::skip_zeros`): the sums must be the same bits as without, for
+    // every kernel, and match the reference; and the skip must actually be taken.
+    let mut r = rng(75);
+    let mut skipped = [0usize; 2];
+    for dims in [[64, 48, 10], [41, 57, 7]] {
+        let vol = body_in_air(&mut r, dims);
+        let rows = tomograf_sim::occupancy::RowExtents::of(&vol);
+        let bounds = rows.bounding_box().unwrap();
+        for pose in [Pose::AP, Pose::new(180.0, 0.0)] {
+            let view = geometry(&vol, 150.0, 260.0, 12, 61, 0.9)
+                .view(pose)
+                .unwrap();
+            for row in 0..view.rows {
+                let world: Vec<Ray> = (0..view.cols)
+                    .map(|c| view.ray(row as f64, c as f64))
+                    .collect();
+                let clipped: Vec<_> = world
+                    .iter()
+                    .map(|w| GridRay::clip_to(&vol, w, &bounds))
+                    .collect();
+                let Some(plain) = Sheet::new(&clipped, dims, &bounds) else {
+                    continue;
+                };
+                assert_eq!(plain.axis(), 0);
+                let mut skipping = plain.clone();
+                skipping.skip_zeros(&rows, &bounds);
+                skipped[0] += skipping.zero_blocks(4);
+                skipped[1] += skipping.zero_blocks(8);
+                let mut reference = vec![f64::NAN; world.len()];
+                plain.line_integrals_with(None, vol.data(), dims, &bounds, &mut reference);
+                for kernel in packet::supported() {
+                    for sheet in [&plain, &skipping] {
+                        let mut out = vec![f64::NAN; world.len()];
+                        sheet.line_integrals_with(
+                            Some(kernel),
+                            vol.data(),
+                            dims,
+                            &bounds,
+                            &mut out,
+                        );
+                        for (c, (a, b)) in out.iter().zip(&reference).enumerate() {
+                            assert_eq!(a.to_bits(), b.to_bits(), "{kernel:?} row {row} column {c}");
+                        }
+                    }
+                }
+                for (c, w) in world.iter().enumerate() {
+                    let exact = brute_force(&vol, w);
+                    assert!(
+                        rel_err(reference[c], exact) <= 1e-9
+                            || (reference[c] - exact).abs() < 1e-13,
+                        "row {row} column {c}: {} vs {exact}",
+                        reference[c]
+                    );
+                }
+            }
+        }
+    }
+    assert!(
+        skipped.iter().all(|&n| n > 500),
+        "the zero skip was taken too rarely to be tested: {skipped:?}"
+    );
 }

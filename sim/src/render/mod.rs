@@ -17,6 +17,7 @@ use crate::composition::Composition;
 use crate::error::{Result, SimError};
 use crate::geometry::View;
 use crate::mesh::MeshScene;
+use crate::occupancy::RowExtents;
 use crate::ray::{GridBox, GridRay, Ray};
 use crate::trace::sheet::Sheet;
 use crate::trace::{LineIntegral, MaterialPaths, packet, siddon, trilinear};
@@ -167,6 +168,9 @@ pub struct Renderer<'a, S: Sums = LineIntegrals> {
     /// nothing), for the trilinear field the whole grid (it is non-zero half a voxel
     /// beyond). `None`: nothing to integrate.
     bounds: Option<GridBox>,
+    /// Where each row of voxels along i is non-zero, for the ray sheets to skip zeros
+    /// ([`Sheet::skip_zeros`]); `None` where they do not (compositions, trilinear).
+    rows: Option<Arc<RowExtents>>,
     /// Empty-space skipping (see [`crate::accel`]); `None`: off.
     skip: Option<Arc<EmptySpace>>,
     /// Mesh objects in the same rays (see [`crate::mesh`]); `None`: voxels only.
@@ -194,7 +198,12 @@ impl<'a> Renderer<'a, LineIntegrals> {
 
     /// A renderer over `field` with no skipping and no meshes.
     fn build(mu: &'a Volume, projector: Projector) -> Result<Self> {
-        Self::build_with(mu, projector, || mu.occupied())
+        let rows = (projector == Projector::Siddon).then(|| Arc::new(RowExtents::of(mu)));
+        let mut renderer = Self::build_with(mu, projector, || {
+            rows.as_deref().and_then(RowExtents::bounding_box)
+        })?;
+        renderer.rows = rows;
+        Ok(renderer)
     }
 
     /// Turns empty-space skipping on (`Some`, building the brick map now) or off
@@ -309,6 +318,7 @@ impl<'a, S: Sums> Renderer<'a, S> {
             sheets: sheets_by_default(),
             columns: None,
             bounds,
+            rows: None,
             skip: None,
             meshes: None,
             mesh_columns: Vec::new(),
@@ -571,7 +581,12 @@ impl<'a, S: Sums> Renderer<'a, S> {
         let (field, dims) = (self.mu.data(), self.mu.dims());
         for (rays, px) in rays.chunks(cols).zip(out.chunks_mut(cols)) {
             match Sheet::new(rays, dims, bounds) {
-                Some(sheet) if sheet.axis() == 0 => sheet.line_integrals(field, dims, bounds, px),
+                Some(mut sheet) if sheet.axis() == 0 => {
+                    if let Some(rows) = self.rows.as_deref() {
+                        sheet.skip_zeros(rows, bounds);
+                    }
+                    sheet.line_integrals(field, dims, bounds, px)
+                }
                 None if rays.iter().all(Option::is_none) => px.fill(0.0),
                 _ => return false,
             }
@@ -600,17 +615,19 @@ impl<'a, S: Sums> Renderer<'a, S> {
 }
 
 /// Whether renderers trace ray sheets ([`Renderer::with_sheets`]) unless told otherwise:
-/// where the widest packet kernel is AVX2. Measured (docs/projector.md, "Ray sheets"): on
-/// AVX2 the sheets render a chest CT's AP view 1.4–1.9× faster than the packets (AMD EPYC,
-/// and an Intel Xeon held to AVX2); with AVX-512 the packets are faster (4.8 against 8.1 ms
-/// on 16 threads), and without SIMD the choice was not measured. `TG_SHEETS=on` or `=off`
-/// (read once) overrides it, for measuring.
+/// where the CPU has a SIMD kernel (AVX2 or AVX-512). Measured (docs/projector.md, "Ray
+/// sheets" and "Session 27"): with AVX2 the sheets render a chest CT's AP view 1.4–2.1×
+/// faster than the packets (AMD EPYC; an Intel Xeon held to AVX2); with AVX-512, eight rays
+/// at a time, 1.18× (Intel Xeon, 2 threads), and column sheets 1.3–2.4× at other angles;
+/// the portable kernel is 4.7× slower than the scalar tracer (the same Xeon held to no
+/// SIMD), so without SIMD they stay off. `TG_SHEETS=on` or `=off` (read once) overrides it,
+/// for measuring.
 fn sheets_by_default() -> bool {
     static ON: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
     *ON.get_or_init(|| match std::env::var("TG_SHEETS").as_deref() {
         Ok("on") => true,
         Ok("off") => false,
-        _ => packet::kernel() == Some(packet::Kernel::Avx2),
+        _ => packet::kernel().is_some(),
     })
 }
 

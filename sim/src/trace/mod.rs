@@ -11,6 +11,9 @@
 //! geometry is decided once, in one place, for every tracer.
 
 pub mod accumulate;
+#[cfg(target_arch = "x86_64")]
+#[macro_use]
+mod lanes;
 pub mod packet;
 pub mod sheet;
 pub mod siddon;

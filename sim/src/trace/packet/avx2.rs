@@ -1,51 +1,7 @@
 //! Four lanes of f64 (AVX2 + FMA).
 
 packet_kernel!("avx2,fma", 4, __m256d, __m256d, {
-    #[inline]
-    #[target_feature(enable = "avx2,fma")]
-    fn splat(x: f64) -> V {
-        _mm256_set1_pd(x)
-    }
-    #[inline]
-    #[target_feature(enable = "avx2,fma")]
-    fn zero() -> V {
-        _mm256_setzero_pd()
-    }
-    #[inline]
-    #[target_feature(enable = "avx2,fma")]
-    fn min(a: V, b: V) -> V {
-        _mm256_min_pd(a, b)
-    }
-    #[inline]
-    #[target_feature(enable = "avx2,fma")]
-    fn max(a: V, b: V) -> V {
-        _mm256_max_pd(a, b)
-    }
-    #[inline]
-    #[target_feature(enable = "avx2,fma")]
-    fn add(a: V, b: V) -> V {
-        _mm256_add_pd(a, b)
-    }
-    #[inline]
-    #[target_feature(enable = "avx2,fma")]
-    fn sub(a: V, b: V) -> V {
-        _mm256_sub_pd(a, b)
-    }
-    #[inline]
-    #[target_feature(enable = "avx2,fma")]
-    fn mul(a: V, b: V) -> V {
-        _mm256_mul_pd(a, b)
-    }
-    #[inline]
-    #[target_feature(enable = "avx2,fma")]
-    fn fmadd(a: V, b: V, c: V) -> V {
-        _mm256_fmadd_pd(a, b, c)
-    }
-    #[inline]
-    #[target_feature(enable = "avx2,fma")]
-    fn floor(a: V) -> V {
-        _mm256_floor_pd(a)
-    }
+    avx2_lanes!();
     #[inline]
     #[target_feature(enable = "avx2,fma")]
     fn gt(a: V, b: V) -> M {
@@ -103,26 +59,6 @@ packet_kernel!("avx2,fma", 4, __m256d, __m256d, {
         // SAFETY: LANES f64 into a local array of that size.
         unsafe { _mm256_storeu_pd(v.as_mut_ptr(), a) };
         v
-    }
-    // `LOADS`: four scalar loads instead of one `vgatherdps` ([`super::scalar_voxel_loads`]).
-    #[inline]
-    #[target_feature(enable = "avx2,fma")]
-    fn gather<const LOADS: bool>(mu: &[f32], index: V) -> V {
-        let index = _mm256_cvtpd_epi32(index);
-        // SAFETY: every index is a sum of clamped in-grid voxel indices times strides,
-        // so below mu.len() < 2³¹ (checked by `trace_row`); 4 i32 into a local array of
-        // that size.
-        unsafe {
-            let g = if LOADS {
-                let mut idx = [0i32; 4];
-                _mm_storeu_si128(idx.as_mut_ptr().cast(), index);
-                let v = |l: usize| *mu.get_unchecked(idx[l] as usize);
-                _mm_setr_ps(v(0), v(1), v(2), v(3))
-            } else {
-                _mm_i32gather_ps::<4>(mu.as_ptr(), index)
-            };
-            _mm256_cvtps_pd(g)
-        }
     }
     // Every lane: a tile of 4 rows × 1 column.
     #[inline]

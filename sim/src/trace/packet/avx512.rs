@@ -1,52 +1,7 @@
 //! Eight lanes of f64 (AVX-512F; its masks are bit masks).
 
 packet_kernel!("avx512f,avx2,fma", 8, __m512d, __mmask8, {
-    #[inline]
-    #[target_feature(enable = "avx512f,avx2,fma")]
-    fn splat(x: f64) -> V {
-        _mm512_set1_pd(x)
-    }
-    #[inline]
-    #[target_feature(enable = "avx512f,avx2,fma")]
-    fn zero() -> V {
-        _mm512_setzero_pd()
-    }
-    #[inline]
-    #[target_feature(enable = "avx512f,avx2,fma")]
-    fn min(a: V, b: V) -> V {
-        _mm512_min_pd(a, b)
-    }
-    #[inline]
-    #[target_feature(enable = "avx512f,avx2,fma")]
-    fn max(a: V, b: V) -> V {
-        _mm512_max_pd(a, b)
-    }
-    #[inline]
-    #[target_feature(enable = "avx512f,avx2,fma")]
-    fn add(a: V, b: V) -> V {
-        _mm512_add_pd(a, b)
-    }
-    #[inline]
-    #[target_feature(enable = "avx512f,avx2,fma")]
-    fn sub(a: V, b: V) -> V {
-        _mm512_sub_pd(a, b)
-    }
-    #[inline]
-    #[target_feature(enable = "avx512f,avx2,fma")]
-    fn mul(a: V, b: V) -> V {
-        _mm512_mul_pd(a, b)
-    }
-    #[inline]
-    #[target_feature(enable = "avx512f,avx2,fma")]
-    fn fmadd(a: V, b: V, c: V) -> V {
-        _mm512_fmadd_pd(a, b, c)
-    }
-    // Round towards −∞, exceptions suppressed.
-    #[inline]
-    #[target_feature(enable = "avx512f,avx2,fma")]
-    fn floor(a: V) -> V {
-        _mm512_roundscale_pd::<0x09>(a)
-    }
+    avx512_lanes!();
     #[inline]
     #[target_feature(enable = "avx512f,avx2,fma")]
     fn gt(a: V, b: V) -> M {
@@ -105,25 +60,6 @@ packet_kernel!("avx512f,avx2,fma", 8, __m512d, __mmask8, {
         // SAFETY: LANES f64 into a local array of that size.
         unsafe { _mm512_storeu_pd(v.as_mut_ptr(), a) };
         v
-    }
-    // Eight scalar loads (`LOADS`) or one `vgatherdps`: see `super::scalar_voxel_loads`.
-    #[inline]
-    #[target_feature(enable = "avx512f,avx2,fma")]
-    fn gather<const LOADS: bool>(mu: &[f32], index: V) -> V {
-        let index = _mm512_cvtpd_epi32(index);
-        // SAFETY: every index is a sum of clamped in-grid voxel indices times strides, so
-        // inside `mu` (as for AVX2's gather); 8 i32 into a local array of that size.
-        unsafe {
-            let g = if LOADS {
-                let mut idx = [0i32; 8];
-                _mm256_storeu_si256(idx.as_mut_ptr().cast(), index);
-                let v = |l: usize| *mu.get_unchecked(idx[l] as usize);
-                _mm256_setr_ps(v(0), v(1), v(2), v(3), v(4), v(5), v(6), v(7))
-            } else {
-                _mm256_i32gather_ps::<4>(mu.as_ptr(), index)
-            };
-            _mm512_cvtps_pd(g)
-        }
     }
     // Lanes 0, 2, 4, 6: the first column of a 4-row × 2-column tile, one per row (the
     // second column's voxels mostly share those cache lines).

@@ -2,11 +2,12 @@
 
 /// The kernel body, instantiated per instruction set. The caller supplies the vector and
 /// mask types, the lane count and the primitives (all `#[inline]` with the set's target
-/// features): `splat`, `zero`, `min`, `max`, `add`, `sub`, `mul`, `fmadd` (a·b + c),
-/// `floor`, `gt`, `le`, `ne` (lane masks), `and` (of masks), `none` (no lane set),
-/// `select` (mask ? a : b), `load`/`store` (from/to `[f64; LANES]`), `gather::<LOADS>` (f32
-/// values at f64-valued indices, widened to f64; `LOADS`: by scalar loads, where the set
-/// offers that choice, see [`super::scalar_voxel_loads`]), and for compositions `gather_packed`
+/// features; the arithmetic and `gather` from `avx2_lanes!` / `avx512_lanes!`,
+/// `super::super::lanes`): `splat`, `zero`, `min`, `max`, `add`, `sub`, `mul`, `fmadd`
+/// (a·b + c), `floor`, `gt`, `le`, `ne` (lane masks), `and` (of masks), `none` (no lane set),
+/// `select` (mask ? a : b), `load`/`store` (from/to `[f64; LANES]`), `gather::<LOADS>` (unsafe:
+/// f32 values at f64-valued indices, widened to f64; `LOADS`: by scalar loads, see
+/// [`super::scalar_voxel_loads`]), and for compositions `gather_packed`
 /// (density and material index of packed values), `eq`, `all` and `add_where` (s + w where
 /// the mask is set), and `prefetch` (bring the cache lines of some lanes' voxels towards
 /// L1, through [`prefetch_at`]).
@@ -191,7 +192,10 @@ macro_rules! packet_kernel {
                     let (rho, label) = gather_packed(field, base);
                     add_material(sums, label, mul(rho, len));
                 } else {
-                    sums[0] = add(sums[0], mul(gather::<LOADS>(field, base), len));
+                    // SAFETY: every index is a sum of clamped in-grid voxel indices times
+                    // strides, so below field.len() < 2³¹ (checked by `trace_row`).
+                    let mu = unsafe { gather::<LOADS>(field, base) };
+                    sums[0] = add(sums[0], mul(mu, len));
                 }
                 return;
             }
@@ -221,9 +225,17 @@ macro_rules! packet_kernel {
                     add_material(sums, m2, w2);
                 }
             } else {
-                let v = mul(gather::<LOADS>(field, base), l0);
-                let v = fmadd(gather::<LOADS>(field, va), l1, v);
-                sums[0] = add(sums[0], fmadd(gather::<LOADS>(field, vb), l2, v));
+                // SAFETY: as above, for the voxels entered at the layer's crossings too.
+                let (mu0, mu1, mu2) = unsafe {
+                    (
+                        gather::<LOADS>(field, base),
+                        gather::<LOADS>(field, va),
+                        gather::<LOADS>(field, vb),
+                    )
+                };
+                let v = mul(mu0, l0);
+                let v = fmadd(mu1, l1, v);
+                sums[0] = add(sums[0], fmadd(mu2, l2, v));
             }
         }
 

@@ -29,9 +29,16 @@
 //! for a chest-sized path).
 
 #[cfg(target_arch = "x86_64")]
+#[macro_use]
+mod kernel;
+#[cfg(target_arch = "x86_64")]
 mod avx2;
+#[cfg(target_arch = "x86_64")]
+mod avx512;
 
+use crate::occupancy::RowExtents;
 use crate::ray::{GridBox, GridRay};
+use crate::trace::packet::{self, Kernel as Simd};
 
 /// Largest difference between a ray's line in the `b`–`c` plane and its sheet's, in voxels
 /// anywhere in the box, for the ray to belong to the sheet.
@@ -63,6 +70,11 @@ struct Segment {
     /// `b1 - b0`.
     db: f64,
     base: f64,
+    /// Where along `a` the segment's line of voxels may be non-zero: every voxel whose
+    /// cube lies below `nz_lo` or from `nz_hi` on is zero, and so is every voxel a ray
+    /// clamped into the box reads there (±∞: no such knowledge; see [`Sheet::skip_zeros`]).
+    nz_lo: f64,
+    nz_hi: f64,
 }
 
 /// One ray of a sheet: `a = a0 + slope·b` for `b ∈ [b_lo, b_hi]`; `mm_per_b` converts
@@ -158,7 +170,7 @@ impl Sheet {
     /// Writes each ray's ∫mu ds (mu per mm, lengths in mm) into `out` (one value per ray
     /// given to [`Sheet::new`]; 0 for rays that miss). `field` is indexed
     /// `i + nx·(j + ny·k)` over `dims` voxels and `bounds` is the box the rays were clipped
-    /// to.
+    /// to. Uses the widest SIMD kernel the CPU has ([`packet::kernel`]).
     pub fn line_integrals(
         &self,
         field: &[f32],
@@ -166,14 +178,16 @@ impl Sheet {
         bounds: &GridBox,
         out: &mut [f64],
     ) {
-        self.line_integrals_with(true, field, dims, bounds, out);
+        self.line_integrals_with(packet::kernel(), field, dims, bounds, out);
     }
 
-    /// As [`Sheet::line_integrals`], with the SIMD kernel where the CPU has one (`simd`) or
-    /// the portable one: the two give the same bits (`sim/tests/sheet.rs`).
+    /// As [`Sheet::line_integrals`], with the given SIMD kernel (eight rays at a time
+    /// with AVX-512, four with AVX2) or, for `None` or a kernel the CPU lacks
+    /// ([`packet::supported`]), the portable one: all give the same bits
+    /// (`sim/tests/sheet.rs`).
     pub fn line_integrals_with(
         &self,
-        simd: bool,
+        simd: Option<Simd>,
         field: &[f32],
         dims: [usize; 3],
         bounds: &GridBox,
@@ -195,24 +209,76 @@ impl Sheet {
             a_lo,
             a_hi,
         };
-        #[cfg(target_arch = "x86_64")]
-        let done = simd && avx2::available() && field.len() < (1 << 31) && {
-            // SAFETY: AVX2 and FMA are present (checked just above).
-            unsafe { avx2::integrate(&kernel, &self.segments, ray, &mut acc) };
-            true
-        };
-        #[cfg(not(target_arch = "x86_64"))]
-        let done = {
-            let _ = simd;
-            false
-        };
-        if !done {
-            kernel.integrate(&self.segments, ray, &mut acc);
+        let simd = simd.filter(|k| field.len() < (1 << 31) && packet::supported().contains(k));
+        match simd {
+            // SAFETY: the CPU has the kernel's features (`packet::supported`), and the
+            // field fewer than 2³¹ values.
+            #[cfg(target_arch = "x86_64")]
+            Some(Simd::Avx512) => unsafe {
+                avx512::integrate(&kernel, &self.segments, ray, &mut acc)
+            },
+            // SAFETY: as above.
+            #[cfg(target_arch = "x86_64")]
+            Some(Simd::Avx2) => unsafe { avx2::integrate(&kernel, &self.segments, ray, &mut acc) },
+            _ => kernel.integrate(&self.segments, ray, &mut acc),
         }
         out.fill(0.0);
         for (r, slot) in self.slots.iter().enumerate() {
             out[*slot] = acc[r] * self.mm_per_b[r];
         }
+    }
+
+    /// Lets the SIMD kernels skip a group of rays over a block of segments where every
+    /// voxel those rays can meet is zero, from where each row of voxels along i holds
+    /// non-zero values (`rows`, of the field the sheet will integrate; `bounds`, the box its
+    /// rays were clipped to). The skipped pieces are exact zeros, so the results are the
+    /// same bits. Only sheets along i (axis 0) take it; others are left as they are.
+    pub fn skip_zeros(&mut self, rows: &RowExtents, bounds: &GridBox) {
+        if self.a != 0 {
+            return;
+        }
+        let (a_lo, a_hi) = (bounds.lo[0], bounds.hi[0].saturating_sub(1));
+        for s in &mut self.segments {
+            (s.nz_lo, s.nz_hi) = match rows.row_at(s.base as usize) {
+                None => (f64::INFINITY, f64::NEG_INFINITY),
+                // A ray clamped into the box reads its first or last voxel wherever it
+                // stands beyond them: no zeros to count on at a side where those are not.
+                Some((first, last)) => (
+                    if first <= a_lo {
+                        f64::NEG_INFINITY
+                    } else {
+                        first as f64
+                    },
+                    if last >= a_hi {
+                        f64::INFINITY
+                    } else {
+                        (last + 1) as f64
+                    },
+                ),
+            };
+        }
+    }
+
+    /// How many (group of `lanes` rays, block of segments) pairs the SIMD kernels skip as
+    /// all zeros after [`Sheet::skip_zeros`] (for tests and benchmarks; `lanes` 4 or 8).
+    pub fn zero_blocks(&self, lanes: usize) -> usize {
+        let quads = (lanes / Rays::GROUP).max(1);
+        let groups = self.rays.len() / (quads * Rays::GROUP);
+        self.segments
+            .chunks(BLOCK)
+            .map(|block| {
+                let (lo, hi) = nonzero_range(block);
+                let (b0, b1) = (block[0].b0, block[block.len() - 1].b1);
+                (0..groups)
+                    .filter(|g| {
+                        (lo > f64::NEG_INFINITY || hi < f64::INFINITY)
+                            && self
+                                .rays
+                                .outside(g * quads..(g + 1) * quads, b0, b1, lo, hi)
+                    })
+                    .count()
+            })
+            .sum()
     }
 
     /// Number of segments of the shared line (for tests and benchmarks).
@@ -269,6 +335,8 @@ fn walk(
             b1,
             db: b1 - b0,
             base: (jb * strides[b] + jc * strides[c]) as f64,
+            nz_lo: f64::NEG_INFINITY,
+            nz_hi: f64::INFINITY,
         });
         b0 = b1;
     }
@@ -284,16 +352,26 @@ struct Rays {
     inv_slope: Vec<f64>,
     b_lo: Vec<f64>,
     b_hi: Vec<f64>,
-    /// Per group of four rays: the range along b where all four are inside.
+    /// Per group of [`Rays::GROUP`] rays: the range along b where all of them are inside.
     group_lo: Vec<f64>,
     group_hi: Vec<f64>,
-    /// Per group of four rays: the range along b where any of the four is inside.
+    /// Per group of [`Rays::GROUP`] rays: the range along b where any of them is inside.
     reach_lo: Vec<f64>,
     reach_hi: Vec<f64>,
+    /// Per group of [`Rays::GROUP`] rays: the least and greatest `a0` and slope of its
+    /// rays (padding left out; an all-padding group has an empty range).
+    a0_lo: Vec<f64>,
+    a0_hi: Vec<f64>,
+    slope_lo: Vec<f64>,
+    slope_hi: Vec<f64>,
 }
 
 impl Rays {
+    /// Rays are padded to a multiple of this (the widest kernel's lanes).
     const PAD: usize = 8;
+    /// Rays per group of the per-group ranges (the narrowest kernel's lanes; wider
+    /// kernels combine groups).
+    const GROUP: usize = 4;
 
     fn new(rays: &[SheetRay]) -> Self {
         let n = rays.len().div_ceil(Self::PAD) * Self::PAD;
@@ -304,10 +382,19 @@ impl Rays {
         };
         let (b_lo, b_hi) = (column(|r| r.b_lo, -1.0), column(|r| r.b_hi, -1.0));
         let group = |v: &[f64], f: fn(f64, f64) -> f64| -> Vec<f64> {
-            v.chunks(4)
+            v.chunks(Self::GROUP)
                 .map(|c| c.iter().copied().reduce(f).unwrap())
                 .collect()
         };
+        // Padding rays widen no group's range of positions.
+        let (a0_lo, a0_hi) = (
+            column(|r| r.a0, f64::INFINITY),
+            column(|r| r.a0, f64::NEG_INFINITY),
+        );
+        let (slope_lo, slope_hi) = (
+            column(|r| r.slope, f64::INFINITY),
+            column(|r| r.slope, f64::NEG_INFINITY),
+        );
         Self {
             a0: column(|r| r.a0, 0.0),
             slope: column(|r| r.slope, 0.0),
@@ -316,6 +403,10 @@ impl Rays {
             group_hi: group(&b_hi, f64::min),
             reach_lo: group(&b_lo, f64::min),
             reach_hi: group(&b_hi, f64::max),
+            a0_lo: group(&a0_lo, f64::min),
+            a0_hi: group(&a0_hi, f64::max),
+            slope_lo: group(&slope_lo, f64::min),
+            slope_hi: group(&slope_hi, f64::max),
             b_lo,
             b_hi,
         }
@@ -323,6 +414,101 @@ impl Rays {
 
     fn len(&self) -> usize {
         self.a0.len()
+    }
+
+    /// Whether every ray of groups `quads` stays below `lo` or from `hi` on along `a`
+    /// for all `b` in `[b0, b1]` (`b0 ≥ 0`, as every grid coordinate in the box). The
+    /// kernels compute a position as one fused multiply-add of these values; the
+    /// margin covers its rounding.
+    fn outside(&self, quads: std::ops::Range<usize>, b0: f64, b1: f64, lo: f64, hi: f64) -> bool {
+        const MARGIN: f64 = 1e-6;
+        let fold = |v: &[f64], f: fn(f64, f64) -> f64| {
+            v[quads.clone()]
+                .iter()
+                .copied()
+                .reduce(f)
+                .unwrap_or(f64::NAN)
+        };
+        let (s_lo, s_hi) = (
+            fold(&self.slope_lo, f64::min),
+            fold(&self.slope_hi, f64::max),
+        );
+        // a0 + slope·b is linear in b, and b ≥ 0: the extremes are at the ends.
+        let x_lo = fold(&self.a0_lo, f64::min) + (s_lo * b0).min(s_lo * b1);
+        let x_hi = fold(&self.a0_hi, f64::max) + (s_hi * b0).max(s_hi * b1);
+        x_hi + MARGIN < lo || x_lo - MARGIN >= hi
+    }
+}
+
+/// The range along `a` outside which every voxel of `block`'s lines is zero (see
+/// [`Segment::nz_lo`]).
+fn nonzero_range(block: &[Segment]) -> (f64, f64) {
+    block
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), s| {
+            (lo.min(s.nz_lo), hi.max(s.nz_hi))
+        })
+}
+
+/// Segments handled together per group of rays in the SIMD kernels: the group's rays stay
+/// in registers over the block, and inside the group's range each segment's exit is the
+/// next one's entry.
+const BLOCK: usize = 8;
+
+/// The cache lines of the next block's voxel lines over the box's extent, which the SIMD
+/// kernels ask for a few per group of rays, so that few are in flight at once: the kernel
+/// waits on memory without them (a block's lines lie a line of the grid apart). Listed
+/// once per block, as working out each address per group cost more than the kernel saved
+/// (docs/projector.md, "Session 26").
+#[cfg(target_arch = "x86_64")]
+struct Ahead {
+    /// First voxel of a line's span inside the box, from the line's `a = 0` voxel.
+    start: usize,
+    /// Addresses per line: its cache lines where lines are contiguous, its voxels
+    /// otherwise.
+    lines: usize,
+    /// Voxels between consecutive addresses of a line.
+    step: usize,
+    list: Vec<usize>,
+}
+
+#[cfg(target_arch = "x86_64")]
+impl Ahead {
+    fn new(kernel: &Kernel) -> Self {
+        let span = (kernel.a_lo * kernel.stride) as usize..=(kernel.a_hi * kernel.stride) as usize;
+        let step = if kernel.stride == 1.0 {
+            16
+        } else {
+            kernel.stride as usize
+        };
+        let lines = span.clone().step_by(step).count();
+        Self {
+            start: *span.start(),
+            lines,
+            step,
+            list: Vec::with_capacity(BLOCK * lines),
+        }
+    }
+
+    /// Lists the addresses of the block after block `n` of `segments`: every line's whole
+    /// span in the box. (Leaving out the spans known to be zero, [`Segment::nz_lo`], was
+    /// measured slower: the groups at their edges then wait for those zeros.)
+    fn list(&mut self, segments: &[Segment], n: usize) {
+        let next = segments.get((n + 1) * BLOCK..).unwrap_or(&[]);
+        self.list.clear();
+        for s in &next[..next.len().min(BLOCK)] {
+            let from = s.base as usize + self.start;
+            // `0..lines` compiles to a tight loop (a stepped inclusive range measured 15 %
+            // slower over the whole render).
+            self.list
+                .extend((0..self.lines).map(|l| from + l * self.step));
+        }
+    }
+
+    /// The listed addresses, in one share per group of rays.
+    fn asks(&self, groups: usize) -> std::slice::Chunks<'_, usize> {
+        self.list
+            .chunks(self.list.len().div_ceil(groups.max(1)).max(1))
     }
 }
 
@@ -336,8 +522,8 @@ struct Kernel<'a> {
 }
 
 impl Kernel<'_> {
-    /// Σ over segments of ∫mu db for every ray (portable; the AVX2 kernel computes the
-    /// same operations, fused multiply-adds included, so gives the same bits).
+    /// Σ over segments of ∫mu db for every ray (portable; the SIMD kernels compute the
+    /// same operations, fused multiply-adds included, so give the same bits).
     fn integrate(&self, segments: &[Segment], rays: &Rays, acc: &mut [f64]) {
         for s in segments {
             for (r, sum) in acc.iter_mut().enumerate() {

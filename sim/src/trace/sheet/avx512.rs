@@ -1,0 +1,63 @@
+//! Eight lanes of f64 (AVX-512F; its comparisons give bit masks). Reads voxels as the AVX2
+//! kernel does (`super::avx2`), eight lanes at a time.
+
+sheet_kernel!("avx512f,avx2,fma", 8, __m512d, {
+    avx512_lanes!();
+    /// # Safety
+    /// `LANES` f64 readable at `p`.
+    #[inline]
+    #[target_feature(enable = "avx512f,avx2,fma")]
+    unsafe fn loadu(p: *const f64) -> V {
+        // SAFETY: the caller's guarantee.
+        unsafe { _mm512_loadu_pd(p) }
+    }
+    /// # Safety
+    /// `LANES` f64 writable at `p`.
+    #[inline]
+    #[target_feature(enable = "avx512f,avx2,fma")]
+    unsafe fn storeu(p: *mut f64, v: V) {
+        // SAFETY: the caller's guarantee.
+        unsafe { _mm512_storeu_pd(p, v) }
+    }
+    #[inline]
+    #[target_feature(enable = "avx512f,avx2,fma")]
+    fn pick(f: V, first: V, lower: V, upper: V) -> V {
+        _mm512_mask_blend_pd(_mm512_cmp_pd_mask::<_CMP_GT_OQ>(f, first), lower, upper)
+    }
+    /// The voxels at `index` and `index + 1` of each lane (whole numbers in f64), as two
+    /// vectors of f64.
+    ///
+    /// # Safety
+    /// Every `index + 1` is below `field.len()` < 2³¹.
+    #[inline]
+    #[target_feature(enable = "avx512f,avx2,fma")]
+    unsafe fn pair<const LOADS: bool>(field: &[f32], index: V) -> (V, V) {
+        let index = _mm512_cvtpd_epi32(index);
+        // SAFETY: the caller's guarantee; 8 i32 into a local array of that size.
+        let both = unsafe {
+            if LOADS {
+                let mut idx = [0i32; 8];
+                _mm256_storeu_si256(idx.as_mut_ptr().cast(), index);
+                let v = |l: usize| {
+                    field
+                        .as_ptr()
+                        .add(idx[l] as usize)
+                        .cast::<i64>()
+                        .read_unaligned()
+                };
+                _mm512_setr_epi64(v(0), v(1), v(2), v(3), v(4), v(5), v(6), v(7))
+            } else {
+                _mm512_i32gather_epi64::<4>(index, field.as_ptr().cast())
+            }
+        };
+        // [l0 u0 l1 u1 … l7 u7] → [l0 … l7 | u0 … u7].
+        let split = _mm512_castps_pd(_mm512_permutexvar_ps(
+            _mm512_setr_epi32(0, 2, 4, 6, 8, 10, 12, 14, 1, 3, 5, 7, 9, 11, 13, 15),
+            _mm512_castsi512_ps(both),
+        ));
+        (
+            _mm512_cvtps_pd(_mm256_castpd_ps(_mm512_castpd512_pd256(split))),
+            _mm512_cvtps_pd(_mm256_castpd_ps(_mm512_extractf64x4_pd::<1>(split))),
+        )
+    }
+});
