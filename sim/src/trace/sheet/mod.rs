@@ -308,22 +308,40 @@ fn walk(
     let mut segments = Vec::with_capacity((hi - lo).max(0.0) as usize + 16);
     let (jb_lo, jb_hi) = (bounds.lo[b] as f64, (bounds.hi[b] - 1) as f64);
     let (jc_lo, jc_hi) = (bounds.lo[c] as f64, (bounds.hi[c] - 1) as f64);
+    // The planes ahead: of b at `next_b`, of c at `next_c` (the line's crossing of plane
+    // `p`). Each is worked out from its plane alone, not from where the walk stands, so
+    // the loop carries no division or floor from one segment to the next.
+    let step = if mc > 0.0 { 1.0 } else { -1.0 };
+    let mut p = if mc > 0.0 {
+        (c0 + mc * lo).floor() + 1.0
+    } else {
+        (c0 + mc * lo).ceil() - 1.0
+    };
+    let cross = |p: f64| {
+        if mc != 0.0 {
+            (p - c0) / mc
+        } else {
+            f64::INFINITY
+        }
+    };
+    let mut next_c = cross(p);
+    let mut next_b = lo.floor() + 1.0;
     let mut b0 = lo;
     while b0 < hi {
         // The next plane of b, and the next plane of c if the line crosses one first. A
-        // slab of b holds at most one plane of c (|mc| ≤ 1), and every step moves forward.
-        let mut b1 = (b0.floor() + 1.0).min(hi);
-        if mc != 0.0 {
-            let cb = c0 + mc * b0;
-            let plane = if mc > 0.0 {
-                cb.floor() + 1.0
-            } else {
-                cb.ceil() - 1.0
-            };
-            let bc = (plane - c0) / mc;
-            if bc > b0 && bc < b1 {
-                b1 = bc;
-            }
+        // slab of b holds at most one plane of c (|mc| ≤ 1), and every step moves forward:
+        // a crossing that rounding puts at or before b0 is behind the walk.
+        while next_c <= b0 {
+            p += step;
+            next_c = cross(p);
+        }
+        let mut b1 = next_b.min(hi);
+        if next_c < b1 {
+            b1 = next_c;
+            p += step;
+            next_c = cross(p);
+        } else {
+            next_b += 1.0;
         }
         // The voxel from the segment's midpoint: half-open voxels [i, i+1), and a line
         // lying in a plane of c belongs to the voxel above it, as in the other tracers.
