@@ -15,9 +15,11 @@
 //! clipping to the occupied box still applies.
 
 use crate::error::{Result, SimError};
+use crate::occupancy::RowExtents;
 use crate::ray::GridBox;
 use crate::volume::Volume;
 use rayon::prelude::*;
+use std::sync::Arc;
 
 /// Bits of an f32 mantissa that carry the material index.
 pub const LABEL_BITS: u32 = 4;
@@ -55,8 +57,10 @@ pub fn unpack(value: f32) -> (f32, usize) {
 pub struct Composition {
     packed: Volume,
     materials: Vec<String>,
-    /// The box of voxels with non-zero density (exact Siddon clips rays to it), found once
-    /// here rather than at every render.
+    /// Where each row of voxels has non-zero densities, and so the box of voxels with
+    /// non-zero density (exact Siddon clips rays to it, the ray sheets skip the zeros),
+    /// found once here rather than at every render.
+    rows: Arc<RowExtents>,
     occupied: Option<GridBox>,
 }
 
@@ -133,10 +137,12 @@ impl Composition {
             grid.direction(),
             values,
         )?;
-        let occupied = packed.occupied();
+        let rows = RowExtents::of(&packed);
+        let occupied = rows.bounding_box();
         Ok(Self {
             packed,
             materials,
+            rows: Arc::new(rows),
             occupied,
         })
     }
@@ -144,6 +150,11 @@ impl Composition {
     /// The smallest box of voxels holding every voxel of non-zero density (`None`: none).
     pub fn occupied(&self) -> Option<GridBox> {
         self.occupied
+    }
+
+    /// Where each row of voxels (along i) has non-zero densities.
+    pub fn rows(&self) -> &Arc<RowExtents> {
+        &self.rows
     }
 
     /// The packed grid (see the module documentation), for the tracers.

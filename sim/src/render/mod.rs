@@ -259,6 +259,10 @@ impl<'a> Renderer<'a, MassThicknesses> {
     pub fn for_composition(composition: &'a Composition, projector: Projector) -> Result<Self> {
         let mut r = Self::build_with(composition.packed(), projector, || composition.occupied())?;
         r.materials = composition.materials().len();
+        // Where the densities are non-zero, row by row, for the sheets to skip zeros.
+        if projector == Projector::Siddon {
+            r.rows = Some(composition.rows().clone());
+        }
         Ok(r)
     }
 
@@ -429,7 +433,6 @@ impl<'a, S: Sums> Renderer<'a, S> {
         self.sheets
             && column_sheets_allowed()
             && self.projector == Projector::Siddon
-            && !S::PER_MATERIAL
             && self.skip.is_none()
             && self.meshes.is_none()
     }
@@ -482,7 +485,6 @@ impl<'a, S: Sums> Renderer<'a, S> {
         // Ray sheets: exact Siddon over the voxels alone, nothing trimmed by skipping.
         let sheets = self.sheets
             && self.projector == Projector::Siddon
-            && !packed
             && self.skip.is_none()
             && self.meshes.is_none();
         if let Some(columns) = self.columns.as_deref().filter(|_| sheets)
@@ -500,7 +502,7 @@ impl<'a, S: Sums> Renderer<'a, S> {
                     .flat_map(|r| (0..view.cols).map(move |c| view.ray(r as f64, c as f64)))
                     .collect();
                 let rays: Vec<Option<GridRay>> = world.iter().map(|w| self.clip(w)).collect();
-                if sheets && self.trace_sheets(&rays, view.cols, row) {
+                if sheets && self.trace_sheets(&rays, view.cols, packed.then_some(k), row) {
                     return;
                 }
                 // Each ray's intervals inside meshes (empty without meshes).
@@ -570,22 +572,33 @@ impl<'a, S: Sums> Renderer<'a, S> {
     }
 
     /// The line integrals of `rays` (detector rows of `cols` rays, clipped), one row of
-    /// `out` each, if every row's rays form a [`Sheet`] along the grid's fastest axis (or
-    /// all miss); `false` (with `out` partly written) otherwise. Sheets along the other axes read their voxel
-    /// lines a row or a slice apart, and measured slower than the packets (lateral views on
-    /// an Intel Xeon with AVX2: 0.65–0.82×), so they are left to them.
-    fn trace_sheets(&self, rays: &[Option<GridRay>], cols: usize, out: &mut [f64]) -> bool {
+    /// `out` each, or with `materials` (`Some(k)`) their Σρ·ℓ of materials `0..k` (k per
+    /// pixel), if every row's rays form a [`Sheet`] along the grid's fastest axis (or all
+    /// miss); `false` (with `out` partly written) otherwise. Sheets along the other axes read
+    /// their voxel lines a row or a slice apart, and measured slower than the packets
+    /// (lateral views on an Intel Xeon with AVX2: 0.65–0.82×), so they are left to them.
+    fn trace_sheets(
+        &self,
+        rays: &[Option<GridRay>],
+        cols: usize,
+        materials: Option<usize>,
+        out: &mut [f64],
+    ) -> bool {
         let Some(bounds) = self.bounds.as_ref() else {
             return false;
         };
         let (field, dims) = (self.mu.data(), self.mu.dims());
-        for (rays, px) in rays.chunks(cols).zip(out.chunks_mut(cols)) {
+        let per_pixel = materials.unwrap_or(1);
+        for (rays, px) in rays.chunks(cols).zip(out.chunks_mut(cols * per_pixel)) {
             match Sheet::new(rays, dims, bounds) {
                 Some(mut sheet) if sheet.axis() == 0 => {
                     if let Some(rows) = self.rows.as_deref() {
                         sheet.skip_zeros(rows, bounds);
                     }
-                    sheet.line_integrals(field, dims, bounds, px)
+                    match materials {
+                        None => sheet.line_integrals(field, dims, bounds, px),
+                        Some(k) => sheet.material_sums(field, dims, bounds, k, px),
+                    }
                 }
                 None if rays.iter().all(Option::is_none) => px.fill(0.0),
                 _ => return false,

@@ -1,29 +1,17 @@
 //! The kernel body shared by every instruction set (`packet_kernel!`).
 
-/// The kernel body, instantiated per instruction set. The caller supplies the vector and
-/// mask types, the lane count and the primitives (all `#[inline]` with the set's target
-/// features; the arithmetic and `gather` from `avx2_lanes!` / `avx512_lanes!`,
-/// `super::super::lanes`): `splat`, `zero`, `min`, `max`, `add`, `sub`, `mul`, `fmadd`
-/// (a·b + c), `floor`, `gt`, `le`, `ne` (lane masks), `and` (of masks), `none` (no lane set),
-/// `select` (mask ? a : b), `load`/`store` (from/to `[f64; LANES]`), `gather::<LOADS>` (unsafe:
-/// f32 values at f64-valued indices, widened to f64; `LOADS`: by scalar loads, see
-/// [`super::scalar_voxel_loads`]), and for compositions `gather_packed`
-/// (density and material index of packed values), `eq`, `all` and `add_where` (s + w where
-/// the mask is set), and `prefetch` (bring the cache lines of some lanes' voxels towards
-/// L1, through [`prefetch_at`]).
+/// The kernel body, instantiated per instruction set. The caller supplies the set's lanes
+/// (`avx2_lanes!()` or `avx512_lanes!()`, `super::super::lanes`: the types `V` and `M`,
+/// `LANES`, the arithmetic, masks and voxel reads) and `prefetch` (bring the cache lines of
+/// some lanes' voxels towards L1, through [`prefetch_at`]), all `#[inline]` with the set's
+/// target `$features`.
 #[cfg(target_arch = "x86_64")]
 macro_rules! packet_kernel {
-    ($features:literal, $lanes:literal, $vec:ty, $mask:ty, { $($prims:item)* }) => {
+    ($features:literal, { $($prims:item)* }) => {
         use super::packet_key;
-        /// The label bits of a packed composition value (`crate::composition`).
-        const LABEL_MASK: i32 = crate::composition::MAX_MATERIALS as i32 - 1;
         use crate::ray::GridRay;
         #[allow(unused_imports)]
         use std::arch::x86_64::*;
-
-        type V = $vec;
-        type M = $mask;
-        const LANES: usize = $lanes;
 
         /// Voxel layers ahead of the one being traced whose voxels a packet prefetches:
         /// consecutive layers lie a row or a slice apart in memory, a stride the hardware
@@ -188,12 +176,12 @@ macro_rules! packet_kernel {
                 // lane, in the voxel it entered.
                 e.t = t_b;
                 let len = sub(t_b, t_a);
+                // SAFETY (here and below): every index is a sum of clamped in-grid voxel
+                // indices times strides, so below field.len() < 2³¹ (checked by `trace_row`).
                 if PACKED {
-                    let (rho, label) = gather_packed(field, base);
+                    let (rho, label) = unpack(unsafe { gather_raw::<false>(field, base) });
                     add_material(sums, label, mul(rho, len));
                 } else {
-                    // SAFETY: every index is a sum of clamped in-grid voxel indices times
-                    // strides, so below field.len() < 2³¹ (checked by `trace_row`).
                     let mu = unsafe { gather::<LOADS>(field, base) };
                     sums[0] = add(sums[0], mul(mu, len));
                 }
@@ -212,9 +200,14 @@ macro_rules! packet_kernel {
             let vb = add(base, add(d1, d2));
             let (l0, l1, l2) = (sub(ca, t_a), sub(cb, ca), sub(t_b, cb));
             if PACKED {
-                let (r0, m0) = gather_packed(field, base);
-                let (r1, m1) = gather_packed(field, va);
-                let (r2, m2) = gather_packed(field, vb);
+                // SAFETY: as above, for the voxels entered at the layer's crossings too.
+                let ((r0, m0), (r1, m1), (r2, m2)) = unsafe {
+                    (
+                        unpack(gather_raw::<false>(field, base)),
+                        unpack(gather_raw::<false>(field, va)),
+                        unpack(gather_raw::<false>(field, vb)),
+                    )
+                };
                 let (w0, w1, w2) = (mul(r0, l0), mul(r1, l1), mul(r2, l2));
                 if all(and(eq(m0, m1), eq(m1, m2))) {
                     // Each lane stays in one material over the layer (the usual case).

@@ -2,40 +2,18 @@
 //!
 //! A ray meets at most two voxels of a line per segment, and they are neighbours. Where the
 //! lines are contiguous in memory (the sheet fans out along the grid's fastest axis, as in
-//! AP views), each lane reads both with one 8-byte load at the lower of the two (`pair`);
-//! otherwise it reads each voxel on its own (`gather`).
+//! AP views), each lane reads both with one 8-byte load at the lower of the two
+//! (`pair_raw`); otherwise it reads each voxel on its own (`gather_raw`).
 
-sheet_kernel!("avx2,fma", 4, __m256d, {
+sheet_kernel!("avx2,fma", {
     avx2_lanes!();
-    /// # Safety
-    /// `LANES` f64 readable at `p`.
-    #[inline]
-    #[target_feature(enable = "avx2,fma")]
-    unsafe fn loadu(p: *const f64) -> V {
-        // SAFETY: the caller's guarantee.
-        unsafe { _mm256_loadu_pd(p) }
-    }
-    /// # Safety
-    /// `LANES` f64 writable at `p`.
-    #[inline]
-    #[target_feature(enable = "avx2,fma")]
-    unsafe fn storeu(p: *mut f64, v: V) {
-        // SAFETY: the caller's guarantee.
-        unsafe { _mm256_storeu_pd(p, v) }
-    }
-    #[inline]
-    #[target_feature(enable = "avx2,fma")]
-    fn pick(f: V, first: V, lower: V, upper: V) -> V {
-        _mm256_blendv_pd(lower, upper, _mm256_cmp_pd::<_CMP_GT_OQ>(f, first))
-    }
-    /// The voxels at `index` and `index + 1` of each lane (whole numbers in f64), as two
-    /// vectors of f64.
+    /// The raw values at `index` and `index + 1` of each lane (whole numbers in f64).
     ///
     /// # Safety
     /// Every `index + 1` is below `field.len()` < 2³¹.
     #[inline]
     #[target_feature(enable = "avx2,fma")]
-    unsafe fn pair<const LOADS: bool>(field: &[f32], index: V) -> (V, V) {
+    unsafe fn pair_raw<const LOADS: bool>(field: &[f32], index: V) -> (H, H) {
         let index = _mm256_cvtpd_epi32(index);
         // SAFETY: the caller's guarantee; 4 i32 into a local array of that size.
         let both = unsafe {
@@ -60,8 +38,8 @@ sheet_kernel!("avx2,fma", 4, __m256d, {
             _mm256_setr_epi32(0, 2, 4, 6, 1, 3, 5, 7),
         );
         (
-            _mm256_cvtps_pd(_mm256_castps256_ps128(split)),
-            _mm256_cvtps_pd(_mm256_extractf128_ps::<1>(split)),
+            _mm256_castps256_ps128(split),
+            _mm256_extractf128_ps::<1>(split),
         )
     }
 });

@@ -1,37 +1,15 @@
 //! Eight lanes of f64 (AVX-512F; its comparisons give bit masks). Reads voxels as the AVX2
 //! kernel does (`super::avx2`), eight lanes at a time.
 
-sheet_kernel!("avx512f,avx2,fma", 8, __m512d, {
+sheet_kernel!("avx512f,avx2,fma", {
     avx512_lanes!();
-    /// # Safety
-    /// `LANES` f64 readable at `p`.
-    #[inline]
-    #[target_feature(enable = "avx512f,avx2,fma")]
-    unsafe fn loadu(p: *const f64) -> V {
-        // SAFETY: the caller's guarantee.
-        unsafe { _mm512_loadu_pd(p) }
-    }
-    /// # Safety
-    /// `LANES` f64 writable at `p`.
-    #[inline]
-    #[target_feature(enable = "avx512f,avx2,fma")]
-    unsafe fn storeu(p: *mut f64, v: V) {
-        // SAFETY: the caller's guarantee.
-        unsafe { _mm512_storeu_pd(p, v) }
-    }
-    #[inline]
-    #[target_feature(enable = "avx512f,avx2,fma")]
-    fn pick(f: V, first: V, lower: V, upper: V) -> V {
-        _mm512_mask_blend_pd(_mm512_cmp_pd_mask::<_CMP_GT_OQ>(f, first), lower, upper)
-    }
-    /// The voxels at `index` and `index + 1` of each lane (whole numbers in f64), as two
-    /// vectors of f64.
+    /// The raw values at `index` and `index + 1` of each lane (whole numbers in f64).
     ///
     /// # Safety
     /// Every `index + 1` is below `field.len()` < 2³¹.
     #[inline]
     #[target_feature(enable = "avx512f,avx2,fma")]
-    unsafe fn pair<const LOADS: bool>(field: &[f32], index: V) -> (V, V) {
+    unsafe fn pair_raw<const LOADS: bool>(field: &[f32], index: V) -> (H, H) {
         let index = _mm512_cvtpd_epi32(index);
         // SAFETY: the caller's guarantee; 8 i32 into a local array of that size.
         let both = unsafe {
@@ -56,8 +34,8 @@ sheet_kernel!("avx512f,avx2,fma", 8, __m512d, {
             _mm512_castsi512_ps(both),
         ));
         (
-            _mm512_cvtps_pd(_mm256_castpd_ps(_mm512_castpd512_pd256(split))),
-            _mm512_cvtps_pd(_mm256_castpd_ps(_mm512_extractf64x4_pd::<1>(split))),
+            _mm256_castpd_ps(_mm512_castpd512_pd256(split)),
+            _mm256_castpd_ps(_mm512_extractf64x4_pd::<1>(split)),
         )
     }
 });

@@ -35,6 +35,9 @@ mod kernel;
 mod avx2;
 #[cfg(target_arch = "x86_64")]
 mod avx512;
+mod materials;
+
+use materials::MaterialSums;
 
 use crate::occupancy::RowExtents;
 use crate::ray::{GridBox, GridRay};
@@ -193,16 +196,65 @@ impl Sheet {
         bounds: &GridBox,
         out: &mut [f64],
     ) {
+        self.sums_with(simd, field, dims, bounds, None, out);
+    }
+
+    /// Writes each ray's Σρ·ℓ per material (g/cm³ · mm) over a composition's packed values
+    /// (`packed`, indexed as in [`Sheet::line_integrals`]; [`crate::composition`]) into
+    /// `out`: materials `0..k` of the n-th ray given to [`Sheet::new`] at `out[n·k..]`
+    /// (zeros for rays that miss). Every material index in `packed` is below `k`.
+    pub fn material_sums(
+        &self,
+        packed: &[f32],
+        dims: [usize; 3],
+        bounds: &GridBox,
+        k: usize,
+        out: &mut [f64],
+    ) {
+        self.material_sums_with(packet::kernel(), packed, dims, bounds, k, out);
+    }
+
+    /// As [`Sheet::material_sums`], with the given kernel, as for
+    /// [`Sheet::line_integrals_with`]: all give the same bits.
+    pub fn material_sums_with(
+        &self,
+        simd: Option<Simd>,
+        packed: &[f32],
+        dims: [usize; 3],
+        bounds: &GridBox,
+        k: usize,
+        out: &mut [f64],
+    ) {
+        self.sums_with(simd, packed, dims, bounds, Some(k), out);
+    }
+
+    /// The line integrals (`materials`: `None`) or the sums of materials `0..k` (`Some(k)`)
+    /// of every ray into `out`, with the given kernel.
+    fn sums_with(
+        &self,
+        simd: Option<Simd>,
+        field: &[f32],
+        dims: [usize; 3],
+        bounds: &GridBox,
+        materials: Option<usize>,
+        out: &mut [f64],
+    ) {
         assert_eq!(
             field.len(),
             dims.iter().product::<usize>(),
             "field and dims disagree"
         );
-        assert_eq!(out.len(), self.len, "one sum per ray given to Sheet::new");
+        let per_ray = materials.unwrap_or(1);
+        assert_eq!(
+            out.len(),
+            self.len * per_ray,
+            "one sum per ray given to Sheet::new (per material)"
+        );
         let stride = [1, dims[0], dims[0] * dims[1]][self.a] as f64;
         let (a_lo, a_hi) = (bounds.lo[self.a] as f64, (bounds.hi[self.a] - 1) as f64);
         let ray = &self.rays;
-        let mut acc = vec![0.0f64; ray.len()];
+        let mut acc = vec![0.0f64; if materials.is_some() { 0 } else { ray.len() }];
+        let mut state = materials.map(|k| MaterialSums::new(ray.len(), k));
         let kernel = Kernel {
             field,
             stride,
@@ -210,21 +262,36 @@ impl Sheet {
             a_hi,
         };
         let simd = simd.filter(|k| field.len() < (1 << 31) && packet::supported().contains(k));
-        match simd {
+        let segments = &self.segments;
+        match (simd, state.as_mut()) {
             // SAFETY: the CPU has the kernel's features (`packet::supported`), and the
             // field fewer than 2³¹ values.
             #[cfg(target_arch = "x86_64")]
-            Some(Simd::Avx512) => unsafe {
-                avx512::integrate(&kernel, &self.segments, ray, &mut acc)
+            (Some(Simd::Avx512), m) => unsafe {
+                avx512::integrate(&kernel, segments, ray, &mut acc, m)
             },
             // SAFETY: as above.
             #[cfg(target_arch = "x86_64")]
-            Some(Simd::Avx2) => unsafe { avx2::integrate(&kernel, &self.segments, ray, &mut acc) },
-            _ => kernel.integrate(&self.segments, ray, &mut acc),
+            (Some(Simd::Avx2), m) => unsafe {
+                avx2::integrate(&kernel, segments, ray, &mut acc, m)
+            },
+            (_, None) => kernel.integrate(segments, ray, &mut acc),
+            (_, Some(m)) => kernel.integrate_materials(segments, ray, m),
         }
         out.fill(0.0);
         for (r, slot) in self.slots.iter().enumerate() {
-            out[*slot] = acc[r] * self.mm_per_b[r];
+            let scale = self.mm_per_b[r];
+            match state.as_mut() {
+                None => out[*slot] = acc[r] * scale,
+                Some(m) => {
+                    for (k, o) in out[slot * per_ray..(slot + 1) * per_ray]
+                        .iter_mut()
+                        .enumerate()
+                    {
+                        *o = m.sum(r, k) * scale;
+                    }
+                }
+            }
         }
     }
 
@@ -555,6 +622,16 @@ impl Kernel<'_> {
     /// floors) splits the segment, and `w` (in units of b) is the part before it.
     #[inline(always)]
     fn piece(&self, s: &Segment, rays: &Rays, r: usize) -> f64 {
+        let (mu0, mu1, w, db) = self.voxels(s, rays, r);
+        let (mu0, mu1) = (f64::from(mu0), f64::from(mu1));
+        w.mul_add(mu0 - mu1, db * mu1)
+    }
+
+    /// The values of the voxels ray `r` meets at its entry into and exit from segment `s`,
+    /// the length before the plane between them, `w`, and the segment's length `db` (both
+    /// in units of b, clipped to the ray's range).
+    #[inline(always)]
+    fn voxels(&self, s: &Segment, rays: &Rays, r: usize) -> (f32, f32, f64, f64) {
         let lo = s.b0.max(rays.b_lo[r]);
         let hi = s.b1.min(rays.b_hi[r]);
         let db = (hi - lo).max(0.0);
@@ -563,9 +640,9 @@ impl Kernel<'_> {
         let (f0, f1) = (x0.floor(), x1.floor());
         let i0 = f0.max(self.a_lo).min(self.a_hi);
         let i1 = f1.max(self.a_lo).min(self.a_hi);
-        let mu0 = self.field[i0.mul_add(self.stride, s.base) as usize] as f64;
-        let mu1 = self.field[i1.mul_add(self.stride, s.base) as usize] as f64;
+        let v0 = self.field[i0.mul_add(self.stride, s.base) as usize];
+        let v1 = self.field[i1.mul_add(self.stride, s.base) as usize];
         let w = ((f0.max(f1) - x0) * rays.inv_slope[r]).max(0.0).min(db);
-        w.mul_add(mu0 - mu1, db * mu1)
+        (v0, v1, w, db)
     }
 }
