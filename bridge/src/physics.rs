@@ -67,7 +67,10 @@ pub fn acquire<'py>(
     let vol = &hu.inner;
     let channels = acq.detector.channels();
     let (out, clipping) = py.detach(|| -> PyResult<(Vec<f32>, Clipping)> {
-        let prepared = acq.prepare(vol, seed).map_err(errors::sim)?;
+        let prepared = acq
+            .prepare(vol, seed)
+            .and_then(|p| p.for_views(proj, &list))
+            .map_err(errors::sim)?;
         let mut data = Vec::with_capacity(list.len() * channels * rows * cols);
         let mut clipping = Clipping::default();
         for (i, view) in list.iter().enumerate() {

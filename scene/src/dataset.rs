@@ -346,7 +346,9 @@ pub fn make_item(
             "line integral ∫mu ds (mu at the effective energy)".to_string()
         }
         Some((acq, seed)) => {
-            let prepared = acq.prepare(&mu, item_seed(*seed, index))?;
+            let prepared = acq
+                .prepare(&mu, item_seed(*seed, index))?
+                .for_views(Projector::Siddon, &views)?;
             for (i, v) in views.iter().enumerate() {
                 stack.extend(prepared.acquire(Projector::Siddon, v, i)?.remove(0).data);
             }

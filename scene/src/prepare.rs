@@ -153,11 +153,14 @@ impl Prepared {
                 }
             }
             Some((acq, seed)) => SceneRenderer::Physics {
-                prepared: Box::new(acq.prepare_with_meshes(
-                    &self.volume,
-                    *seed,
-                    self.meshes(MeshPhysics::Polychromatic)?,
-                )?),
+                prepared: Box::new(
+                    acq.prepare_with_meshes(
+                        &self.volume,
+                        *seed,
+                        self.meshes(MeshPhysics::Polychromatic)?,
+                    )?
+                    .for_views(self.job.projector, &self.job.views)?,
+                ),
                 projector: self.job.projector,
             },
         })

@@ -17,7 +17,7 @@ use crate::geometry::View;
 use crate::material::{self, Material};
 use crate::mesh::MeshScene;
 use crate::polychromatic::SpectralIntegrator;
-use crate::render::{MassThickness, Projection, Projector, Renderer};
+use crate::render::{ColumnCopy, MassThickness, Projection, Projector, Renderer};
 use crate::scatter::{
     AntiScatterGrid, ScatterEngine, ScatterImages, ScatterModel, estimator, transport,
 };
@@ -359,6 +359,7 @@ impl Acquisition {
             seed,
             flat: Mutex::new(None),
             scatter,
+            column_copy: None,
         })
     }
 }
@@ -382,6 +383,9 @@ pub struct Prepared {
     flat: Mutex<Option<(Vec<f64>, FlatField)>>,
     /// The scatter model and its engine, when scatter is modelled.
     scatter: Option<(ScatterModel, ScatterEngine)>,
+    /// The composition stored k-fastest, for tracing detector columns as ray sheets, made
+    /// once for a job's views ([`Prepared::for_views`]) and shared by every view's renderer.
+    column_copy: Option<ColumnCopy>,
 }
 
 impl Prepared {
@@ -395,9 +399,33 @@ impl Prepared {
         &self.integrator
     }
 
+    /// Prepares for rendering `views` with `projector`: where enough of them would trace
+    /// their detector columns as ray sheets ([`Renderer::for_views`]), the renderers of
+    /// every view share one k-fastest copy of the composition, made here (about as long to
+    /// make as one view takes; docs/projector.md, "Column sheets"). Images are unchanged.
+    pub fn for_views(mut self, projector: Projector, views: &[View]) -> Result<Self> {
+        if self.meshes.is_none() {
+            self.column_copy = Renderer::for_composition(&self.composition, projector)?
+                .for_views(views)
+                .column_copy();
+        }
+        Ok(self)
+    }
+
+    /// Whether the views' renderers take a shared k-fastest copy ([`Prepared::for_views`]).
+    pub fn shares_column_copy(&self) -> bool {
+        self.column_copy.is_some()
+            && Renderer::for_composition(&self.composition, Projector::Siddon).is_ok_and(|r| {
+                r.with_column_copy(self.column_copy.as_ref())
+                    .column_copy()
+                    .is_some()
+            })
+    }
+
     /// Per-material mass thickness of one view.
     pub fn mass_thickness(&self, projector: Projector, view: &View) -> Result<MassThickness> {
-        let mut r = Renderer::for_composition(&self.composition, projector)?;
+        let mut r = Renderer::for_composition(&self.composition, projector)?
+            .with_column_copy(self.column_copy.as_ref());
         if let Some(m) = &self.meshes {
             r = r.with_meshes(m.clone())?;
         }

@@ -22,7 +22,7 @@ use tomograf_sim::phantom::Phantom;
 use tomograf_sim::polychromatic::SpectralIntegrator;
 use tomograf_sim::render::MassThickness;
 use tomograf_sim::tissue::TissueModel;
-use tomograf_sim::{Beam, Detector, Geometry, Pose, Projector, Renderer, Volume};
+use tomograf_sim::{Beam, Detector, Geometry, Pose, Projector, Renderer, View, Volume};
 
 /// A Kramers-like spectrum 20–`kvp` keV in 1 keV bins (photons per mAs per mm² at 1 m).
 fn spectrum(kvp: f64) -> (Vec<f64>, Vec<f64>) {
@@ -398,4 +398,68 @@ fn spectra_far_outside_f32_range_scale_exactly() {
             k * one.1
         );
     }
+}
+
+#[test]
+fn orbit_jobs_share_one_column_copy_and_render_the_same() {
+    // A physics job of 8 orbit views makes one k-fastest copy of the composition for all of
+    // them (`Prepared::for_views`), whose column sheets give the per-ray tracers' images;
+    // AP/PA jobs and tilted orbits make none.
+    use tomograf_sim::acquisition::Acquisition;
+    let hu = Phantom::thorax()
+        .voxelize([48, 40, 24], DVec3::new(8.0, 8.0, 12.0), DVec3::ZERO)
+        .unwrap();
+    let g = Geometry {
+        beam: Beam::Cone {
+            sad_mm: 1000.0,
+            sid_mm: 1500.0,
+        },
+        detector: Detector::new(24, 30, 16.0),
+        isocentre: DVec3::new(0.0123, 0.0456, 0.0078),
+    };
+    let views = |first: f64, step: f64, tilt: f64| -> Vec<View> {
+        (0..8)
+            .map(|n| g.view(Pose::new(first + step * n as f64, tilt)).unwrap())
+            .collect()
+    };
+    let mut acq = Acquisition::preset("kv-flat-panel-120kvp").unwrap();
+    acq.detector = DetectorModel::by_name("noiseless-csi", None).unwrap();
+    let prepared = || acq.prepare(&hu, 1).unwrap();
+    let orbit = views(20.0, 30.0, 0.0);
+    let shared = prepared().for_views(Projector::Siddon, &orbit).unwrap();
+    assert!(shared.shares_column_copy());
+    let alone = prepared();
+    assert!(!alone.shares_column_copy());
+    for (i, v) in orbit.iter().enumerate() {
+        let (a, b) = (
+            shared.mass_thickness(Projector::Siddon, v).unwrap(),
+            alone.mass_thickness(Projector::Siddon, v).unwrap(),
+        );
+        let total: f64 = b.data.iter().sum();
+        assert!(total > 0.0);
+        for (x, y) in a.data.iter().zip(&b.data) {
+            assert!(
+                (x - y).abs() <= 1e-9 * y.abs() + 1e-12,
+                "view {i}: {x} vs {y}"
+            );
+        }
+        let (a, b) = (
+            shared.acquire(Projector::Siddon, v, i).unwrap(),
+            alone.acquire(Projector::Siddon, v, i).unwrap(),
+        );
+        for (x, y) in a[0].data.iter().zip(&b[0].data) {
+            assert!(
+                (x - y).abs() <= 1e-5 * y.abs() + 1e-6,
+                "view {i}: {x} vs {y}"
+            );
+        }
+    }
+    let none = |v: &[View]| {
+        prepared()
+            .for_views(Projector::Siddon, v)
+            .unwrap()
+            .shares_column_copy()
+    };
+    assert!(!none(&views(20.0, 30.0, 15.0)), "a tilted orbit");
+    assert!(!none(&views(0.0, 180.0, 0.0)), "AP and PA views");
 }

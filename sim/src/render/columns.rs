@@ -17,6 +17,7 @@ use crate::ray::{GridBox, GridRay};
 use crate::trace::sheet::Sheet;
 use crate::volume::Volume;
 use rayon::prelude::*;
+use std::sync::Arc;
 
 /// The copy's axis n is the volume's axis `AXES[n]`: (k, i, j).
 const AXES: [usize; 3] = [2, 0, 1];
@@ -30,6 +31,22 @@ pub(super) struct KFastest {
     data: Vec<f32>,
     /// The copy's dimensions, `[nz, nx, ny]`.
     dims: [usize; 3],
+    /// Where the copied volume's values lie (address and length), to tell whether a
+    /// renderer is over that volume ([`ColumnCopy`]).
+    source: (usize, usize),
+}
+
+/// A renderer's k-fastest copy of its volume ([`super::Renderer::column_copy`]), to hand to
+/// other renderers over the same volume ([`super::Renderer::with_column_copy`]), so that a
+/// job that makes a renderer per view pays for the copy once.
+#[derive(Clone, Debug)]
+pub(crate) struct ColumnCopy(pub(super) Arc<KFastest>);
+
+impl ColumnCopy {
+    /// Whether this is the copy of `volume`'s values (the same values in memory).
+    pub(super) fn of(&self, volume: &Volume) -> bool {
+        self.0.source == (volume.data().as_ptr() as usize, volume.data().len())
+    }
 }
 
 impl KFastest {
@@ -55,6 +72,7 @@ impl KFastest {
         Some(Self {
             data: out,
             dims: permute(volume.dims()),
+            source: (data.as_ptr() as usize, data.len()),
         })
     }
 

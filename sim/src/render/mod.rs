@@ -9,6 +9,7 @@ mod image;
 mod meshes;
 mod sums;
 
+pub(crate) use columns::ColumnCopy;
 pub use image::Projection;
 pub use sums::{LineIntegrals, MassThicknesses, Sums};
 
@@ -401,6 +402,25 @@ impl<'a, S: Sums> Renderer<'a, S> {
         self.columns = (on && self.column_sheets_possible())
             .then(|| KFastest::new(self.mu).map(Arc::new))
             .flatten();
+        self
+    }
+
+    /// The k-fastest copy this renderer traces columns over, if it made one
+    /// ([`Renderer::with_column_sheets`], [`Renderer::for_views`]), for other renderers over
+    /// the same volume ([`Renderer::with_column_copy`]; within the crate, where the copy's
+    /// holder also owns the volume: [`crate::acquisition::Prepared`]).
+    pub(crate) fn column_copy(&self) -> Option<ColumnCopy> {
+        self.columns.clone().map(ColumnCopy)
+    }
+
+    /// Traces columns as sheets over `copy`, another renderer's k-fastest copy of this
+    /// renderer's volume ([`Renderer::column_copy`]), instead of making one; a copy of
+    /// another volume, or `None`, leaves the renderer as it is, as does a renderer that
+    /// cannot take column sheets ([`Renderer::with_column_sheets`]).
+    pub(crate) fn with_column_copy(mut self, copy: Option<&ColumnCopy>) -> Self {
+        if let Some(c) = copy.filter(|c| c.of(self.mu) && self.column_sheets_possible()) {
+            self.columns = Some(c.0.clone());
+        }
         self
     }
 
