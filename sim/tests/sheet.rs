@@ -288,6 +288,29 @@ fn body_in_air(r: &mut rand_chacha::ChaCha8Rng, dims: [usize; 3]) -> Volume {
     .unwrap()
 }
 
+/// The portable kernel's `n` sums of `plain` (through `sums`), after checking that every
+/// SIMD kernel the CPU has gives the same bits for `plain` and for `skipping` (the same
+/// sheet after `Sheet::skip_zeros`).
+fn same_bits_from_every_kernel(
+    plain: &Sheet,
+    skipping: &Sheet,
+    n: usize,
+    sums: impl Fn(&Sheet, Option<packet::Kernel>, &mut [f64]),
+) -> Vec<f64> {
+    let mut reference = vec![f64::NAN; n];
+    sums(plain, None, &mut reference);
+    for kernel in packet::supported() {
+        for sheet in [plain, skipping] {
+            let mut out = vec![f64::NAN; n];
+            sums(sheet, Some(kernel), &mut out);
+            for (i, (a, b)) in out.iter().zip(&reference).enumerate() {
+                assert_eq!(a.to_bits(), b.to_bits(), "{kernel:?}, sum {i}: {a} vs {b}");
+            }
+        }
+    }
+    reference
+}
+
 #[test]
 fn skipping_zeros_changes_no_bits() {
     // The kernels skip groups of rays over blocks of segments where every voxel they can
@@ -319,23 +342,10 @@ fn skipping_zeros_changes_no_bits() {
                 skipping.skip_zeros(&rows, &bounds);
                 skipped[0] += skipping.zero_blocks(4);
                 skipped[1] += skipping.zero_blocks(8);
-                let mut reference = vec![f64::NAN; world.len()];
-                plain.line_integrals_with(None, vol.data(), dims, &bounds, &mut reference);
-                for kernel in packet::supported() {
-                    for sheet in [&plain, &skipping] {
-                        let mut out = vec![f64::NAN; world.len()];
-                        sheet.line_integrals_with(
-                            Some(kernel),
-                            vol.data(),
-                            dims,
-                            &bounds,
-                            &mut out,
-                        );
-                        for (c, (a, b)) in out.iter().zip(&reference).enumerate() {
-                            assert_eq!(a.to_bits(), b.to_bits(), "{kernel:?} row {row} column {c}");
-                        }
-                    }
-                }
+                let reference =
+                    same_bits_from_every_kernel(&plain, &skipping, world.len(), |s, k, out| {
+                        s.line_integrals_with(k, vol.data(), dims, &bounds, out)
+                    });
                 for (c, w) in world.iter().enumerate() {
                     let exact = brute_force(&vol, w);
                     assert!(
@@ -441,24 +451,10 @@ fn material_sheets_match_reference_with_every_kernel() {
                 skipping.skip_zeros(&rows, &bounds);
                 skipped += skipping.zero_blocks(8);
                 let n = world.len() * k;
-                let mut reference = vec![f64::NAN; n];
-                plain.material_sums_with(None, packed.data(), dims, &bounds, k, &mut reference);
-                for kernel in packet::supported() {
-                    for sheet in [&plain, &skipping] {
-                        let mut out = vec![f64::NAN; n];
-                        sheet.material_sums_with(
-                            Some(kernel),
-                            packed.data(),
-                            dims,
-                            &bounds,
-                            k,
-                            &mut out,
-                        );
-                        for (i, (a, b)) in out.iter().zip(&reference).enumerate() {
-                            assert_eq!(a.to_bits(), b.to_bits(), "{kernel:?} row {row} sum {i}");
-                        }
-                    }
-                }
+                let reference =
+                    same_bits_from_every_kernel(&plain, &skipping, n, |s, kernel, out| {
+                        s.material_sums_with(kernel, packed.data(), dims, &bounds, k, out)
+                    });
                 for (c, w) in world.iter().enumerate() {
                     for (m, vol_m) in alone.iter().enumerate() {
                         let (got, exact) = (reference[c * k + m], brute_force(vol_m, w));

@@ -267,19 +267,23 @@ mod tests {
         .unwrap()
     }
 
-    #[test]
-    fn columns_are_traced_as_sheets_at_any_angle_and_agree_with_the_other_tracers() {
-        let vol = volume();
-        let geometry = Geometry {
+    /// A small cone beam about `vol`, its isocentre off the centre: no ray runs within
+    /// rounding of a grid plane (see the sheet module's documentation).
+    fn geometry(vol: &Volume) -> Geometry {
+        Geometry {
             beam: Beam::Cone {
                 sad_mm: 250.0,
                 sid_mm: 400.0,
             },
             detector: Detector::new(23, 29, 2.1),
-            // Off the centre: no ray runs within rounding of a grid plane (see the sheet
-            // module's documentation).
             isocentre: vol.centre() + DVec3::new(0.0123, 0.0456, 0.0078),
-        };
+        }
+    }
+
+    #[test]
+    fn columns_are_traced_as_sheets_at_any_angle_and_agree_with_the_other_tracers() {
+        let vol = volume();
+        let geometry = geometry(&vol);
         let plain = Renderer::new(&vol, Projector::Siddon)
             .unwrap()
             .with_sheets(false);
@@ -386,14 +390,7 @@ mod tests {
         let density: Vec<f32> = vol.data().iter().map(|v| v * 30.0).collect();
         let names: Vec<String> = (0..4).map(|m| format!("m{m}")).collect();
         let comp = Composition::from_labels(&grid(labels), &grid(density), names.clone()).unwrap();
-        let geometry = Geometry {
-            beam: Beam::Cone {
-                sad_mm: 250.0,
-                sid_mm: 400.0,
-            },
-            detector: Detector::new(23, 29, 2.1),
-            isocentre: vol.centre() + DVec3::new(0.0123, 0.0456, 0.0078),
-        };
+        let geometry = geometry(&vol);
         let plain = Renderer::for_composition(&comp, Projector::Siddon)
             .unwrap()
             .with_sheets(false);
