@@ -7,6 +7,7 @@
 mod columns;
 mod image;
 mod meshes;
+mod sheets;
 mod sums;
 
 pub(crate) use columns::ColumnCopy;
@@ -20,7 +21,6 @@ use crate::geometry::View;
 use crate::mesh::MeshScene;
 use crate::occupancy::RowExtents;
 use crate::ray::{GridBox, GridRay, Ray};
-use crate::trace::sheet::Sheet;
 use crate::trace::{LineIntegral, MaterialPaths, packet, siddon, trilinear};
 use crate::volume::Volume;
 use columns::KFastest;
@@ -160,7 +160,7 @@ pub struct Renderer<'a, S: Sums = LineIntegrals> {
     materials: usize,
     projector: Projector,
     packet_threshold: f64,
-    /// Whether exact Siddon traces detector rows that form a [`Sheet`] as one.
+    /// Whether exact Siddon traces detector rows that form a [`crate::trace::sheet::Sheet`] as one.
     sheets: bool,
     /// The volume stored k-fastest, for tracing detector columns as sheets
     /// ([`Renderer::with_column_sheets`]); `None`: columns are not traced as sheets.
@@ -169,8 +169,8 @@ pub struct Renderer<'a, S: Sums = LineIntegrals> {
     /// nothing), for the trilinear field the whole grid (it is non-zero half a voxel
     /// beyond). `None`: nothing to integrate.
     bounds: Option<GridBox>,
-    /// Where each row of voxels along i is non-zero, for the ray sheets to skip zeros
-    /// ([`Sheet::skip_zeros`]); `None` where they do not (compositions, trilinear).
+    /// Where each row of voxels along i is non-zero (exact Siddon), for the ray sheets to
+    /// skip zeros ([`crate::trace::sheet::Sheet::skip_zeros`]); `None` for the trilinear marcher.
     rows: Option<Arc<RowExtents>>,
     /// Empty-space skipping (see [`crate::accel`]); `None`: off.
     skip: Option<Arc<EmptySpace>>,
@@ -222,7 +222,11 @@ impl<'a> Renderer<'a, LineIntegrals> {
             // occupied bricks' box too: with a threshold above 0 that is where a real CT's
             // noisy air stops counting.
             let bricks = self.skip.as_deref().map(|s| s.map().occupied_box());
-            self.bounds = match (self.mu.occupied(), bricks) {
+            let occupied = match self.rows.as_deref() {
+                Some(rows) => rows.bounding_box(),
+                None => self.mu.occupied(),
+            };
+            self.bounds = match (occupied, bricks) {
                 (b, None) => b,
                 (Some(v), Some(Some(b))) => v.intersect(&b),
                 _ => None,
@@ -320,7 +324,7 @@ impl<'a, S: Sums> Renderer<'a, S> {
             sums: PhantomData,
             projector,
             packet_threshold: packet::default_threshold(),
-            sheets: sheets_by_default(),
+            sheets: sheets::sheets_by_default(),
             columns: None,
             bounds,
             rows: None,
@@ -591,42 +595,6 @@ impl<'a, S: Sums> Renderer<'a, S> {
         Ok(data)
     }
 
-    /// The line integrals of `rays` (detector rows of `cols` rays, clipped), one row of
-    /// `out` each, or with `materials` (`Some(k)`) their Σρ·ℓ of materials `0..k` (k per
-    /// pixel), if every row's rays form a [`Sheet`] along the grid's fastest axis (or all
-    /// miss); `false` (with `out` partly written) otherwise. Sheets along the other axes read
-    /// their voxel lines a row or a slice apart, and measured slower than the packets
-    /// (lateral views on an Intel Xeon with AVX2: 0.65–0.82×), so they are left to them.
-    fn trace_sheets(
-        &self,
-        rays: &[Option<GridRay>],
-        cols: usize,
-        materials: Option<usize>,
-        out: &mut [f64],
-    ) -> bool {
-        let Some(bounds) = self.bounds.as_ref() else {
-            return false;
-        };
-        let (field, dims) = (self.mu.data(), self.mu.dims());
-        let per_pixel = materials.unwrap_or(1);
-        for (rays, px) in rays.chunks(cols).zip(out.chunks_mut(cols * per_pixel)) {
-            match Sheet::new(rays, dims, bounds) {
-                Some(mut sheet) if sheet.axis() == 0 => {
-                    if let Some(rows) = self.rows.as_deref() {
-                        sheet.skip_zeros(rows, bounds);
-                    }
-                    match materials {
-                        None => sheet.line_integrals(field, dims, bounds, px),
-                        Some(k) => sheet.material_sums(field, dims, bounds, k, px),
-                    }
-                }
-                None if rays.iter().all(Option::is_none) => px.fill(0.0),
-                _ => return false,
-            }
-        }
-        true
-    }
-
     /// Σρ·ℓ per material (g/cm³ · mm) along a clipped ray into `out` (zeros when it misses).
     fn clipped_materials(&self, g: Option<&GridRay>, out: &mut [f64]) {
         out.fill(0.0);
@@ -645,23 +613,6 @@ impl<'a, S: Sums> Renderer<'a, S> {
             }
         }
     }
-}
-
-/// Whether renderers trace ray sheets ([`Renderer::with_sheets`]) unless told otherwise:
-/// where the CPU has a SIMD kernel (AVX2 or AVX-512). Measured (docs/projector.md, "Ray
-/// sheets" and "Session 27"): with AVX2 the sheets render a chest CT's AP view 1.4–2.1×
-/// faster than the packets (AMD EPYC; an Intel Xeon held to AVX2); with AVX-512, eight rays
-/// at a time, 1.18× (Intel Xeon, 2 threads), and column sheets 1.3–2.4× at other angles;
-/// the portable kernel is 4.7× slower than the scalar tracer (the same Xeon held to no
-/// SIMD), so without SIMD they stay off. `TG_SHEETS=on` or `=off` (read once) overrides it,
-/// for measuring.
-fn sheets_by_default() -> bool {
-    static ON: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
-    *ON.get_or_init(|| match std::env::var("TG_SHEETS").as_deref() {
-        Ok("on") => true,
-        Ok("off") => false,
-        _ => packet::kernel().is_some(),
-    })
 }
 
 /// Whether [`Renderer::with_column_sheets`] may make its copy: unless `TG_COLUMN_SHEETS=off`

@@ -32,16 +32,29 @@
 #[macro_use]
 mod kernel;
 #[cfg(target_arch = "x86_64")]
+mod ahead;
+#[cfg(target_arch = "x86_64")]
 mod avx2;
 #[cfg(target_arch = "x86_64")]
 mod avx512;
 mod materials;
+mod rays;
+mod walk;
 
+#[cfg(target_arch = "x86_64")]
+use ahead::Ahead;
 use materials::MaterialSums;
+use rays::{Rays, nonzero_range};
+use walk::walk;
 
 use crate::occupancy::RowExtents;
 use crate::ray::{GridBox, GridRay};
 use crate::trace::packet::{self, Kernel as Simd};
+
+/// Segments handled together per group of rays in the SIMD kernels: the group's rays stay
+/// in registers over the block, and inside the group's range each segment's exit is the
+/// next one's entry.
+const BLOCK: usize = 8;
 
 /// Largest difference between a ray's line in the `b`–`c` plane and its sheet's, in voxels
 /// anywhere in the box, for the ray to belong to the sheet.
@@ -261,7 +274,13 @@ impl Sheet {
             a_lo,
             a_hi,
         };
-        let simd = simd.filter(|k| field.len() < (1 << 31) && packet::supported().contains(k));
+        // The kernels this CPU runs: the widest and the narrower (`packet::supported`).
+        let runs = |k: &Simd| match packet::kernel() {
+            Some(Simd::Avx512) => true,
+            Some(Simd::Avx2) => *k == Simd::Avx2,
+            None => false,
+        };
+        let simd = simd.filter(|k| field.len() < (1 << 31) && runs(k));
         let segments = &self.segments;
         match (simd, state.as_mut()) {
             // SAFETY: the CPU has the kernel's features (`packet::supported`), and the
@@ -356,244 +375,6 @@ impl Sheet {
     /// The axis the rays fan out along (0, 1, 2 = i, j, k).
     pub fn axis(&self) -> usize {
         self.a
-    }
-}
-
-/// The segments of the line `c = c0 + mc·b` for `b ∈ [lo, hi]` between consecutive planes
-/// of `b` and `c`, each with the linear index of its voxel line's `a = 0` voxel.
-#[allow(clippy::too_many_arguments)] // the line, its two axes, the box and the strides
-fn walk(
-    lo: f64,
-    hi: f64,
-    c0: f64,
-    mc: f64,
-    b: usize,
-    c: usize,
-    bounds: &GridBox,
-    strides: [usize; 3],
-) -> Vec<Segment> {
-    let mut segments = Vec::with_capacity((hi - lo).max(0.0) as usize + 16);
-    let (jb_lo, jb_hi) = (bounds.lo[b] as f64, (bounds.hi[b] - 1) as f64);
-    let (jc_lo, jc_hi) = (bounds.lo[c] as f64, (bounds.hi[c] - 1) as f64);
-    // The planes ahead: of b at `next_b`, of c at `next_c` (the line's crossing of plane
-    // `p`). Each is worked out from its plane alone, not from where the walk stands, so
-    // the loop carries no division or floor from one segment to the next.
-    let step = if mc > 0.0 { 1.0 } else { -1.0 };
-    let mut p = if mc > 0.0 {
-        (c0 + mc * lo).floor() + 1.0
-    } else {
-        (c0 + mc * lo).ceil() - 1.0
-    };
-    let cross = |p: f64| {
-        if mc != 0.0 {
-            (p - c0) / mc
-        } else {
-            f64::INFINITY
-        }
-    };
-    let mut next_c = cross(p);
-    let mut next_b = lo.floor() + 1.0;
-    let mut b0 = lo;
-    while b0 < hi {
-        // The next plane of b, and the next plane of c if the line crosses one first. A
-        // slab of b holds at most one plane of c (|mc| ≤ 1), and every step moves forward:
-        // a crossing that rounding puts at or before b0 is behind the walk.
-        while next_c <= b0 {
-            p += step;
-            next_c = cross(p);
-        }
-        let mut b1 = next_b.min(hi);
-        if next_c < b1 {
-            b1 = next_c;
-            p += step;
-            next_c = cross(p);
-        } else {
-            next_b += 1.0;
-        }
-        // The voxel from the segment's midpoint: half-open voxels [i, i+1), and a line
-        // lying in a plane of c belongs to the voxel above it, as in the other tracers.
-        let mid = 0.5 * (b0 + b1);
-        let jb = mid.floor().clamp(jb_lo, jb_hi) as usize;
-        let jc = (c0 + mc * mid).floor().clamp(jc_lo, jc_hi) as usize;
-        segments.push(Segment {
-            b0,
-            b1,
-            db: b1 - b0,
-            base: (jb * strides[b] + jc * strides[c]) as f64,
-            nz_lo: f64::NEG_INFINITY,
-            nz_hi: f64::INFINITY,
-        });
-        b0 = b1;
-    }
-    segments
-}
-
-/// The sheet's rays as arrays, padded to a multiple of [`Rays::PAD`] with rays that add
-/// nothing (an empty range below the grid, so that every value stays finite).
-#[derive(Debug, Clone)]
-struct Rays {
-    a0: Vec<f64>,
-    slope: Vec<f64>,
-    inv_slope: Vec<f64>,
-    b_lo: Vec<f64>,
-    b_hi: Vec<f64>,
-    /// Per group of [`Rays::GROUP`] rays: the range along b where all of them are inside.
-    group_lo: Vec<f64>,
-    group_hi: Vec<f64>,
-    /// Per group of [`Rays::GROUP`] rays: the range along b where any of them is inside.
-    reach_lo: Vec<f64>,
-    reach_hi: Vec<f64>,
-    /// Per group of [`Rays::GROUP`] rays: the least and greatest `a0` and slope of its
-    /// rays (padding left out; an all-padding group has an empty range).
-    a0_lo: Vec<f64>,
-    a0_hi: Vec<f64>,
-    slope_lo: Vec<f64>,
-    slope_hi: Vec<f64>,
-}
-
-impl Rays {
-    /// Rays are padded to a multiple of this (the widest kernel's lanes).
-    const PAD: usize = 8;
-    /// Rays per group of the per-group ranges (the narrowest kernel's lanes; wider
-    /// kernels combine groups).
-    const GROUP: usize = 4;
-
-    fn new(rays: &[SheetRay]) -> Self {
-        let n = rays.len().div_ceil(Self::PAD) * Self::PAD;
-        let column = |f: fn(&SheetRay) -> f64, pad: f64| -> Vec<f64> {
-            let mut v: Vec<f64> = rays.iter().map(f).collect();
-            v.resize(n, pad);
-            v
-        };
-        let (b_lo, b_hi) = (column(|r| r.b_lo, -1.0), column(|r| r.b_hi, -1.0));
-        let group = |v: &[f64], f: fn(f64, f64) -> f64| -> Vec<f64> {
-            v.chunks(Self::GROUP)
-                .map(|c| c.iter().copied().reduce(f).unwrap())
-                .collect()
-        };
-        // Padding rays widen no group's range of positions.
-        let (a0_lo, a0_hi) = (
-            column(|r| r.a0, f64::INFINITY),
-            column(|r| r.a0, f64::NEG_INFINITY),
-        );
-        let (slope_lo, slope_hi) = (
-            column(|r| r.slope, f64::INFINITY),
-            column(|r| r.slope, f64::NEG_INFINITY),
-        );
-        Self {
-            a0: column(|r| r.a0, 0.0),
-            slope: column(|r| r.slope, 0.0),
-            inv_slope: column(|r| r.inv_slope, 0.0),
-            group_lo: group(&b_lo, f64::max),
-            group_hi: group(&b_hi, f64::min),
-            reach_lo: group(&b_lo, f64::min),
-            reach_hi: group(&b_hi, f64::max),
-            a0_lo: group(&a0_lo, f64::min),
-            a0_hi: group(&a0_hi, f64::max),
-            slope_lo: group(&slope_lo, f64::min),
-            slope_hi: group(&slope_hi, f64::max),
-            b_lo,
-            b_hi,
-        }
-    }
-
-    fn len(&self) -> usize {
-        self.a0.len()
-    }
-
-    /// Whether every ray of groups `quads` stays below `lo` or from `hi` on along `a`
-    /// for all `b` in `[b0, b1]` (`b0 ≥ 0`, as every grid coordinate in the box). The
-    /// kernels compute a position as one fused multiply-add of these values; the
-    /// margin covers its rounding.
-    fn outside(&self, quads: std::ops::Range<usize>, b0: f64, b1: f64, lo: f64, hi: f64) -> bool {
-        const MARGIN: f64 = 1e-6;
-        let fold = |v: &[f64], f: fn(f64, f64) -> f64| {
-            v[quads.clone()]
-                .iter()
-                .copied()
-                .reduce(f)
-                .unwrap_or(f64::NAN)
-        };
-        let (s_lo, s_hi) = (
-            fold(&self.slope_lo, f64::min),
-            fold(&self.slope_hi, f64::max),
-        );
-        // a0 + slope·b is linear in b, and b ≥ 0: the extremes are at the ends.
-        let x_lo = fold(&self.a0_lo, f64::min) + (s_lo * b0).min(s_lo * b1);
-        let x_hi = fold(&self.a0_hi, f64::max) + (s_hi * b0).max(s_hi * b1);
-        x_hi + MARGIN < lo || x_lo - MARGIN >= hi
-    }
-}
-
-/// The range along `a` outside which every voxel of `block`'s lines is zero (see
-/// [`Segment::nz_lo`]).
-fn nonzero_range(block: &[Segment]) -> (f64, f64) {
-    block
-        .iter()
-        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), s| {
-            (lo.min(s.nz_lo), hi.max(s.nz_hi))
-        })
-}
-
-/// Segments handled together per group of rays in the SIMD kernels: the group's rays stay
-/// in registers over the block, and inside the group's range each segment's exit is the
-/// next one's entry.
-const BLOCK: usize = 8;
-
-/// The cache lines of the next block's voxel lines over the box's extent, which the SIMD
-/// kernels ask for a few per group of rays, so that few are in flight at once: the kernel
-/// waits on memory without them (a block's lines lie a line of the grid apart). Listed
-/// once per block, as working out each address per group cost more than the kernel saved
-/// (docs/projector.md, "Session 26").
-#[cfg(target_arch = "x86_64")]
-struct Ahead {
-    /// First voxel of a line's span inside the box, from the line's `a = 0` voxel.
-    start: usize,
-    /// Addresses per line: its cache lines where lines are contiguous, its voxels
-    /// otherwise.
-    lines: usize,
-    /// Voxels between consecutive addresses of a line.
-    step: usize,
-    list: Vec<usize>,
-}
-
-#[cfg(target_arch = "x86_64")]
-impl Ahead {
-    fn new(kernel: &Kernel) -> Self {
-        let span = (kernel.a_lo * kernel.stride) as usize..=(kernel.a_hi * kernel.stride) as usize;
-        let step = if kernel.stride == 1.0 {
-            16
-        } else {
-            kernel.stride as usize
-        };
-        let lines = span.clone().step_by(step).count();
-        Self {
-            start: *span.start(),
-            lines,
-            step,
-            list: Vec::with_capacity(BLOCK * lines),
-        }
-    }
-
-    /// Lists the addresses of the block after block `n` of `segments`: every line's whole
-    /// span in the box. (Leaving out the spans known to be zero, [`Segment::nz_lo`], was
-    /// measured slower: the groups at their edges then wait for those zeros.)
-    fn list(&mut self, segments: &[Segment], n: usize) {
-        let next = segments.get((n + 1) * BLOCK..).unwrap_or(&[]);
-        self.list.clear();
-        for s in &next[..next.len().min(BLOCK)] {
-            let from = s.base as usize + self.start;
-            // `0..lines` compiles to a tight loop (a stepped inclusive range measured 15 %
-            // slower over the whole render).
-            self.list
-                .extend((0..self.lines).map(|l| from + l * self.step));
-        }
-    }
-
-    /// The listed addresses, in one share per group of rays.
-    fn asks(&self, groups: usize) -> std::slice::Chunks<'_, usize> {
-        self.list
-            .chunks(self.list.len().div_ceil(groups.max(1)).max(1))
     }
 }
 
