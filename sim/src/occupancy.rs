@@ -63,11 +63,6 @@ impl RowExtents {
             .then(|| (self.first[n] as usize, self.last[n] as usize))
     }
 
-    /// The grid's dimensions.
-    pub fn dims(&self) -> [usize; 3] {
-        self.dims
-    }
-
     /// The smallest box of voxels holding every non-zero value, or `None` if all are zero.
     pub fn bounding_box(&self) -> Option<GridBox> {
         let ny = self.dims[1];

@@ -288,6 +288,28 @@ fn body_in_air(r: &mut rand_chacha::ChaCha8Rng, dims: [usize; 3]) -> Volume {
     .unwrap()
 }
 
+/// The rows of `view` that form sheets over `vol`'s grid, their rays clipped to `bounds`:
+/// (row, its world rays, its sheet).
+fn sheet_rows(
+    vol: &Volume,
+    view: &tomograf_sim::View,
+    bounds: &GridBox,
+) -> Vec<(usize, Vec<Ray>, Sheet)> {
+    (0..view.rows)
+        .filter_map(|row| {
+            let world: Vec<Ray> = (0..view.cols)
+                .map(|c| view.ray(row as f64, c as f64))
+                .collect();
+            let clipped: Vec<_> = world
+                .iter()
+                .map(|w| GridRay::clip_to(vol, w, bounds))
+                .collect();
+            let sheet = Sheet::new(&clipped, vol.dims(), bounds)?;
+            Some((row, world, sheet))
+        })
+        .collect()
+}
+
 /// The portable kernel's `n` sums of `plain` (through `sums`), after checking that every
 /// SIMD kernel the CPU has gives the same bits for `plain` and for `skipping` (the same
 /// sheet after `Sheet::skip_zeros`).
@@ -326,17 +348,7 @@ fn skipping_zeros_changes_no_bits() {
             let view = geometry(&vol, 150.0, 260.0, 12, 61, 0.9)
                 .view(pose)
                 .unwrap();
-            for row in 0..view.rows {
-                let world: Vec<Ray> = (0..view.cols)
-                    .map(|c| view.ray(row as f64, c as f64))
-                    .collect();
-                let clipped: Vec<_> = world
-                    .iter()
-                    .map(|w| GridRay::clip_to(&vol, w, &bounds))
-                    .collect();
-                let Some(plain) = Sheet::new(&clipped, dims, &bounds) else {
-                    continue;
-                };
+            for (row, world, plain) in sheet_rows(&vol, &view, &bounds) {
                 assert_eq!(plain.axis(), 0);
                 let mut skipping = plain.clone();
                 skipping.skip_zeros(&rows, &bounds);
@@ -436,17 +448,7 @@ fn material_sheets_match_reference_with_every_kernel() {
             let view = geometry(packed, 150.0, 260.0, 10, 53, 1.0)
                 .view(pose)
                 .unwrap();
-            for row in 0..view.rows {
-                let world: Vec<Ray> = (0..view.cols)
-                    .map(|c| view.ray(row as f64, c as f64))
-                    .collect();
-                let clipped: Vec<_> = world
-                    .iter()
-                    .map(|w| GridRay::clip_to(packed, w, &bounds))
-                    .collect();
-                let Some(plain) = Sheet::new(&clipped, dims, &bounds) else {
-                    continue;
-                };
+            for (row, world, plain) in sheet_rows(packed, &view, &bounds) {
                 let mut skipping = plain.clone();
                 skipping.skip_zeros(&rows, &bounds);
                 skipped += skipping.zero_blocks(8);
