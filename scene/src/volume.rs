@@ -84,7 +84,10 @@ fn load(scene: &Scene, keep_hu: Option<f64>) -> Result<(Volume, VolumeSource)> {
                 );
             };
             let mu_w = tomograf_sim::attenuation::mu_water_per_mm(at)?;
-            if !vol.data().iter().all(|m| m.is_finite() && *m >= 0.0) {
+            if vol
+                .first_voxel_where(|m| !(m.is_finite() && m >= 0.0))
+                .is_some()
+            {
                 bail!("a volume in mu (mm⁻¹) must hold finite values ≥ 0");
             }
             vol = vol.map_in_place(|m| tomograf_sim::attenuation::mu_to_hu(m, mu_w))?;

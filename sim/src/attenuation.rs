@@ -87,7 +87,7 @@ impl Attenuation {
                 volume.map_in_place(|hu| hu_to_mu(hu, mu_water_per_mm))
             }
             Self::LinearPerMm => {
-                if let Some(p) = volume.data().iter().position(|&v| v < 0.0) {
+                if let Some(p) = volume.first_voxel_where(|v| v < 0.0) {
                     return Err(SimError::InvalidVolume(format!(
                         "linear attenuation must be ≥ 0 mm⁻¹, but voxel #{p} holds {}",
                         volume.data()[p]
@@ -173,5 +173,28 @@ mod tests {
         assert_eq!(hu_to_mu(-3024.0, mu_w), 0.0);
         assert!((hu_to_mu(0.0, mu_w) - 0.02).abs() < 1e-9);
         assert!((hu_to_mu(1000.0, mu_w) - 0.04).abs() < 1e-9);
+    }
+
+    #[test]
+    fn negative_mu_is_refused_naming_the_first_such_voxel() {
+        use glam::{DMat3, DVec3};
+        // 3 scanning blocks and more; negative voxels in the second and third block.
+        let dims = [256, 256, 3];
+        let mut data = vec![0.02f32; 256 * 256 * 3];
+        data[70_000] = -1e-6;
+        data[140_000] = -5.0;
+        let vol = |d: Vec<f32>| Volume::new(dims, DVec3::ONE, DVec3::ZERO, DMat3::IDENTITY, d);
+        let err = Attenuation::LinearPerMm
+            .to_mu(vol(data.clone()).unwrap())
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains("voxel #70000 holds -0.000001"), "{err}");
+        // -0.0 is not below 0, and a volume without negative values passes untouched.
+        data[70_000] = -0.0;
+        data[140_000] = 0.0;
+        let ok = Attenuation::LinearPerMm
+            .to_mu(vol(data.clone()).unwrap())
+            .unwrap();
+        assert_eq!(ok.data(), &data[..]);
     }
 }
