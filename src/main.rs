@@ -1,5 +1,6 @@
 //! `tomograf` — X-ray projections (DRRs) of CT volumes with exact ray tracing.
 
+mod allocator;
 mod bench;
 mod dataset;
 mod demo;
@@ -20,7 +21,7 @@ use anyhow::Result;
 use clap::{Parser, Subcommand};
 
 #[global_allocator]
-static GLOBAL: mimalloc::MiMalloc = mimalloc::MiMalloc;
+static GLOBAL: allocator::Allocator = allocator::Allocator;
 
 #[derive(Debug, Parser)]
 #[command(name = "tomograf", version, about, long_about = None)]
