@@ -136,6 +136,15 @@ mod tests {
             eprintln!("skipped: MIMALLOC_ALLOW_THP is set");
             return;
         }
+        // A kernel without transparent huge pages refuses the advice.
+        let probe = vec![0u8; 2 * super::HUGE_FROM];
+        let page = (probe.as_ptr() as usize).next_multiple_of(4096);
+        // SAFETY: advice on whole pages inside `probe`; no data moves.
+        if unsafe { libc::madvise(page as *mut libc::c_void, 4096, libc::MADV_HUGEPAGE) } != 0 {
+            eprintln!("skipped: this kernel has no transparent huge pages");
+            return;
+        }
+        drop(probe);
         let small = vec![1u8; 1 << 16];
         let large = vec![1u8; 3 * super::HUGE_FROM];
         let Some(small_flags) = vm_flags(small.as_ptr() as usize) else {
