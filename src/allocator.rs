@@ -7,8 +7,9 @@
 //! AP view: 20–35 ms against 16 ms; docs/projector.md, "Session 28"), while the large
 //! buffers that are read over and over (a CT volume, its copies, the network's tensors)
 //! gain from the TLB's reach (renders 2–25 % faster). So, as numpy does for its arrays,
-//! only blocks of [`HUGE_FROM`] or more are advised. Setting `MIMALLOC_ALLOW_THP` (`1`:
-//! mimalloc's own default, every block; `0`: none) overrides this.
+//! only blocks of [`HUGE_FROM`] or more are advised, and the advice is taken back when
+//! they are freed. Setting `MIMALLOC_ALLOW_THP` (`1`: mimalloc's own default, every block;
+//! `0`: none) overrides this.
 
 use std::alloc::{GlobalAlloc, Layout};
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -52,22 +53,29 @@ fn configure() {
     }
 }
 
-/// Advises huge pages for the whole pages inside a block of `size` bytes at `ptr`, when it
-/// is large. Failure (a kernel without transparent huge pages) changes nothing.
+/// Advises huge pages (`MADV_HUGEPAGE`), or takes the advice back (`MADV_NOHUGEPAGE`, before
+/// the block is freed: its memory may then hold small blocks), for the whole pages inside a
+/// block of `size` bytes at `ptr`, when it is large. Failure (a kernel without transparent
+/// huge pages) changes nothing.
 #[inline]
-fn advise(ptr: *mut u8, size: usize) {
+fn advise(ptr: *mut u8, size: usize, huge: bool) {
     #[cfg(target_os = "linux")]
     if size >= HUGE_FROM && !ptr.is_null() {
         const PAGE: usize = 4096;
         let start = (ptr as usize).next_multiple_of(PAGE);
         let end = (ptr as usize + size) & !(PAGE - 1);
-        // SAFETY: the range lies inside the block just allocated; the advice moves no data.
+        let advice = if huge {
+            libc::MADV_HUGEPAGE
+        } else {
+            libc::MADV_NOHUGEPAGE
+        };
+        // SAFETY: the range lies inside the block; the advice moves no data.
         unsafe {
-            libc::madvise(start as *mut libc::c_void, end - start, libc::MADV_HUGEPAGE);
+            libc::madvise(start as *mut libc::c_void, end - start, advice);
         }
     }
     #[cfg(not(target_os = "linux"))]
-    let _ = (ptr, size);
+    let _ = (ptr, size, huge);
 }
 
 // SAFETY: every call is mimalloc's; `advise` changes no memory.
@@ -77,7 +85,7 @@ unsafe impl GlobalAlloc for Allocator {
         configure();
         // SAFETY: the caller's contract, passed on.
         let p = unsafe { mimalloc::MiMalloc.alloc(layout) };
-        advise(p, layout.size());
+        advise(p, layout.size(), true);
         p
     }
 
@@ -86,12 +94,13 @@ unsafe impl GlobalAlloc for Allocator {
         configure();
         // SAFETY: the caller's contract, passed on.
         let p = unsafe { mimalloc::MiMalloc.alloc_zeroed(layout) };
-        advise(p, layout.size());
+        advise(p, layout.size(), true);
         p
     }
 
     #[inline]
     unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
+        advise(ptr, layout.size(), false);
         // SAFETY: the caller's contract, passed on.
         unsafe { mimalloc::MiMalloc.dealloc(ptr, layout) }
     }
@@ -100,8 +109,14 @@ unsafe impl GlobalAlloc for Allocator {
     unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
         // SAFETY: the caller's contract, passed on.
         let p = unsafe { mimalloc::MiMalloc.realloc(ptr, layout, new_size) };
-        if p != ptr {
-            advise(p, new_size);
+        if !p.is_null() {
+            // A moved block's old memory is freed, and a shrunk block's tail: take their
+            // advice back (another thread may have taken the memory meanwhile, which costs
+            // that block its huge pages, nothing more).
+            if p != ptr || new_size < layout.size() {
+                advise(ptr, layout.size(), false);
+            }
+            advise(p, new_size, true);
         }
         p
     }
@@ -127,9 +142,10 @@ mod tests {
         None
     }
 
-    /// Small blocks come from memory mimalloc did not advise; a large block is advised.
-    /// Fails if `MI_OPTION_ALLOW_THP` names another option (mimalloc then advises the
-    /// small block's memory) or if `advise` is left out.
+    /// Small blocks come from memory mimalloc did not advise, also where a large block
+    /// was freed; a large block is advised. Fails if `MI_OPTION_ALLOW_THP` names another
+    /// option (mimalloc then advises the small block's memory), if `advise` is left out,
+    /// or if a freed block keeps its advice.
     #[test]
     fn only_large_blocks_are_advised_huge_pages() {
         if std::env::var_os("MIMALLOC_ALLOW_THP").is_some() {
