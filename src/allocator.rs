@@ -35,6 +35,10 @@ pub struct Allocator;
 /// before `main` and any other thread.
 static CONFIGURED: AtomicBool = AtomicBool::new(false);
 
+/// Whether [`advise`] gives advice: not where the user chose with `MIMALLOC_ALLOW_THP`.
+#[cfg(target_os = "linux")]
+static ADVISING: AtomicBool = AtomicBool::new(false);
+
 /// Turns mimalloc's advice off unless the user chose it with `MIMALLOC_ALLOW_THP`; runs
 /// before mimalloc's first request for memory from the system.
 #[inline]
@@ -49,6 +53,7 @@ fn configure() {
     unsafe {
         if libc::getenv(c"MIMALLOC_ALLOW_THP".as_ptr()).is_null() {
             mi_option_set(MI_OPTION_ALLOW_THP, 0);
+            ADVISING.store(true, Ordering::Relaxed);
         }
     }
 }
@@ -60,7 +65,7 @@ fn configure() {
 #[inline]
 fn advise(ptr: *mut u8, size: usize, huge: bool) {
     #[cfg(target_os = "linux")]
-    if size >= HUGE_FROM && !ptr.is_null() {
+    if size >= HUGE_FROM && !ptr.is_null() && ADVISING.load(Ordering::Relaxed) {
         const PAGE: usize = 4096;
         let start = (ptr as usize).next_multiple_of(PAGE);
         let end = (ptr as usize + size) & !(PAGE - 1);
