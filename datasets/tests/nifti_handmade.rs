@@ -188,7 +188,7 @@ fn no_transform_uses_pixdim_and_zero_origin() {
     let mut s = Spec::new([2, 2, 2], 512, 16);
     s.pixdim = [1.0, 0.5, 0.75, 2.0, 1.0, 1.0, 1.0, 1.0];
     let raw: Vec<u8> = (0..8u16)
-        .flat_map(|n| (n * 1000 + 60000 - 8000).to_le_bytes())
+        .flat_map(|n| (52000 + n * 1000).to_le_bytes())
         .collect();
     let path = save(dir.path(), "plain.nii", &s.bytes(false, &raw));
     let v = read_nifti(&path).unwrap();

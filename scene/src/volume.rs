@@ -52,9 +52,15 @@ fn load(scene: &Scene, keep_hu: Option<f64>) -> Result<(Volume, VolumeSource)> {
             p.display()
         );
     }
-    let (mut vol, phantom) = match &v.path {
-        Some(p) => (load_volume_file(p, v.allow_non_ct.unwrap_or(false))?, None),
-        None => (
+    // An ideal DRR of a CT file in HU: converted to mu while the file is read.
+    let read_as_mu = (units == "hu" && keep_hu.is_none() && v.path.is_some())
+        .then(|| Attenuation::hounsfield_at_kev(v.energy_kev.unwrap_or(DEFAULT_ENERGY_KEV)))
+        .transpose()?;
+    let allow_non_ct = v.allow_non_ct.unwrap_or(false);
+    let (mut vol, phantom) = match (&v.path, &read_as_mu) {
+        (Some(p), Some(att)) => (load_volume_file_as_mu(p, allow_non_ct, att)?, None),
+        (Some(p), None) => (load_volume_file(p, allow_non_ct)?, None),
+        (None, _) => (
             phantom_volume(
                 v.phantom_dims.unwrap_or(PHANTOM_DIMS),
                 v.phantom_spacing_mm.unwrap_or(PHANTOM_SPACING),
@@ -103,9 +109,9 @@ fn load(scene: &Scene, keep_hu: Option<f64>) -> Result<(Volume, VolumeSource)> {
         }
         (other, None) => bail!("unknown units '{other}': use hu (Hounsfield) or mu (mm⁻¹)"),
     };
-    let mu = match keep_hu {
-        Some(_) => vol,
-        None => attenuation.to_mu(vol)?,
+    let mu = match (keep_hu, &read_as_mu) {
+        (Some(_), _) | (None, Some(_)) => vol,
+        (None, None) => attenuation.to_mu(vol)?,
     };
     let d = mu.direction();
     let source = VolumeSource {
@@ -125,15 +131,33 @@ fn load(scene: &Scene, keep_hu: Option<f64>) -> Result<(Volume, VolumeSource)> {
     Ok((mu, source))
 }
 
+/// As [`load_volume_file`], converted to mu by `attenuation`: a NIfTI file in the pass that
+/// decodes it (one pass over the volume fewer; docs/datasets.md, "Loading speed"), a DICOM
+/// series afterwards. The same values either way.
+fn load_volume_file_as_mu(
+    path: &std::path::Path,
+    allow_non_ct: bool,
+    attenuation: &Attenuation,
+) -> Result<Volume> {
+    if let (true, Some(convert)) = (is_nifti(path), attenuation.per_voxel()?) {
+        return Ok(tomograf_datasets::nifti::read_nifti_mapped(path, convert)?);
+    }
+    Ok(attenuation.to_mu(load_volume_file(path, allow_non_ct)?)?)
+}
+
+fn is_nifti(path: &std::path::Path) -> bool {
+    let name = path.to_string_lossy().to_ascii_lowercase();
+    !path.is_dir() && (name.ends_with(".nii") || name.ends_with(".nii.gz"))
+}
+
 /// Reads a CT volume: a NIfTI file or a folder holding one DICOM series.
 pub fn load_volume_file(path: &std::path::Path, allow_non_ct: bool) -> Result<Volume> {
-    let name = path.to_string_lossy().to_ascii_lowercase();
     if path.is_dir() {
         Ok(tomograf_datasets::dicom::read_dicom_series(
             path,
             allow_non_ct,
         )?)
-    } else if name.ends_with(".nii") || name.ends_with(".nii.gz") {
+    } else if is_nifti(path) {
         Ok(tomograf_datasets::nifti::read_nifti(path)?)
     } else {
         bail!(

@@ -75,15 +75,31 @@ impl Attenuation {
         })
     }
 
+    /// The conversion [`Attenuation::to_mu`] applies to each value, for a reader that
+    /// converts while it decodes (`None` for values already in mu, which are only checked).
+    /// Unlike [`hu_to_mu`], it keeps NaN and ±Inf as they are, so that the volume's own
+    /// check still reports them.
+    pub fn per_voxel(&self) -> Result<Option<impl Fn(f32) -> f32 + Copy + Sync + use<>>> {
+        match *self {
+            Self::Hounsfield { mu_water_per_mm } => {
+                check_mu_water(mu_water_per_mm)?;
+                Ok(Some(move |hu: f32| {
+                    if hu.is_finite() {
+                        hu_to_mu(hu, mu_water_per_mm)
+                    } else {
+                        hu
+                    }
+                }))
+            }
+            Self::LinearPerMm => Ok(None),
+        }
+    }
+
     /// Converts a volume of input values into linear attenuation (mm⁻¹), in place.
     pub fn to_mu(&self, volume: Volume) -> Result<Volume> {
         match *self {
             Self::Hounsfield { mu_water_per_mm } => {
-                if !(mu_water_per_mm.is_finite() && mu_water_per_mm > 0.0) {
-                    return Err(SimError::OutOfRange(format!(
-                        "mu_water = {mu_water_per_mm} mm⁻¹; it must be finite and > 0"
-                    )));
-                }
+                check_mu_water(mu_water_per_mm)?;
                 volume.map_in_place(|hu| hu_to_mu(hu, mu_water_per_mm))
             }
             Self::LinearPerMm => {
@@ -96,6 +112,16 @@ impl Attenuation {
                 Ok(volume)
             }
         }
+    }
+}
+
+fn check_mu_water(mu_water_per_mm: f64) -> Result<()> {
+    if mu_water_per_mm.is_finite() && mu_water_per_mm > 0.0 {
+        Ok(())
+    } else {
+        Err(SimError::OutOfRange(format!(
+            "mu_water = {mu_water_per_mm} mm⁻¹; it must be finite and > 0"
+        )))
     }
 }
 
@@ -196,5 +222,25 @@ mod tests {
             .to_mu(vol(data.clone()).unwrap())
             .unwrap();
         assert_eq!(ok.data(), &data[..]);
+    }
+
+    #[test]
+    fn the_per_voxel_conversion_is_to_mus_and_keeps_non_finite_values() {
+        let att = Attenuation::hounsfield_at_kev(60.0).unwrap();
+        let Attenuation::Hounsfield { mu_water_per_mm } = att else {
+            unreachable!()
+        };
+        let f = att.per_voxel().unwrap().unwrap();
+        for hu in [-3024.0f32, -1000.0, -999.5, 0.0, 40.0, 1500.0, 3071.0] {
+            assert_eq!(f(hu).to_bits(), hu_to_mu(hu, mu_water_per_mm).to_bits());
+        }
+        assert!(f(f32::NAN).is_nan());
+        assert_eq!(f(f32::INFINITY), f32::INFINITY);
+        assert_eq!(f(f32::NEG_INFINITY), f32::NEG_INFINITY);
+        assert!(Attenuation::LinearPerMm.per_voxel().unwrap().is_none());
+        let bad = Attenuation::Hounsfield {
+            mu_water_per_mm: -1.0,
+        };
+        assert!(bad.per_voxel().is_err());
     }
 }

@@ -9,7 +9,8 @@
 //!   than the decoding itself (docs/datasets.md, "Loading speed").
 //!
 //! Both give the same values as the `nifti` crate's `into_ndarray::<f32>`: each value cast
-//! to f32, then `x·slope + inter` in f32 when the slope is not 0 (tested bit for bit).
+//! to f32, then `x·slope + inter` in f32 when the slope is not 0 (tested bit for bit), then
+//! the caller's `map` (e.g. HU → mu, in the same pass; `std::convert::identity` for none).
 
 use nifti::{Endianness, NiftiType};
 use rayon::prelude::*;
@@ -46,16 +47,22 @@ fn float32(le: bool) -> impl Fn([u8; 4]) -> f32 + Sync + Copy {
     }
 }
 
-/// `decode` followed by the header's scaling (none when the slope is 0).
-fn scaled<const N: usize>(
+/// The header's scaling (none when the slope is 0), then `map`: what each stored value
+/// becomes after its cast to f32.
+pub(super) fn scaling(
     slope: f32,
     inter: f32,
+    map: impl Fn(f32) -> f32 + Sync + Copy,
+) -> impl Fn(f32) -> f32 + Sync + Copy {
+    move |x| map(if slope == 0.0 { x } else { x * slope + inter })
+}
+
+/// `decode`, then `scale`.
+fn then<const N: usize>(
     decode: impl Fn([u8; N]) -> f32 + Sync + Copy,
+    scale: impl Fn(f32) -> f32 + Sync + Copy,
 ) -> impl Fn([u8; N]) -> f32 + Sync + Copy {
-    move |b| {
-        let x = decode(b);
-        if slope == 0.0 { x } else { x * slope + inter }
-    }
+    move |b| scale(decode(b))
 }
 
 /// The CT voxel types (int16, uint16, float32) decoded to `f32` on every core, in the
@@ -64,14 +71,13 @@ pub(super) fn decode_parallel(
     raw: &[u8],
     dtype: NiftiType,
     endianness: Endianness,
-    slope: f32,
-    inter: f32,
+    scale: impl Fn(f32) -> f32 + Sync + Copy,
 ) -> Option<Vec<f32>> {
     let le = endianness == Endianness::Little;
     Some(match dtype {
-        NiftiType::Int16 => convert(raw, scaled(slope, inter, int16(le))),
-        NiftiType::Uint16 => convert(raw, scaled(slope, inter, uint16(le))),
-        NiftiType::Float32 => convert(raw, scaled(slope, inter, float32(le))),
+        NiftiType::Int16 => convert(raw, then(int16(le), scale)),
+        NiftiType::Uint16 => convert(raw, then(uint16(le), scale)),
+        NiftiType::Float32 => convert(raw, then(float32(le), scale)),
         _ => return None,
     })
 }
@@ -147,15 +153,14 @@ pub(super) fn decode_in_place(
     count: usize,
     dtype: NiftiType,
     endianness: Endianness,
-    slope: f32,
-    inter: f32,
+    scale: impl Fn(f32) -> f32 + Sync + Copy,
 ) -> Vec<f32> {
     let le = endianness == Endianness::Little;
     match dtype {
-        NiftiType::Int16 => spread(&mut words, offset, count, scaled(slope, inter, int16(le))),
-        NiftiType::Uint16 => spread(&mut words, offset, count, scaled(slope, inter, uint16(le))),
+        NiftiType::Int16 => spread(&mut words, offset, count, then(int16(le), scale)),
+        NiftiType::Uint16 => spread(&mut words, offset, count, then(uint16(le), scale)),
         NiftiType::Float32 => {
-            let decode = scaled(slope, inter, float32(le));
+            let decode = then(float32(le), scale);
             let bytes: &mut [u8] = bytemuck::cast_slice_mut(&mut words);
             bytes.copy_within(offset..offset + 4 * count, 0);
             words[..count].par_chunks_mut(BLOCK).for_each(|c| {
@@ -201,6 +206,7 @@ fn spread(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use std::convert::identity as id;
 
     /// In-place decoding gives decode_parallel's values bit for bit, for every type, byte
     /// order, scaling and header offset (odd ones included), from 0 voxels to many blocks.
@@ -228,13 +234,19 @@ mod tests {
                     for endianness in [Endianness::Little, Endianness::Big] {
                         for (slope, inter) in [(0.0f32, 0.0f32), (0.37, 12.5)] {
                             let want =
-                                decode_parallel(&raw, dtype, endianness, slope, inter).unwrap();
+                                decode_parallel(&raw, dtype, endianness, scaling(slope, inter, id))
+                                    .unwrap();
                             let len = count.max((offset + raw.len()).div_ceil(4));
                             let mut words = vec![f32::NAN; len];
                             let bytes: &mut [u8] = bytemuck::cast_slice_mut(&mut words);
                             bytes[offset..offset + raw.len()].copy_from_slice(&raw);
                             let got = decode_in_place(
-                                words, offset, count, dtype, endianness, slope, inter,
+                                words,
+                                offset,
+                                count,
+                                dtype,
+                                endianness,
+                                scaling(slope, inter, id),
                             );
                             assert_eq!(got.len(), count);
                             let (a, b): (Vec<u32>, Vec<u32>) = (

@@ -26,7 +26,7 @@ mod inflate;
 
 use crate::atomic::write_atomic_to_path;
 use crate::error::{DatasetError, Result};
-use decode::{decode_in_place, decode_parallel, decodes_in_place, zeroed_words};
+use decode::{decode_in_place, decode_parallel, decodes_in_place, scaling, zeroed_words};
 use flate2::read::MultiGzDecoder;
 use glam::{DMat3, DVec3};
 use ndarray::{ArrayD, ArrayView3, ShapeBuilder};
@@ -34,6 +34,7 @@ use nifti::writer::WriterOptions;
 use nifti::{
     Endianness, InMemNiftiVolume, IntoNdArray, NiftiError, NiftiHeader, NiftiType, Unit, XForm,
 };
+use rayon::prelude::*;
 use std::fs::File;
 use std::io::{self, BufRead, BufReader, Read};
 use std::path::Path;
@@ -68,6 +69,14 @@ const NIFTI1_MAX_DIM: usize = i16::MAX as usize;
 /// file and the problem (truncated, not NIfTI, NIfTI-2, unsupported type or 4-D data, too
 /// large, sheared…).
 pub fn read_nifti(path: &Path) -> Result<Volume> {
+    read_nifti_mapped(path, std::convert::identity)
+}
+
+/// As [`read_nifti`], with `map` applied to every voxel's value (after the header's
+/// scaling) in the pass that decodes it, e.g. HU → mu: the same values as mapping the
+/// volume afterwards, one pass over it fewer. The mapped values are the ones checked for
+/// NaN and ±Inf, so `map` should keep a non-finite value non-finite.
+pub fn read_nifti_mapped(path: &Path, map: impl Fn(f32) -> f32 + Sync + Copy) -> Result<Volume> {
     let file = File::open(path).map_err(|e| DatasetError::io(path, "opening", e))?;
     let file_len = file.metadata().ok().map(|m| m.len());
     let mut buffered = BufReader::with_capacity(1 << 20, file);
@@ -207,8 +216,7 @@ pub fn read_nifti(path: &Path) -> Result<Volume> {
             count,
             dtype,
             h.endianness,
-            h.scl_slope,
-            h.scl_inter,
+            scaling(h.scl_slope, h.scl_inter, map),
         )
     } else {
         // Streamed (or a type the in-place decoder does not take): the crate reads the
@@ -224,8 +232,7 @@ pub fn read_nifti(path: &Path) -> Result<Volume> {
             voxels.raw_data(),
             dtype,
             h.endianness,
-            h.scl_slope,
-            h.scl_inter,
+            scaling(h.scl_slope, h.scl_inter, map),
         ) {
             Some(data) if data.len() == count => data,
             _ => {
@@ -235,7 +242,10 @@ pub fn read_nifti(path: &Path) -> Result<Volume> {
                         format!("voxel type {dtype:?} cannot be decoded: {e}"),
                     )
                 })?;
-                i_fastest(array, dims).map_err(|e| DatasetError::corrupt(path, e))?
+                let mut data =
+                    i_fastest(array, dims).map_err(|e| DatasetError::corrupt(path, e))?;
+                data.par_iter_mut().for_each(|v| *v = map(*v));
+                data
             }
         };
         drop(reader);
