@@ -141,43 +141,59 @@ fn a_single_member_nii_gz_is_inflated_whole_and_reads_as_the_plain_file() {
     assert_eq!(read_nifti(&packed).unwrap(), from_plain);
 }
 
-/// An int16 `.nii` and `.nii.gz` with scaling (the usual CT file), decoded in place, hold
-/// the values written.
-#[test]
-fn int16_files_decoded_in_place_hold_the_values_written() {
-    use flate2::write::GzEncoder;
-    use std::io::Write;
-    let dir = tempfile::tempdir().unwrap();
-    let dims = [33, 17, 9];
-    let count = dims.iter().product::<usize>();
+/// Grid of the hand-made CT files below.
+const CT_DIMS: [usize; 3] = [33, 17, 9];
+
+/// Writes a float32 NIfTI of zeros on [`CT_DIMS`] to `path` and returns its 352-byte header.
+fn float32_file(path: &Path) -> Vec<u8> {
+    let count = CT_DIMS.iter().product::<usize>();
     let v = Volume::new(
-        dims,
+        CT_DIMS,
         DVec3::new(0.7, 0.8, 2.5),
         DVec3::new(-10.0, 4.0, 2.0),
         DMat3::IDENTITY,
         vec![0.0; count],
     )
     .unwrap();
-    let plain = dir.path().join("v.nii");
-    write_nifti(&plain, &v).unwrap();
-    // The float32 file made int16 (datatype 4, bitpix 16), scaled by 1 and −1024.
-    let mut bytes = std::fs::read(&plain).unwrap()[..352].to_vec();
+    write_nifti(path, &v).unwrap();
+    std::fs::read(path).unwrap()[..352].to_vec()
+}
+
+/// The float32 `header` made int16 (datatype 4, bitpix 16) scaled by 1 and −1024 (a CT in
+/// HU), with its voxels: voxel `n` stores `(37·n mod 4000) − 24`.
+fn int16_file_bytes(header: &[u8]) -> Vec<u8> {
+    let mut bytes = header.to_vec();
     bytes[70..72].copy_from_slice(&4i16.to_le_bytes());
     bytes[72..74].copy_from_slice(&16i16.to_le_bytes());
     bytes[112..116].copy_from_slice(&1f32.to_le_bytes());
     bytes[116..120].copy_from_slice(&(-1024f32).to_le_bytes());
-    for i in 0..count {
-        bytes.extend_from_slice(&((i * 37 % 4000) as i16 - 24).to_le_bytes());
+    for n in 0..CT_DIMS.iter().product::<usize>() {
+        bytes.extend_from_slice(&((n * 37 % 4000) as i16 - 24).to_le_bytes());
     }
+    bytes
+}
+
+fn gzip(bytes: &[u8]) -> Vec<u8> {
+    use std::io::Write;
+    let mut e = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::fast());
+    e.write_all(bytes).unwrap();
+    e.finish().unwrap()
+}
+
+/// An int16 `.nii` and `.nii.gz` with scaling (the usual CT file), decoded in place, hold
+/// the values written.
+#[test]
+fn int16_files_decoded_in_place_hold_the_values_written() {
+    let dir = tempfile::tempdir().unwrap();
+    let plain = dir.path().join("v.nii");
+    let bytes = int16_file_bytes(&float32_file(&plain));
     std::fs::write(&plain, &bytes).unwrap();
-    let mut e = GzEncoder::new(Vec::new(), flate2::Compression::default());
-    e.write_all(&bytes).unwrap();
     let packed = dir.path().join("v.nii.gz");
-    std::fs::write(&packed, e.finish().unwrap()).unwrap();
+    std::fs::write(&packed, gzip(&bytes)).unwrap();
 
     // Both files decode in place (the plain one into the buffer its voxels are read
     // into): the values are checked against the formula that wrote them.
-    let want: Vec<f32> = (0..count)
+    let want: Vec<f32> = (0..CT_DIMS.iter().product::<usize>())
         .map(|i| f32::from((i * 37 % 4000) as i16 - 24) * 1.0 - 1024.0)
         .collect();
     let from_plain = read_nifti(&plain).unwrap();
@@ -191,36 +207,11 @@ fn int16_files_decoded_in_place_hold_the_values_written() {
 /// refused, by the volume's check after the map.
 #[test]
 fn mapping_while_decoding_equals_mapping_afterwards() {
-    use flate2::write::GzEncoder;
-    use std::io::Write;
-    let gzip = |b: &[u8]| {
-        let mut e = GzEncoder::new(Vec::new(), flate2::Compression::fast());
-        e.write_all(b).unwrap();
-        e.finish().unwrap()
-    };
     let dir = tempfile::tempdir().unwrap();
-    let dims = [33, 17, 9];
-    let count = dims.iter().product::<usize>();
-    let v = Volume::new(
-        dims,
-        DVec3::new(0.7, 0.8, 2.5),
-        DVec3::new(-10.0, 4.0, 2.0),
-        DMat3::IDENTITY,
-        vec![0.0; count],
-    )
-    .unwrap();
     let plain = dir.path().join("f32.nii");
-    write_nifti(&plain, &v).unwrap();
-    let header = std::fs::read(&plain).unwrap()[..352].to_vec();
-    // int16, scaled by 1 and −1024 (a CT in HU).
-    let mut int16 = header.clone();
-    int16[70..72].copy_from_slice(&4i16.to_le_bytes());
-    int16[72..74].copy_from_slice(&16i16.to_le_bytes());
-    int16[112..116].copy_from_slice(&1f32.to_le_bytes());
-    int16[116..120].copy_from_slice(&(-1024f32).to_le_bytes());
-    for i in 0..count {
-        int16.extend_from_slice(&((i * 37 % 4000) as i16 - 24).to_le_bytes());
-    }
+    let header = float32_file(&plain);
+    let count = CT_DIMS.iter().product::<usize>();
+    let int16 = int16_file_bytes(&header);
     // float64 (decoded by the crate).
     let mut float64 = header.clone();
     float64[70..72].copy_from_slice(&64i16.to_le_bytes());
