@@ -11,6 +11,12 @@
 # `-- --arc 0:10:36 --pitch 2.6` for an orbit. Build OLD from an earlier commit with
 # `cargo build --release` in a worktree. Used for docs/datasets.md ("Loading speed") and
 # docs/projector.md.
+#
+# BEFORE_EACH='command' runs that shell command (its output discarded) before every run,
+# e.g. another tool's render, to measure tomograf right after another large process
+# (docs/projector.md, "Session 28"). To compare one binary with an environment variable
+# set and unset, give as OLD a two-line wrapper script: `#!/bin/sh` and
+# `VAR=value exec /path/to/tomograf "$@"`.
 set -euo pipefail
 old=$1 new=$2 ct=$3 repeats=${4:-9}
 shift $(( $# < 4 ? $# : 4 ))
@@ -23,6 +29,7 @@ declare -A load render wall
 for ((r = 0; r < repeats; r++)); do
   for v in old new; do
     exe=${!v}
+    [[ -n ${BEFORE_EACH:-} ]] && { bash -c "$BEFORE_EACH" >/dev/null 2>&1 || true; }
     start=$(date +%s.%N)
     msg=$("$exe" --threads 2 project "$ct" "${flags[@]}" --format npy -o "$work/$v" 2>&1)
     end=$(date +%s.%N)

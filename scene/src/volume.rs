@@ -100,7 +100,10 @@ fn load(scene: &Scene, keep_hu: Option<f64>) -> Result<(Volume, VolumeSource)> {
             Attenuation::hounsfield_at_kev(e)?
         }
         (other, Some(_)) => bail!("unknown units '{other}': use hu (Hounsfield) or mu (mm⁻¹)"),
-        ("hu", None) => Attenuation::hounsfield_at_kev(v.energy_kev.unwrap_or(DEFAULT_ENERGY_KEV))?,
+        ("hu", None) => match read_as_mu {
+            Some(att) => att,
+            None => Attenuation::hounsfield_at_kev(v.energy_kev.unwrap_or(DEFAULT_ENERGY_KEV))?,
+        },
         ("mu", None) => {
             if v.energy_kev.is_some() {
                 bail!("--energy-kev only applies to HU input (--units hu)");

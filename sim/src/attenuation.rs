@@ -97,12 +97,10 @@ impl Attenuation {
 
     /// Converts a volume of input values into linear attenuation (mm⁻¹), in place.
     pub fn to_mu(&self, volume: Volume) -> Result<Volume> {
-        match *self {
-            Self::Hounsfield { mu_water_per_mm } => {
-                check_mu_water(mu_water_per_mm)?;
-                volume.map_in_place(|hu| hu_to_mu(hu, mu_water_per_mm))
-            }
-            Self::LinearPerMm => {
+        match self.per_voxel()? {
+            // A volume's values are finite, so this is `hu_to_mu` voxel by voxel.
+            Some(convert) => volume.map_in_place(convert),
+            None => {
                 if let Some(p) = volume.first_voxel_where(|v| v < 0.0) {
                     return Err(SimError::InvalidVolume(format!(
                         "linear attenuation must be ≥ 0 mm⁻¹, but voxel #{p} holds {}",
