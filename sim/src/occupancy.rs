@@ -19,6 +19,43 @@ pub struct RowExtents {
     last: Vec<u32>,
 }
 
+/// Values tested at once by [`first_non_zero`] and [`last_non_zero`]: a fold over a
+/// fixed-size block compiles to vector compares, where a per-value search does not.
+const BLOCK: usize = 16;
+
+/// Whether `block` holds a non-zero value (NaN included).
+#[inline]
+fn any_non_zero(block: &[f32; BLOCK]) -> bool {
+    block.iter().fold(false, |any, &v| any | (v != 0.0))
+}
+
+/// The index of `row`'s first non-zero value (NaN included).
+fn first_non_zero(row: &[f32]) -> Option<usize> {
+    let (blocks, rest) = row.as_chunks::<BLOCK>();
+    match blocks.iter().position(any_non_zero) {
+        Some(b) => blocks[b]
+            .iter()
+            .position(|&v| v != 0.0)
+            .map(|i| b * BLOCK + i),
+        None => rest
+            .iter()
+            .position(|&v| v != 0.0)
+            .map(|i| blocks.len() * BLOCK + i),
+    }
+}
+
+/// The index of `row`'s last non-zero value (NaN included).
+fn last_non_zero(row: &[f32]) -> Option<usize> {
+    let (rest, blocks) = row.as_rchunks::<BLOCK>();
+    match blocks.iter().rposition(any_non_zero) {
+        Some(b) => blocks[b]
+            .iter()
+            .rposition(|&v| v != 0.0)
+            .map(|i| rest.len() + b * BLOCK + i),
+        None => rest.iter().rposition(|&v| v != 0.0),
+    }
+}
+
 impl RowExtents {
     /// The extents of `vol`'s rows (one parallel pass over the voxels). Zero is `0.0` or
     /// `-0.0`; anything else, NaN included, counts as non-zero.
@@ -34,9 +71,9 @@ impl RowExtents {
                 .zip(last.par_chunks_mut(ny.max(1)))
                 .for_each(|((plane, first), last)| {
                     for ((row, f), l) in plane.chunks(nx).zip(first).zip(last) {
-                        if let Some(i) = row.iter().position(|&v| v != 0.0) {
+                        if let Some(i) = first_non_zero(row) {
                             *f = i as u32;
-                            *l = row.iter().rposition(|&v| v != 0.0).unwrap_or(i) as u32;
+                            *l = last_non_zero(row).unwrap_or(i) as u32;
                         }
                     }
                 });
@@ -91,6 +128,29 @@ impl RowExtents {
 mod tests {
     use super::*;
     use glam::{DMat3, DVec3};
+
+    /// The block-wise searches find what a value-by-value search finds, for rows shorter
+    /// and longer than a block, non-zero values (NaN among them) anywhere, and −0.0 as zero.
+    #[test]
+    fn block_searches_match_a_plain_search() {
+        for len in 0..3 * BLOCK + 5 {
+            for a in 0..=len {
+                for b in a..=len {
+                    // Non-zero at a and b (none where they are `len`), −0.0 elsewhere.
+                    let mut row = vec![-0.0f32; len];
+                    for (p, v) in [(a, 1.5f32), (b, f32::NAN)] {
+                        if p < len {
+                            row[p] = v;
+                        }
+                    }
+                    let want_first = row.iter().position(|&v| v != 0.0);
+                    let want_last = row.iter().rposition(|&v| v != 0.0);
+                    assert_eq!(first_non_zero(&row), want_first, "len {len}, {a}, {b}");
+                    assert_eq!(last_non_zero(&row), want_last, "len {len}, {a}, {b}");
+                }
+            }
+        }
+    }
 
     #[test]
     fn extents_and_box_match_a_plain_scan() {

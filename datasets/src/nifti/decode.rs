@@ -3,7 +3,7 @@
 //! Two ways for the CT voxel types (int16, uint16, float32):
 //! * [`decode_parallel`] reads raw bytes and returns a new buffer;
 //! * [`decode_in_place`] decodes voxels that lie in the bytes of the `f32` buffer they are
-//!   decoded into (a `.nii.gz` inflated whole, [`super::inflate::whole`]): no second buffer
+//!   decoded into (a `.nii.gz` inflated whole, [`super::inflate::read`]): no second buffer
 //!   of the volume's size is allocated. On the virtual machines we measure on, the kernel
 //!   zeroes fresh pages at about 0.5 GB/s, so a 140 MB buffer not allocated is worth more
 //!   than the decoding itself (docs/datasets.md, "Loading speed").
@@ -65,6 +65,33 @@ fn then<const N: usize>(
     move |b| scale(decode(b))
 }
 
+/// Volumes of at least this many 2-byte voxels are decoded through a table.
+pub(super) const TABLE_MIN: usize = 1 << 18;
+
+/// For `count ≥ TABLE_MIN` voxels, `decode`'s values for all 2¹⁶ stored values, indexed by
+/// the stored bytes read as a native `u16` (256 KiB: it stays in the L2 cache).
+type Table = Option<Box<[f32; 1 << 16]>>;
+
+fn table(count: usize, decode: impl Fn([u8; 2]) -> f32) -> Table {
+    (count >= TABLE_MIN).then(|| {
+        let values: Vec<f32> = (0..=u16::MAX).map(|i| decode(i.to_ne_bytes())).collect();
+        values.into_boxed_slice().try_into().expect("2^16 values")
+    })
+}
+
+/// `decode`, or a lookup in its [`table`] where there is one: the same values bit for bit,
+/// since each entry is `decode`'s own, but one load per voxel instead of the scaling and
+/// `map` (HU → mu divides in f64, which made decoding a CT take 30 ms on two cores).
+fn lookup(
+    table: Option<&[f32; 1 << 16]>,
+    decode: impl Fn([u8; 2]) -> f32 + Sync + Copy,
+) -> impl Fn([u8; 2]) -> f32 + Sync + Copy {
+    move |b| match table {
+        Some(t) => t[usize::from(u16::from_ne_bytes(b))],
+        None => decode(b),
+    }
+}
+
 /// The CT voxel types (int16, uint16, float32) decoded to `f32` on every core, in the
 /// file's order (i fastest). `None` for other types, which the crate decodes.
 pub(super) fn decode_parallel(
@@ -74,9 +101,16 @@ pub(super) fn decode_parallel(
     scale: impl Fn(f32) -> f32 + Sync + Copy,
 ) -> Option<Vec<f32>> {
     let le = endianness == Endianness::Little;
+    let count = raw.len() / dtype.size_of();
     Some(match dtype {
-        NiftiType::Int16 => convert(raw, then(int16(le), scale)),
-        NiftiType::Uint16 => convert(raw, then(uint16(le), scale)),
+        NiftiType::Int16 => {
+            let d = then(int16(le), scale);
+            convert(raw, lookup(table(count, d).as_deref(), d))
+        }
+        NiftiType::Uint16 => {
+            let d = then(uint16(le), scale);
+            convert(raw, lookup(table(count, d).as_deref(), d))
+        }
         NiftiType::Float32 => convert(raw, then(float32(le), scale)),
         _ => return None,
     })
@@ -97,13 +131,18 @@ fn decode_into<const N: usize>(out: &mut [f32], bytes: &[u8], decode: &impl Fn([
     }
 }
 
+/// `len` zero words, or `None` where they cannot be allocated; their pages are first
+/// touched on every core ([`touch_pages`]).
+pub(super) fn zeroed_words(len: usize) -> Option<Vec<f32>> {
+    let mut words = unfaulted_words(len)?;
+    touch_pages(bytemuck::cast_slice_mut(&mut words));
+    Some(words)
+}
+
 /// `len` zero words, or `None` where they cannot be allocated. Zeroed by the allocator
 /// (fresh pages from the system are zero already: no pass over them), unlike
 /// `try_reserve` + `resize`; unlike `vec![0; len]`, a failed allocation is not an abort.
-///
-/// The kernel zeroes each page when it is first written; that is done here on every core
-/// (one write per 4 KiB page), not later inside the one-threaded inflate.
-pub(super) fn zeroed_words(len: usize) -> Option<Vec<f32>> {
+pub(super) fn unfaulted_words(len: usize) -> Option<Vec<f32>> {
     if len == 0 {
         return Some(Vec::new());
     }
@@ -115,16 +154,22 @@ pub(super) fn zeroed_words(len: usize) -> Option<Vec<f32>> {
     }
     // SAFETY: `p` was allocated by the global allocator with the layout of `len` f32s (so
     // capacity `len`), and all of them are initialised (all-zero bits are 0.0).
-    let mut words = unsafe { Vec::from_raw_parts(p.cast::<f32>(), len, len) };
-    const PAGE_WORDS: usize = 1024;
-    words.par_chunks_mut(256 * PAGE_WORDS).for_each(|chunk| {
-        for w in chunk.iter_mut().step_by(PAGE_WORDS) {
+    Some(unsafe { Vec::from_raw_parts(p.cast::<f32>(), len, len) })
+}
+
+/// Writes a zero into each 4 KiB page of `bytes` (which must hold zeros), on every core.
+///
+/// The kernel zeroes each fresh page when it is first written; this has that done here,
+/// in parallel, rather than later inside a one-threaded inflate or read.
+pub(super) fn touch_pages(bytes: &mut [u8]) {
+    const PAGE: usize = 4096;
+    bytes.par_chunks_mut(256 * PAGE).for_each(|chunk| {
+        for b in chunk.iter_mut().step_by(PAGE) {
             // Volatile: the write must happen although it stores the value already there.
-            // SAFETY: `w` is a valid, aligned, exclusive reference.
-            unsafe { std::ptr::write_volatile(w, 0.0) };
+            // SAFETY: `b` is a valid, exclusive reference.
+            unsafe { std::ptr::write_volatile(b, 0) };
         }
     });
-    Some(words)
 }
 
 /// Whether [`decode_in_place`] decodes `dtype`.
@@ -157,8 +202,24 @@ pub(super) fn decode_in_place(
 ) -> Vec<f32> {
     let le = endianness == Endianness::Little;
     match dtype {
-        NiftiType::Int16 => spread(&mut words, offset, count, then(int16(le), scale)),
-        NiftiType::Uint16 => spread(&mut words, offset, count, then(uint16(le), scale)),
+        NiftiType::Int16 => {
+            let d = then(int16(le), scale);
+            spread(
+                &mut words,
+                offset,
+                count,
+                lookup(table(count, d).as_deref(), d),
+            );
+        }
+        NiftiType::Uint16 => {
+            let d = then(uint16(le), scale);
+            spread(
+                &mut words,
+                offset,
+                count,
+                lookup(table(count, d).as_deref(), d),
+            );
+        }
         NiftiType::Float32 => {
             let decode = then(float32(le), scale);
             let bytes: &mut [u8] = bytemuck::cast_slice_mut(&mut words);

@@ -88,15 +88,24 @@ pub fn read_nifti_mapped(path: &Path, map: impl Fn(f32) -> f32 + Sync + Copy) ->
     // header, extensions and voxels); otherwise streamed.
     let (mut compressed, mut inflated, mut compressed_len) = (Vec::new(), None, 0u64);
     if gz {
-        compressed.reserve(file_len.map_or(0, |n| n as usize));
-        buffered
-            .read_to_end(&mut compressed)
-            .map_err(|e| DatasetError::io(path, "reading", e))?;
-        compressed_len = compressed.len() as u64;
-        inflated = expected_size(&compressed, path)
-            .and_then(|(n, count)| inflate::whole(&compressed, n, count as usize));
-        if inflated.is_some() {
-            compressed = Vec::new();
+        let sizes = expected_size(head, path);
+        let read = inflate::read(
+            &mut buffered,
+            file_len,
+            sizes.map(|(n, _)| n),
+            sizes.map_or(0, |(_, count)| count as usize),
+            MAX_DEFLATE_RATIO,
+        )
+        .map_err(|e| DatasetError::io(path, "reading", e))?;
+        match read {
+            inflate::GzFile::Inflated(whole) => {
+                compressed_len = file_len.unwrap_or(0);
+                inflated = Some(whole);
+            }
+            inflate::GzFile::Compressed(bytes) => {
+                compressed_len = bytes.len() as u64;
+                compressed = bytes;
+            }
         }
     }
     let mut reader: Box<dyn Read + '_> = match (&inflated, gz) {
@@ -259,8 +268,9 @@ pub fn read_nifti_mapped(path: &Path, map: impl Fn(f32) -> f32 + Sync + Copy) ->
 }
 
 /// The uncompressed size of a `.nii.gz` (header, extensions and voxels) and its number of
-/// voxels, as its header states them, inflating only the header; `None` where the header
-/// is not valid (the streaming read then reports why).
+/// voxels, as its header states them, inflating only the header from `gz`, the file or its
+/// first bytes; `None` where the header is not valid or not among those bytes (the
+/// streaming read then reports why).
 fn expected_size(gz: &[u8], path: &Path) -> Option<(u64, u64)> {
     let h = read_header(&mut MultiGzDecoder::new(gz), path).ok()?;
     let dims = volume_dims(&h, path).ok()?;

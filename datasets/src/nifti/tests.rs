@@ -3,72 +3,90 @@
 use super::*;
 use ndarray::{Array, IxDyn};
 
-/// Whatever the memory order of the decoded array, voxels come out `i` fastest.
+/// Decoding gives the crate's values, then `map`, bit for bit: every CT type, both byte
+/// orders, with and without scaling and a map, for a volume decoded value by value and
+/// one large enough for 2-byte voxels to be decoded through a table (`decode::TABLE_MIN`).
 #[test]
 fn parallel_decoding_equals_the_crates_bit_for_bit() {
     use nifti::NiftiType;
-    // 3 × 5 × 20001 voxels: several of the parallel blocks, and a partial last one.
-    let dims = [3usize, 5, 20001];
-    let n: usize = dims.iter().product();
-    let mut state = 12345u64;
-    let mut bytes = vec![0u8; n * 4];
-    for b in bytes.iter_mut() {
-        state = state
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        *b = (state >> 33) as u8;
-    }
-    for dtype in [NiftiType::Int16, NiftiType::Uint16, NiftiType::Float32] {
-        let size = dtype.size_of();
-        for endianness in [Endianness::Little, Endianness::Big] {
-            let mut raw = bytes[..n * size].to_vec();
-            if dtype == NiftiType::Float32 {
-                // Finite values only: clear the exponent's top bit (its byte by order).
-                let top = if endianness == Endianness::Little {
-                    3
-                } else {
-                    0
-                };
-                for c in raw.chunks_exact_mut(4) {
-                    c[top] &= 0x3f;
+    // 3 × 5 × 20001 voxels: several of the parallel blocks, a partial last one, and a
+    // table for 2-byte voxels; 3 × 5 × 7: no table.
+    assert!(3 * 5 * 20001 >= decode::TABLE_MIN && 3 * 5 * 7 < decode::TABLE_MIN);
+    let hu_to_mu = |hu: f32| (0.0195f64 * (1.0 + f64::from(hu.max(-1000.0)) / 1000.0)) as f32;
+    for dims in [[3usize, 5, 20001], [3, 5, 7]] {
+        let n: usize = dims.iter().product();
+        let mut state = 12345u64;
+        let mut bytes = vec![0u8; n * 4];
+        for b in bytes.iter_mut() {
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            *b = (state >> 33) as u8;
+        }
+        for dtype in [NiftiType::Int16, NiftiType::Uint16, NiftiType::Float32] {
+            let size = dtype.size_of();
+            for endianness in [Endianness::Little, Endianness::Big] {
+                let mut raw = bytes[..n * size].to_vec();
+                if dtype == NiftiType::Float32 {
+                    // Finite values only: clear the exponent's top bit (its byte by order).
+                    let top = if endianness == Endianness::Little {
+                        3
+                    } else {
+                        0
+                    };
+                    for c in raw.chunks_exact_mut(4) {
+                        c[top] &= 0x3f;
+                    }
                 }
-            }
-            for (slope, inter) in [(0.0f32, 0.0f32), (1.0, -1024.0), (0.37, 12.5)] {
-                let fast = decode_parallel(
-                    &raw,
-                    dtype,
-                    endianness,
-                    decode::scaling(slope, inter, std::convert::identity),
-                )
-                .unwrap();
-                let h = NiftiHeader {
-                    dim: [3, 3, 5, 20001, 1, 1, 1, 1],
-                    datatype: dtype as i16,
-                    bitpix: (size * 8) as i16,
-                    scl_slope: slope,
-                    scl_inter: inter,
-                    endianness,
-                    ..NiftiHeader::default()
-                };
-                let array = InMemNiftiVolume::from_reader(&raw[..], &h)
-                    .unwrap()
-                    .into_ndarray::<f32>()
-                    .unwrap();
-                let slow = i_fastest(array, dims).unwrap();
-                assert_eq!(fast.len(), slow.len());
-                for (i, (a, b)) in fast.iter().zip(&slow).enumerate() {
-                    assert_eq!(
-                        a.to_bits(),
-                        b.to_bits(),
-                        "{dtype:?} {endianness:?} slope {slope}: voxel {i}"
-                    );
+                for (slope, inter) in [(0.0f32, 0.0f32), (1.0, -1024.0), (0.37, 12.5)] {
+                    for mapped in [false, true] {
+                        let map = move |x: f32| if mapped { hu_to_mu(x) } else { x };
+                        let fast = decode_parallel(
+                            &raw,
+                            dtype,
+                            endianness,
+                            decode::scaling(slope, inter, map),
+                        )
+                        .unwrap();
+                        let h = NiftiHeader {
+                            dim: [
+                                3,
+                                dims[0] as u16,
+                                dims[1] as u16,
+                                dims[2] as u16,
+                                1,
+                                1,
+                                1,
+                                1,
+                            ],
+                            datatype: dtype as i16,
+                            bitpix: (size * 8) as i16,
+                            scl_slope: slope,
+                            scl_inter: inter,
+                            endianness,
+                            ..NiftiHeader::default()
+                        };
+                        let array = InMemNiftiVolume::from_reader(&raw[..], &h)
+                            .unwrap()
+                            .into_ndarray::<f32>()
+                            .unwrap();
+                        let slow = i_fastest(array, dims).unwrap();
+                        assert_eq!(fast.len(), slow.len());
+                        for (i, (a, b)) in fast.iter().zip(&slow).enumerate() {
+                            assert_eq!(
+                                a.to_bits(),
+                                map(*b).to_bits(),
+                                "{dims:?} {dtype:?} {endianness:?} slope {slope} map {mapped}: voxel {i}"
+                            );
+                        }
+                    }
                 }
             }
         }
     }
     assert!(
         decode_parallel(
-            &bytes,
+            &[0u8; 64],
             NiftiType::Float64,
             Endianness::Little,
             decode::scaling(0.0, 0.0, std::convert::identity)
@@ -77,6 +95,7 @@ fn parallel_decoding_equals_the_crates_bit_for_bit() {
     );
 }
 
+/// Whatever the memory order of the decoded array, voxels come out `i` fastest.
 #[test]
 fn i_fastest_follows_logical_indices_not_memory_order() {
     let dims = [3, 2, 4];
@@ -130,12 +149,19 @@ fn a_single_member_nii_gz_is_inflated_whole_and_reads_as_the_plain_file() {
     std::fs::write(&packed, &gz).unwrap();
 
     assert_eq!(expected_size(&gz, &packed), Some((bytes.len() as u64, 105)));
-    assert_eq!(
-        inflate::whole(&gz, bytes.len() as u64, 105)
-            .as_ref()
-            .map(inflate::Inflated::bytes),
-        Some(&bytes[..])
-    );
+    let mut reader = BufReader::new(File::open(&packed).unwrap());
+    let read = inflate::read(
+        &mut reader,
+        Some(gz.len() as u64),
+        Some(bytes.len() as u64),
+        105,
+        MAX_DEFLATE_RATIO,
+    )
+    .unwrap();
+    let inflate::GzFile::Inflated(whole) = read else {
+        panic!("not inflated whole")
+    };
+    assert_eq!(whole.bytes(), &bytes[..]);
     let from_plain = read_nifti(&plain).unwrap();
     assert_eq!(from_plain.data(), v.data());
     assert_eq!(read_nifti(&packed).unwrap(), from_plain);
