@@ -14,9 +14,6 @@ macro_rules! sheet_kernel {
         #[allow(unused_imports)]
         use std::arch::x86_64::*;
 
-        /// Groups of [`Rays::GROUP`] rays per vector.
-        const QUADS: usize = LANES / Rays::GROUP;
-
         $($prims)*
 
         /// As `Kernel::integrate` (`materials`: `None`) or `Kernel::integrate_materials`,
@@ -91,6 +88,7 @@ macro_rules! sheet_kernel {
             let field = kernel.field;
             let groups = rays.len() / LANES;
             let ld = |v: &[f64], r: usize| load(v[r..r + LANES].try_into().unwrap());
+            let spans = rays.spans(LANES);
             let mut ahead = super::Ahead::new(kernel);
             for (n, block) in segments.chunks(super::BLOCK).enumerate() {
                 ahead.list(segments, n);
@@ -104,25 +102,19 @@ macro_rules! sheet_kernel {
                         // field.
                         unsafe { _mm_prefetch::<_MM_HINT_T0>(field.as_ptr().add(at).cast()) };
                     }
-                    let quads = g * QUADS..(g + 1) * QUADS;
-                    let fold = |v: &[f64], f: fn(f64, f64) -> f64| {
-                        v[quads.clone()].iter().copied().reduce(f).unwrap_or(0.0)
-                    };
+                    let span = &spans[g];
                     // No lane's range meets the block: each piece would be an exact 0
                     // (db = 0), which leaves the sums' bits as they are.
-                    if last_b1 <= fold(&rays.reach_lo, f64::min)
-                        || first_b0 >= fold(&rays.reach_hi, f64::max)
-                    {
+                    if last_b1 <= span.reach_lo || first_b0 >= span.reach_hi {
                         continue;
                     }
                     // Every voxel the group's rays can meet in the block is zero: each
                     // piece would be an exact 0 (±0), which leaves the sums' bits as they
                     // are.
-                    if zeros && rays.outside(quads.clone(), first_b0, last_b1, nz_lo, nz_hi) {
+                    if zeros && span.outside(first_b0, last_b1, nz_lo, nz_hi) {
                         continue;
                     }
-                    let inside = first_b0 >= fold(&rays.group_lo, f64::max)
-                        && last_b1 <= fold(&rays.group_hi, f64::min);
+                    let inside = first_b0 >= span.inside_lo && last_b1 <= span.inside_hi;
                     let r = LANES * g;
                     let (a0, slope, inv_slope) = (ld(&rays.a0, r), ld(&rays.slope, r), ld(&rays.inv_slope, r));
                     // The line integrals, or the sums of each material.

@@ -348,19 +348,17 @@ impl Sheet {
     /// How many (group of `lanes` rays, block of segments) pairs the SIMD kernels skip as
     /// all zeros after [`Sheet::skip_zeros`] (for tests and benchmarks; `lanes` 4 or 8).
     pub fn zero_blocks(&self, lanes: usize) -> usize {
-        let quads = (lanes / Rays::GROUP).max(1);
-        let groups = self.rays.len() / (quads * Rays::GROUP);
+        let spans = self.rays.spans(lanes.max(Rays::GROUP));
         self.segments
             .chunks(BLOCK)
             .map(|block| {
                 let (lo, hi) = nonzero_range(block);
                 let (b0, b1) = (block[0].b0, block[block.len() - 1].b1);
-                (0..groups)
-                    .filter(|g| {
+                spans
+                    .iter()
+                    .filter(|span| {
                         (lo > f64::NEG_INFINITY || hi < f64::INFINITY)
-                            && self
-                                .rays
-                                .outside(g * quads..(g + 1) * quads, b0, b1, lo, hi)
+                            && span.outside(b0, b1, lo, hi)
                     })
                     .count()
             })
