@@ -67,11 +67,13 @@ pub(super) fn read(
 ) -> io::Result<GzFile> {
     if let (Some(len), Some(n)) = (file_len, expected)
         && n <= max_ratio.saturating_mul(len)
-        && let Some(whole) = whole(reader, len, n, min_words)?
     {
-        return Ok(GzFile::Inflated(whole));
+        if let Some(whole) = whole(reader, len, n, min_words)? {
+            return Ok(GzFile::Inflated(whole));
+        }
+        reader.seek(SeekFrom::Start(0))?;
     }
-    reader.seek(SeekFrom::Start(0))?;
+    // Not moved unless tried above: a file that cannot seek (a pipe) is read as it comes.
     let mut bytes = Vec::with_capacity(file_len.map_or(0, |n| n as usize));
     reader.read_to_end(&mut bytes)?;
     Ok(GzFile::Compressed(bytes))

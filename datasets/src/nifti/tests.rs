@@ -227,6 +227,27 @@ fn int16_files_decoded_in_place_hold_the_values_written() {
     assert_eq!(read_nifti(&packed).unwrap(), from_plain);
 }
 
+/// A `.nii.gz` that cannot be sought (a named pipe) is streamed, as it comes.
+#[cfg(unix)]
+#[test]
+fn a_nii_gz_from_a_pipe_is_read() {
+    let dir = tempfile::tempdir().unwrap();
+    let plain = dir.path().join("v.nii");
+    let bytes = int16_file_bytes(&float32_file(&plain));
+    std::fs::write(&plain, &bytes).unwrap();
+    let pipe = dir.path().join("pipe.nii.gz");
+    let made = std::process::Command::new("mkfifo").arg(&pipe).status();
+    assert!(made.is_ok_and(|s| s.success()), "mkfifo failed");
+    let gz = gzip(&bytes);
+    let writer = {
+        let pipe = pipe.clone();
+        std::thread::spawn(move || std::fs::write(pipe, gz).unwrap())
+    };
+    let from_pipe = read_nifti(&pipe);
+    writer.join().unwrap();
+    assert_eq!(from_pipe.unwrap(), read_nifti(&plain).unwrap());
+}
+
 /// `read_nifti_mapped` gives `read_nifti`'s values mapped afterwards, bit for bit, on every
 /// decoding path: in place (a plain int16 file, a `.nii.gz` inflated whole), streamed (a
 /// `.nii.gz` of two gzip members) and through the crate (float64). A NaN voxel is still
