@@ -18,23 +18,19 @@ use rayon::prelude::*;
 /// Voxels per parallel task: large enough that scheduling costs nothing.
 const BLOCK: usize = 1 << 16;
 
-/// The stored value of `N` bytes → f32, before scaling.
-fn int16(le: bool) -> impl Fn([u8; 2]) -> f32 + Sync + Copy {
+/// The stored value of `N` bytes → f32, before scaling: int16 (`signed`) or uint16.
+fn two_bytes(signed: bool, le: bool) -> impl Fn([u8; 2]) -> f32 + Sync + Copy {
     move |b| {
-        f32::from(if le {
-            i16::from_le_bytes(b)
-        } else {
-            i16::from_be_bytes(b)
-        })
-    }
-}
-fn uint16(le: bool) -> impl Fn([u8; 2]) -> f32 + Sync + Copy {
-    move |b| {
-        f32::from(if le {
+        let bits = if le {
             u16::from_le_bytes(b)
         } else {
             u16::from_be_bytes(b)
-        })
+        };
+        if signed {
+            f32::from(bits.cast_signed())
+        } else {
+            f32::from(bits)
+        }
     }
 }
 fn float32(le: bool) -> impl Fn([u8; 4]) -> f32 + Sync + Copy {
@@ -103,12 +99,8 @@ pub(super) fn decode_parallel(
     let le = endianness == Endianness::Little;
     let count = raw.len() / dtype.size_of();
     Some(match dtype {
-        NiftiType::Int16 => {
-            let d = then(int16(le), scale);
-            convert(raw, lookup(table(count, d).as_deref(), d))
-        }
-        NiftiType::Uint16 => {
-            let d = then(uint16(le), scale);
+        NiftiType::Int16 | NiftiType::Uint16 => {
+            let d = then(two_bytes(dtype == NiftiType::Int16, le), scale);
             convert(raw, lookup(table(count, d).as_deref(), d))
         }
         NiftiType::Float32 => convert(raw, then(float32(le), scale)),
@@ -202,17 +194,8 @@ pub(super) fn decode_in_place(
 ) -> Vec<f32> {
     let le = endianness == Endianness::Little;
     match dtype {
-        NiftiType::Int16 => {
-            let d = then(int16(le), scale);
-            spread(
-                &mut words,
-                offset,
-                count,
-                lookup(table(count, d).as_deref(), d),
-            );
-        }
-        NiftiType::Uint16 => {
-            let d = then(uint16(le), scale);
+        NiftiType::Int16 | NiftiType::Uint16 => {
+            let d = then(two_bytes(dtype == NiftiType::Int16, le), scale);
             spread(
                 &mut words,
                 offset,

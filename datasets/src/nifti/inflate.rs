@@ -122,7 +122,10 @@ fn whole(
         &mut own
     };
     let (out, middle) = front.split_at_mut(n);
-    touch_pages(compressed);
+    if side_by_side {
+        // (A buffer of their own was written by `resize` already.)
+        touch_pages(compressed);
+    }
     reader.seek(SeekFrom::Start(0))?;
     let (read, ()) = rayon::join(|| reader.read_exact(compressed), || touch_pages(out));
     match read {

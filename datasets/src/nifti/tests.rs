@@ -185,6 +185,13 @@ fn float32_file(path: &Path) -> Vec<u8> {
     std::fs::read(path).unwrap()[..352].to_vec()
 }
 
+/// Writes the int16 CT file of [`int16_file_bytes`] to `path` and returns its bytes.
+fn int16_file(path: &Path) -> Vec<u8> {
+    let bytes = int16_file_bytes(&float32_file(path));
+    std::fs::write(path, &bytes).unwrap();
+    bytes
+}
+
 /// The float32 `header` made int16 (datatype 4, bitpix 16) scaled by 1 and −1024 (a CT in
 /// HU), with its voxels: voxel `n` stores `(37·n mod 4000) − 24`.
 fn int16_file_bytes(header: &[u8]) -> Vec<u8> {
@@ -212,8 +219,7 @@ fn gzip(bytes: &[u8]) -> Vec<u8> {
 fn int16_files_decoded_in_place_hold_the_values_written() {
     let dir = tempfile::tempdir().unwrap();
     let plain = dir.path().join("v.nii");
-    let bytes = int16_file_bytes(&float32_file(&plain));
-    std::fs::write(&plain, &bytes).unwrap();
+    let bytes = int16_file(&plain);
     let packed = dir.path().join("v.nii.gz");
     std::fs::write(&packed, gzip(&bytes)).unwrap();
 
@@ -233,8 +239,7 @@ fn int16_files_decoded_in_place_hold_the_values_written() {
 fn a_nii_gz_from_a_pipe_is_read() {
     let dir = tempfile::tempdir().unwrap();
     let plain = dir.path().join("v.nii");
-    let bytes = int16_file_bytes(&float32_file(&plain));
-    std::fs::write(&plain, &bytes).unwrap();
+    let bytes = int16_file(&plain);
     let pipe = dir.path().join("pipe.nii.gz");
     let made = std::process::Command::new("mkfifo").arg(&pipe).status();
     assert!(made.is_ok_and(|s| s.success()), "mkfifo failed");
