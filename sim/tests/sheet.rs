@@ -352,8 +352,8 @@ fn skipping_zeros_changes_no_bits() {
                 assert_eq!(plain.axis(), 0);
                 let mut skipping = plain.clone();
                 skipping.skip_zeros(&rows, &bounds);
-                skipped[0] += skipping.zero_blocks(4);
-                skipped[1] += skipping.zero_blocks(8);
+                skipped[0] += skipping.passes(4, &bounds).zeros;
+                skipped[1] += skipping.passes(8, &bounds).zeros;
                 let reference =
                     same_bits_from_every_kernel(&plain, &skipping, world.len(), |s, k, out| {
                         s.line_integrals_with(k, vol.data(), dims, &bounds, out)
@@ -451,7 +451,7 @@ fn material_sheets_match_reference_with_every_kernel() {
             for (row, world, plain) in sheet_rows(packed, &view, &bounds) {
                 let mut skipping = plain.clone();
                 skipping.skip_zeros(&rows, &bounds);
-                skipped += skipping.zero_blocks(8);
+                skipped += skipping.passes(8, &bounds).zeros;
                 let n = world.len() * k;
                 let reference =
                     same_bits_from_every_kernel(&plain, &skipping, n, |s, kernel, out| {
@@ -473,5 +473,80 @@ fn material_sheets_match_reference_with_every_kernel() {
     assert!(
         rows_checked > 20 && skipped > 100,
         "{rows_checked} rows, {skipped} skips"
+    );
+}
+
+#[test]
+fn monotone_blocks_change_no_bits() {
+    // The kernels' shortest path (`Passes::rising` and `falling`): a group of rays inside
+    // a block of segments whose positions along the fan's axis move one way and stay in
+    // the box. Cone-beam AP and PA rows (slopes of both signs, the central groups of both),
+    // parallel-beam rows (slopes of 0 or nearly), and hand-made rows of zero and tiny
+    // slopes starting on voxel planes: every SIMD kernel must give the portable kernel's
+    // bits and match the reference, and the path must be taken often, both ways.
+    let mut r = rng(77);
+    let mut taken = [[0usize; 2]; 2];
+    let mut count = |sheet: &Sheet, bounds: &GridBox| {
+        for (n, lanes) in [4, 8].into_iter().enumerate() {
+            let p = sheet.passes(lanes, bounds);
+            taken[n][0] += p.rising;
+            taken[n][1] += p.falling;
+        }
+    };
+    for dims in [[64, 40, 9], [37, 52, 6]] {
+        let vol = random_volume(&mut r, dims, false);
+        let bounds = GridBox::whole(dims);
+        for beam in [
+            Beam::Cone {
+                sad_mm: 150.0,
+                sid_mm: 260.0,
+            },
+            Beam::Parallel,
+        ] {
+            for pose in [Pose::AP, Pose::new(180.0, 0.0)] {
+                let mut geometry = geometry(&vol, 150.0, 260.0, 6, 45, 0.6);
+                geometry.beam = beam;
+                let view = geometry.view(pose).unwrap();
+                for (row, world, sheet) in sheet_rows(&vol, &view, &bounds) {
+                    count(&sheet, &bounds);
+                    let sums =
+                        same_bits_from_every_kernel(&sheet, &sheet, world.len(), |s, k, out| {
+                            s.line_integrals_with(k, vol.data(), dims, &bounds, out)
+                        });
+                    for (c, w) in world.iter().enumerate() {
+                        let exact = brute_force(&vol, w);
+                        assert!(
+                            rel_err(sums[c], exact) <= 1e-9 || (sums[c] - exact).abs() < 1e-13,
+                            "{beam:?} {pose:?} row {row} column {c}: {} vs {exact}",
+                            sums[c]
+                        );
+                    }
+                }
+            }
+        }
+    }
+    // Rays along j through points on planes of i, at slopes of 0, nearly 0 and small, over
+    // 16 voxels of i.
+    let dims = [20, 30, 5];
+    let vol = random_volume(&mut r, dims, false);
+    let bounds = GridBox::whole(dims);
+    for slope in [0.0, 1e-300, -1e-300, 0.01, -0.01] {
+        let world: Vec<Ray> = (0..16)
+            .map(|n| {
+                let a = 2.0 + n as f64;
+                let p = |b: f64| DVec3::new(a + slope * b, b, 2.5);
+                Ray::segment(grid_to_world(&vol, p(-4.0)), grid_to_world(&vol, p(34.0)))
+            })
+            .collect();
+        let clipped: Vec<Option<GridRay>> = world.iter().map(|w| GridRay::clip(&vol, w)).collect();
+        let sheet = Sheet::new(&clipped, dims, &bounds).expect("a sheet");
+        let p = sheet.passes(8, &bounds);
+        assert!(p.rising + p.falling > 0, "slope {slope}: {p:?}");
+        count(&sheet, &bounds);
+        check_row(&vol, &world, &sheet);
+    }
+    assert!(
+        taken.iter().flatten().all(|&n| n > 100),
+        "the shortest path was taken too rarely to be tested: {taken:?}"
     );
 }

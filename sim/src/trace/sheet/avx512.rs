@@ -28,11 +28,24 @@ sheet_kernel!("avx512f,avx2,fma", {
                 _mm512_i32gather_epi64::<4>(index, field.as_ptr().cast())
             }
         };
-        // [l0 u0 l1 u1 … l7 u7] → [l0 … l7 | u0 … u7].
-        let split = _mm512_castps_pd(_mm512_permutexvar_ps(
-            _mm512_setr_epi32(0, 2, 4, 6, 8, 10, 12, 14, 1, 3, 5, 7, 9, 11, 13, 15),
-            _mm512_castsi512_ps(both),
-        ));
+        // [l0 u0 l1 u1 … l7 u7] → [l0 … l7 | u0 … u7], by one `vpermps`, written out:
+        // given `_mm512_permutexvar_ps`, LLVM may split the shuffle into its two halves
+        // (`vpmovqd` for the evens, `vshufps` and `vpermpd` for the odds), three more
+        // instructions on the two ports that execute 512-bit operations (docs/projector.md,
+        // "Session 30").
+        let index = _mm512_setr_epi32(0, 2, 4, 6, 8, 10, 12, 14, 1, 3, 5, 7, 9, 11, 13, 15);
+        let split: __m512d;
+        // SAFETY: a register-to-register permutation; AVX-512F is enabled (the function's
+        // target features).
+        unsafe {
+            std::arch::asm!(
+                "vpermps {split}, {index}, {both}",
+                split = lateout(zmm_reg) split,
+                index = in(zmm_reg) index,
+                both = in(zmm_reg) both,
+                options(pure, nomem, nostack, preserves_flags),
+            );
+        }
         (
             _mm256_castpd_ps(_mm512_castpd512_pd256(split)),
             _mm256_castpd_ps(_mm512_extractf64x4_pd::<1>(split)),

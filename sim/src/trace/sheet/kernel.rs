@@ -10,7 +10,7 @@
 #[cfg(target_arch = "x86_64")]
 macro_rules! sheet_kernel {
     ($features:literal, { $($prims:item)* }) => {
-        use super::{Kernel, MaterialSums, Rays, Segment};
+        use super::{Kernel, MaterialSums, Pass, Rays, Segment};
         #[allow(unused_imports)]
         use std::arch::x86_64::*;
 
@@ -61,7 +61,9 @@ macro_rules! sheet_kernel {
         /// previous segment's exit, the same bits as computed anew (consecutive segments
         /// share their ends). Groups whose rays all miss the block (at a chest CT's AP
         /// view, 14 % of the groups of four), or meet only zeros in it
-        /// (`super::Sheet::skip_zeros`), skip it. A lane's two voxels are read as one pair
+        /// (`super::Sheet::skip_zeros`), skip it; line integrals over a block where every
+        /// lane moves one way within the box take `monotone_pieces` (`Pass`, decided per
+        /// group and block by `Span::pass`). A lane's two voxels are read as one pair
         /// (`PAIRS`; lines contiguous and at least two voxels long in the box) or one by
         /// one, with scalar loads (`LOADS`) or gathers. With `materials`, `acc` is unused
         /// and each group's composition state lives there.
@@ -89,32 +91,26 @@ macro_rules! sheet_kernel {
             let groups = rays.len() / LANES;
             let ld = |v: &[f64], r: usize| load(v[r..r + LANES].try_into().unwrap());
             let spans = rays.spans(LANES);
+            // Where the shortest path applies (`Pass::Monotone`, `monotone_pieces`).
+            let monotone = (!packed && PAIRS).then_some((kernel.a_lo, kernel.a_hi));
             let mut ahead = super::Ahead::new(kernel);
             for (n, block) in segments.chunks(super::BLOCK).enumerate() {
                 ahead.list(segments, n);
                 let mut asks = ahead.asks(groups);
-                let (first_b0, last_b1) = (block[0].b0, block[block.len() - 1].b1);
-                let (nz_lo, nz_hi) = super::nonzero_range(block);
-                let zeros = nz_lo > f64::NEG_INFINITY || nz_hi < f64::INFINITY;
+                let range = super::Block::of(block);
+                let first_b0 = range.b0;
                 for g in 0..groups {
                     for &at in asks.next().unwrap_or(&[]) {
                         // SAFETY: a prefetch reads nothing; the address stays inside the
                         // field.
                         unsafe { _mm_prefetch::<_MM_HINT_T0>(field.as_ptr().add(at).cast()) };
                     }
-                    let span = &spans[g];
-                    // No lane's range meets the block: each piece would be an exact 0
-                    // (db = 0), which leaves the sums' bits as they are.
-                    if last_b1 <= span.reach_lo || first_b0 >= span.reach_hi {
+                    // Missed and all-zero blocks: each piece would be an exact 0 (±0),
+                    // which leaves the sums' bits as they are.
+                    let pass = spans[g].pass(&range, monotone);
+                    if matches!(pass, Pass::Miss | Pass::Zeros) {
                         continue;
                     }
-                    // Every voxel the group's rays can meet in the block is zero: each
-                    // piece would be an exact 0 (±0), which leaves the sums' bits as they
-                    // are.
-                    if zeros && span.outside(first_b0, last_b1, nz_lo, nz_hi) {
-                        continue;
-                    }
-                    let inside = first_b0 >= span.inside_lo && last_b1 <= span.inside_hi;
                     let r = LANES * g;
                     let (a0, slope, inv_slope) = (ld(&rays.a0, r), ld(&rays.slope, r), ld(&rays.inv_slope, r));
                     // The line integrals, or the sums of each material.
@@ -185,7 +181,17 @@ macro_rules! sheet_kernel {
                             add_material(mats, v.m1, select(same, zero, mul(sub(db, w), v.v1)));
                         }
                     };
-                    if inside {
+                    if let Pass::Monotone { rising } = pass {
+                        let ray = (a0, slope, inv_slope);
+                        // SAFETY: as for `voxels`; the pass keeps every pair in the box.
+                        sum = unsafe {
+                            if rising {
+                                monotone_pieces::<true, LOADS>(field, block, first_b0, ray, sum)
+                            } else {
+                                monotone_pieces::<false, LOADS>(field, block, first_b0, ray, sum)
+                            }
+                        };
+                    } else if pass == Pass::Inside {
                         let mut x0 = fmadd(slope, splat(first_b0), a0);
                         let mut f0 = floor(x0);
                         for s in block.iter() {
@@ -216,6 +222,49 @@ macro_rules! sheet_kernel {
                     }
                 }
             }
+        }
+
+        /// The line integrals over `block` added to `sum`, for a group of rays inside the
+        /// block whose positions along `a` rise (`RISING`; no slope negative) or fall (no
+        /// slope positive) and stay within the box, leaving out the last voxel
+        /// ([`super::rays::Span::monotone_inside`]): `piece`'s operations, less those that
+        /// cannot change a bit there. Each segment's pair starts at the lower of its two
+        /// floors, the entry's where positions rise and the exit's where they fall; both
+        /// lie in the box, so `piece`'s clamps change nothing, its `max(f0, f1)` is the
+        /// other end's floor, and the lower end's voxel is the pair's lower one. `piece`
+        /// clamps `w` at 0 too: where the floors differ `w` is ≥ 0 already; where they
+        /// agree it may be < 0 here, but is finite (every `inv_slope` is) and multiplies
+        /// `v0 - v1` = +0, so the piece is `db·v1` but for the sign of a zero, which leaves
+        /// the sum's bits as they are (sums are ≥ +0).
+        ///
+        /// # Safety
+        /// As `integrate_with`, and every lane's pairs lie in the box as said.
+        #[inline]
+        #[target_feature(enable = $features)]
+        unsafe fn monotone_pieces<const RISING: bool, const LOADS: bool>(
+            field: &[f32],
+            block: &[Segment],
+            first_b0: f64,
+            (a0, slope, inv_slope): (V, V, V),
+            mut sum: V,
+        ) -> V {
+            let mut x0 = fmadd(slope, splat(first_b0), a0);
+            let mut f0 = floor(x0);
+            for s in block {
+                let x1 = fmadd(slope, splat(s.b1), a0);
+                let f1 = floor(x1);
+                let db = splat(s.db);
+                let (low, high) = if RISING { (f0, f1) } else { (f1, f0) };
+                // SAFETY: the caller's guarantee: `low` and `low + 1` are voxels of the box.
+                let (lower, upper) = unsafe { pair_raw::<LOADS>(field, add(low, splat(s.base))) };
+                let (lower, upper) = (widen(lower), widen(upper));
+                let other = select(gt(high, low), upper, lower);
+                let (v0, v1) = if RISING { (lower, other) } else { (other, lower) };
+                let w = min(mul(sub(high, x0), inv_slope), db);
+                sum = add(sum, fmadd(w, sub(v0, v1), mul(db, v1)));
+                (x0, f0) = (x1, f1);
+            }
+            sum
         }
 
         /// Adds `w` to each lane's sum of its material `label` (a piece of 0 adds +0, which

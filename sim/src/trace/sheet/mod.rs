@@ -44,7 +44,7 @@ mod walk;
 #[cfg(target_arch = "x86_64")]
 use ahead::Ahead;
 use materials::MaterialSums;
-use rays::{Rays, nonzero_range};
+use rays::{Block, Pass, Rays};
 use walk::walk;
 
 use crate::occupancy::RowExtents;
@@ -91,6 +91,24 @@ struct Segment {
     /// clamped into the box reads there (±∞: no such knowledge; see [`Sheet::skip_zeros`]).
     nz_lo: f64,
     nz_hi: f64,
+}
+
+/// How many (group of rays, block of segments) pairs the SIMD kernels take each way
+/// ([`Sheet::passes`]).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct Passes {
+    /// Skipped: no ray of the group meets the block.
+    pub missed: usize,
+    /// Skipped: every voxel the group can meet there is zero ([`Sheet::skip_zeros`]).
+    pub zeros: usize,
+    /// Every ray inside the block and its positions rising (no slope negative) or falling
+    /// (none positive) within the box, leaving out its last voxel: the shortest path.
+    pub rising: usize,
+    pub falling: usize,
+    /// Every ray inside the block, otherwise.
+    pub inside: usize,
+    /// Some ray's range ends inside the block.
+    pub clipped: usize,
 }
 
 /// One ray of a sheet: `a = a0 + slope·b` for `b ∈ [b_lo, b_hi]`; `mm_per_b` converts
@@ -345,24 +363,28 @@ impl Sheet {
         }
     }
 
-    /// How many (group of `lanes` rays, block of segments) pairs the SIMD kernels skip as
-    /// all zeros after [`Sheet::skip_zeros`] (for tests and benchmarks; `lanes` 4 or 8).
-    pub fn zero_blocks(&self, lanes: usize) -> usize {
+    /// How the SIMD kernels take each (group of `lanes` rays, block of segments) pair when
+    /// they integrate lines in a box whose first and last voxel along the sheet's axis are
+    /// `bounds`' (for tests and benchmarks; `lanes` 4 or 8).
+    pub fn passes(&self, lanes: usize, bounds: &GridBox) -> Passes {
         let spans = self.rays.spans(lanes.max(Rays::GROUP));
-        self.segments
-            .chunks(BLOCK)
-            .map(|block| {
-                let (lo, hi) = nonzero_range(block);
-                let (b0, b1) = (block[0].b0, block[block.len() - 1].b1);
-                spans
-                    .iter()
-                    .filter(|span| {
-                        (lo > f64::NEG_INFINITY || hi < f64::INFINITY)
-                            && span.outside(b0, b1, lo, hi)
-                    })
-                    .count()
-            })
-            .sum()
+        let (a_lo, a_hi) = (bounds.lo[self.a], bounds.hi[self.a] - 1);
+        let monotone = (a_hi > a_lo).then_some((a_lo as f64, a_hi as f64));
+        let mut n = Passes::default();
+        for block in self.segments.chunks(BLOCK) {
+            let block = Block::of(block);
+            for span in &spans {
+                *match span.pass(&block, monotone) {
+                    Pass::Miss => &mut n.missed,
+                    Pass::Zeros => &mut n.zeros,
+                    Pass::Monotone { rising: true } => &mut n.rising,
+                    Pass::Monotone { rising: false } => &mut n.falling,
+                    Pass::Inside => &mut n.inside,
+                    Pass::Clipped => &mut n.clipped,
+                } += 1;
+            }
+        }
+        n
     }
 
     /// Number of segments of the shared line (for tests and benchmarks).

@@ -32,6 +32,49 @@ pub(super) struct Span {
     a0_hi: f64,
     slope_lo: f64,
     slope_hi: f64,
+    /// Whether every ray's `inv_slope` is finite (not so for a slope below ~1e-308).
+    inv_finite: bool,
+}
+
+/// What the kernels test per block of segments: where along b it starts and ends, and
+/// along `a` the range outside which its voxel lines are zero ([`nonzero_range`]).
+#[derive(Debug, Clone, Copy)]
+pub(super) struct Block {
+    pub(super) b0: f64,
+    pub(super) b1: f64,
+    nz_lo: f64,
+    nz_hi: f64,
+}
+
+impl Block {
+    pub(super) fn of(block: &[Segment]) -> Self {
+        let (nz_lo, nz_hi) = nonzero_range(block);
+        Self {
+            b0: block[0].b0,
+            b1: block[block.len() - 1].b1,
+            nz_lo,
+            nz_hi,
+        }
+    }
+}
+
+/// How a SIMD kernel takes a group of rays over a block of segments ([`Span::pass`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(super) enum Pass {
+    /// Skipped: no ray's range meets the block (each piece would be an exact 0).
+    Miss,
+    /// Skipped: every voxel the rays can meet in the block is zero (each piece would be an
+    /// exact ±0), after [`super::Sheet::skip_zeros`].
+    Zeros,
+    /// The block lies inside every ray's range, the positions along `a` move one way
+    /// (`rising`: no slope negative; else no slope positive) and stay in the box: the
+    /// kernels' shortest path ([`Span::monotone_inside`]).
+    Monotone { rising: bool },
+    /// The block lies inside every ray's range: a segment's entry is the previous one's
+    /// exit.
+    Inside,
+    /// Some ray's range ends inside the block: each segment is clipped to each ray's.
+    Clipped,
 }
 
 impl Span {
@@ -46,19 +89,71 @@ impl Span {
             a0_hi: a.a0_hi.max(b.a0_hi),
             slope_lo: a.slope_lo.min(b.slope_lo),
             slope_hi: a.slope_hi.max(b.slope_hi),
+            inv_finite: a.inv_finite && b.inv_finite,
         }
+    }
+
+    /// Bounds on every ray's position along `a` for all `b` in `[b0, b1]` (`b0 ≥ 0`, as
+    /// every grid coordinate in the box), as (least, greatest).
+    #[inline]
+    fn positions(&self, b0: f64, b1: f64) -> (f64, f64) {
+        // a0 + slope·b is linear in b, and b ≥ 0: the extremes are at the ends.
+        let x_lo = self.a0_lo + (self.slope_lo * b0).min(self.slope_lo * b1);
+        let x_hi = self.a0_hi + (self.slope_hi * b0).max(self.slope_hi * b1);
+        (x_lo, x_hi)
     }
 
     /// Whether every ray stays below `lo` or from `hi` on along `a` for all `b` in
     /// `[b0, b1]` (`b0 ≥ 0`, as every grid coordinate in the box). The kernels compute a
     /// position as one fused multiply-add of these values; the margin covers its rounding.
     #[inline]
-    pub(super) fn outside(&self, b0: f64, b1: f64, lo: f64, hi: f64) -> bool {
-        const MARGIN: f64 = 1e-6;
-        // a0 + slope·b is linear in b, and b ≥ 0: the extremes are at the ends.
-        let x_lo = self.a0_lo + (self.slope_lo * b0).min(self.slope_lo * b1);
-        let x_hi = self.a0_hi + (self.slope_hi * b0).max(self.slope_hi * b1);
-        x_hi + MARGIN < lo || x_lo - MARGIN >= hi
+    fn outside(&self, b0: f64, b1: f64, lo: f64, hi: f64) -> bool {
+        let (x_lo, x_hi) = self.positions(b0, b1);
+        x_hi + Self::MARGIN < lo || x_lo - Self::MARGIN >= hi
+    }
+
+    /// How a kernel takes this group over `block`; `monotone`: the box's first and last
+    /// voxel along `a` where the kernel has a [`Pass::Monotone`] path (line integrals over
+    /// pairs of voxels), else `None`.
+    #[inline]
+    pub(super) fn pass(&self, block: &Block, monotone: Option<(f64, f64)>) -> Pass {
+        let (b0, b1) = (block.b0, block.b1);
+        if b1 <= self.reach_lo || b0 >= self.reach_hi {
+            return Pass::Miss;
+        }
+        let zeros = block.nz_lo > f64::NEG_INFINITY || block.nz_hi < f64::INFINITY;
+        if zeros && self.outside(b0, b1, block.nz_lo, block.nz_hi) {
+            return Pass::Zeros;
+        }
+        if !(b0 >= self.inside_lo && b1 <= self.inside_hi) {
+            return Pass::Clipped;
+        }
+        match monotone.and_then(|(a_lo, a_hi)| self.monotone_inside(b0, b1, a_lo, a_hi)) {
+            Some(rising) => Pass::Monotone { rising },
+            None => Pass::Inside,
+        }
+    }
+
+    /// The kernels compute a position as one fused multiply-add of a ray's values; this
+    /// covers its rounding against [`Span::positions`]' bounds.
+    const MARGIN: f64 = 1e-6;
+
+    /// Whether the rays' positions along `a` move one way over `[b0, b1]` and keep within
+    /// voxels `a_lo..a_hi` (the box's first and last along `a`; the last is left out, so
+    /// that a voxel's right neighbour is in the box too), with finite `inv_slope`s:
+    /// `Some(true)` where no slope is negative, `Some(false)` where none is positive.
+    /// There a kernel knows which end of a segment holds the lower voxel of its pair and
+    /// needs no clamping.
+    #[inline]
+    fn monotone_inside(&self, b0: f64, b1: f64, a_lo: f64, a_hi: f64) -> Option<bool> {
+        let (x_lo, x_hi) = self.positions(b0, b1);
+        let inside = self.inv_finite && x_lo - Self::MARGIN >= a_lo && x_hi + Self::MARGIN < a_hi;
+        match (self.slope_lo >= 0.0, self.slope_hi <= 0.0) {
+            _ if !inside => None,
+            (true, _) => Some(true),
+            (false, true) => Some(false),
+            (false, false) => None,
+        }
     }
 }
 
@@ -78,12 +173,13 @@ impl Rays {
         };
         let (b_lo, b_hi) = (column(|r| r.b_lo, -1.0), column(|r| r.b_hi, -1.0));
         let (a0, slope) = (column(|r| r.a0, 0.0), column(|r| r.slope, 0.0));
+        let inv_slope = column(|r| r.inv_slope, 0.0);
         let groups = (0..n / Self::GROUP)
             .map(|g| {
                 let one = |r: usize| {
                     // Padding rays widen no group's range of positions.
                     let real = r < rays.len();
-                    let (a0, slope) = (a0[r], slope[r]);
+                    let (a0, slope, inv) = (a0[r], slope[r], inv_slope[r]);
                     Span {
                         inside_lo: b_lo[r],
                         inside_hi: b_hi[r],
@@ -93,6 +189,7 @@ impl Rays {
                         a0_hi: if real { a0 } else { f64::NEG_INFINITY },
                         slope_lo: if real { slope } else { f64::INFINITY },
                         slope_hi: if real { slope } else { f64::NEG_INFINITY },
+                        inv_finite: inv.is_finite(),
                     }
                 };
                 (g * Self::GROUP..(g + 1) * Self::GROUP)
@@ -104,7 +201,7 @@ impl Rays {
         Self {
             a0,
             slope,
-            inv_slope: column(|r| r.inv_slope, 0.0),
+            inv_slope,
             b_lo,
             b_hi,
             groups,
@@ -132,7 +229,7 @@ impl Rays {
 
 /// The range along `a` outside which every voxel of `block`'s lines is zero (see
 /// [`Segment::nz_lo`]).
-pub(super) fn nonzero_range(block: &[Segment]) -> (f64, f64) {
+fn nonzero_range(block: &[Segment]) -> (f64, f64) {
     block
         .iter()
         .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), s| {
