@@ -522,9 +522,11 @@ impl<'a, S: Sums> Renderer<'a, S> {
             .for_each(|(task, row)| {
                 let first = task * rows_per_task;
                 let rows = row.len() / (view.cols * stride);
-                let world: Vec<Ray> = (first..first + rows)
-                    .flat_map(|r| (0..view.cols).map(move |c| view.ray(r as f64, c as f64)))
-                    .collect();
+                // One exact-sized vector (collecting a `flat_map` grows it step by step).
+                let mut world: Vec<Ray> = Vec::with_capacity(rows * view.cols);
+                for r in first..first + rows {
+                    world.extend((0..view.cols).map(|c| view.ray(r as f64, c as f64)));
+                }
                 let rays: Vec<Option<GridRay>> = world.iter().map(|w| self.clip(w)).collect();
                 if sheets && self.trace_sheets(&rays, view.cols, packed.then_some(k), row) {
                     return;
