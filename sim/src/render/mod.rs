@@ -502,7 +502,6 @@ impl<'a, S: Sums> Renderer<'a, S> {
         let packed = S::PER_MATERIAL;
         let k = self.materials.max(1);
         let stride = k + self.mesh_materials;
-        let mut data = vec![0.0f64; view.rows * view.cols * stride];
         let packets = self.projector == Projector::Siddon && packet::available();
         // The packet tracer takes tiles of rows (see `packet::trace_rows_with`).
         let rows_per_task = if packets { packet::TILE_ROWS } else { 1 };
@@ -517,6 +516,7 @@ impl<'a, S: Sums> Renderer<'a, S> {
         {
             return Ok(data);
         }
+        let mut data = vec![0.0f64; view.rows * view.cols * stride];
         data.par_chunks_mut(view.cols * stride * rows_per_task)
             .enumerate()
             .for_each(|(task, row)| {
