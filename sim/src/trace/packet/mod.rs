@@ -243,7 +243,7 @@ pub fn default_threshold() -> f64 {
 pub enum Kernel {
     /// Four rays per vector (AVX2 + FMA).
     Avx2,
-    /// Eight rays per vector (AVX-512F).
+    /// Eight rays per vector (AVX-512F and DQ).
     Avx512,
 }
 
@@ -258,7 +258,10 @@ pub fn kernel() -> Option<Kernel> {
         *K.get_or_init(|| {
             let avx2 =
                 std::is_x86_feature_detected!("avx2") && std::is_x86_feature_detected!("fma");
-            let widest = if avx2 && std::is_x86_feature_detected!("avx512f") {
+            // The sheet kernel uses AVX-512DQ too, which every AVX-512 CPU but Xeon Phi has.
+            let avx512 = std::is_x86_feature_detected!("avx512f")
+                && std::is_x86_feature_detected!("avx512dq");
+            let widest = if avx2 && avx512 {
                 Some(Kernel::Avx512)
             } else {
                 avx2.then_some(Kernel::Avx2)
