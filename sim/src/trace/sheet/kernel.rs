@@ -231,7 +231,7 @@ macro_rules! sheet_kernel {
         /// The line integrals over `block` added to `sum`, for a group of rays inside the
         /// block whose positions along `a` rise (`RISING`; no slope negative) or fall (no
         /// slope positive) and stay within the box, leaving out the last voxel
-        /// ([`super::rays::Span::monotone_inside`]): `piece`'s operations, less those that
+        /// ([`super::rays::Span::pass`]): `piece`'s operations, less those that
         /// cannot change a bit there. Each segment's pair starts at the lower of its two
         /// floors, the entry's where positions rise and the exit's where they fall; both
         /// lie in the box, so `piece`'s clamps change nothing, its `max(f0, f1)` is the

@@ -44,6 +44,8 @@ pub(super) struct Block {
     pub(super) b1: f64,
     nz_lo: f64,
     nz_hi: f64,
+    /// Whether any voxel line of the block is known to hold zeros (`nz_lo`, `nz_hi`).
+    zeros: bool,
 }
 
 impl Block {
@@ -54,6 +56,7 @@ impl Block {
             b1: block[block.len() - 1].b1,
             nz_lo,
             nz_hi,
+            zeros: nz_lo > f64::NEG_INFINITY || nz_hi < f64::INFINITY,
         }
     }
 }
@@ -68,7 +71,7 @@ pub(super) enum Pass {
     Zeros,
     /// The block lies inside every ray's range, the positions along `a` move one way
     /// (`rising`: no slope negative; else no slope positive) and stay in the box: the
-    /// kernels' shortest path ([`Span::monotone_inside`]).
+    /// kernels' shortest path ([`Span::pass`]).
     Monotone { rising: bool },
     /// The block lies inside every ray's range: a segment's entry is the previous one's
     /// exit.
@@ -97,19 +100,12 @@ impl Span {
     /// every grid coordinate in the box), as (least, greatest).
     #[inline]
     fn positions(&self, b0: f64, b1: f64) -> (f64, f64) {
-        // a0 + slope·b is linear in b, and b ≥ 0: the extremes are at the ends.
-        let x_lo = self.a0_lo + (self.slope_lo * b0).min(self.slope_lo * b1);
-        let x_hi = self.a0_hi + (self.slope_hi * b0).max(self.slope_hi * b1);
+        // a0 + slope·b is linear in b, and 0 ≤ b0 ≤ b1: the extremes are at the ends, the
+        // lower end's where the slope is ≥ 0 (the same as the least of the two products,
+        // without a NaN-aware `min`: this runs per group and block).
+        let x_lo = self.a0_lo + self.slope_lo * if self.slope_lo >= 0.0 { b0 } else { b1 };
+        let x_hi = self.a0_hi + self.slope_hi * if self.slope_hi >= 0.0 { b1 } else { b0 };
         (x_lo, x_hi)
-    }
-
-    /// Whether every ray stays below `lo` or from `hi` on along `a` for all `b` in
-    /// `[b0, b1]` (`b0 ≥ 0`, as every grid coordinate in the box). The kernels compute a
-    /// position as one fused multiply-add of these values; the margin covers its rounding.
-    #[inline]
-    fn outside(&self, b0: f64, b1: f64, lo: f64, hi: f64) -> bool {
-        let (x_lo, x_hi) = self.positions(b0, b1);
-        x_hi + Self::MARGIN < lo || x_lo - Self::MARGIN >= hi
     }
 
     /// How a kernel takes this group over `block`; `monotone`: the box's first and last
@@ -117,44 +113,43 @@ impl Span {
     /// pairs of voxels), else `None`.
     #[inline]
     pub(super) fn pass(&self, block: &Block, monotone: Option<(f64, f64)>) -> Pass {
+        const MARGIN: f64 = Span::MARGIN;
         let (b0, b1) = (block.b0, block.b1);
         if b1 <= self.reach_lo || b0 >= self.reach_hi {
             return Pass::Miss;
         }
-        let zeros = block.nz_lo > f64::NEG_INFINITY || block.nz_hi < f64::INFINITY;
-        if zeros && self.outside(b0, b1, block.nz_lo, block.nz_hi) {
+        // Finite: a group whose rays are all padding misses every block (its reach is
+        // empty), and a real ray's slope is below 1.
+        let (x_lo, x_hi) = self.positions(b0, b1);
+        if block.zeros && (x_hi + MARGIN < block.nz_lo || x_lo - MARGIN >= block.nz_hi) {
             return Pass::Zeros;
         }
         if !(b0 >= self.inside_lo && b1 <= self.inside_hi) {
             return Pass::Clipped;
         }
-        match monotone.and_then(|(a_lo, a_hi)| self.monotone_inside(b0, b1, a_lo, a_hi)) {
-            Some(rising) => Pass::Monotone { rising },
-            None => Pass::Inside,
+        // Positions moving one way and within voxels `a_lo..a_hi` (the box's first and
+        // last along `a`; the last left out, so that a voxel's right neighbour is in the
+        // box too), with finite `inv_slope`s: there a kernel knows which end of a segment
+        // holds the lower voxel of its pair and needs no clamping.
+        match monotone {
+            Some((a_lo, a_hi))
+                if self.inv_finite && x_lo - MARGIN >= a_lo && x_hi + MARGIN < a_hi =>
+            {
+                if self.slope_lo >= 0.0 {
+                    Pass::Monotone { rising: true }
+                } else if self.slope_hi <= 0.0 {
+                    Pass::Monotone { rising: false }
+                } else {
+                    Pass::Inside
+                }
+            }
+            _ => Pass::Inside,
         }
     }
 
     /// The kernels compute a position as one fused multiply-add of a ray's values; this
     /// covers its rounding against [`Span::positions`]' bounds.
     const MARGIN: f64 = 1e-6;
-
-    /// Whether the rays' positions along `a` move one way over `[b0, b1]` and keep within
-    /// voxels `a_lo..a_hi` (the box's first and last along `a`; the last is left out, so
-    /// that a voxel's right neighbour is in the box too), with finite `inv_slope`s:
-    /// `Some(true)` where no slope is negative, `Some(false)` where none is positive.
-    /// There a kernel knows which end of a segment holds the lower voxel of its pair and
-    /// needs no clamping.
-    #[inline]
-    fn monotone_inside(&self, b0: f64, b1: f64, a_lo: f64, a_hi: f64) -> Option<bool> {
-        let (x_lo, x_hi) = self.positions(b0, b1);
-        let inside = self.inv_finite && x_lo - Self::MARGIN >= a_lo && x_hi + Self::MARGIN < a_hi;
-        match (self.slope_lo >= 0.0, self.slope_hi <= 0.0) {
-            _ if !inside => None,
-            (true, _) => Some(true),
-            (false, true) => Some(false),
-            (false, false) => None,
-        }
-    }
 }
 
 impl Rays {
