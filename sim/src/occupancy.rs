@@ -99,13 +99,22 @@ impl RowExtents {
     /// As [`RowExtents::row`], for the row whose voxel `i = 0` has linear index `base`
     /// (`i + nx·(j + ny·k)`).
     pub fn row_at(&self, base: usize) -> Option<(usize, usize)> {
-        // base / nx, by the reciprocal: `base` is a whole multiple of nx below 2⁵³, so the
-        // product is within far less than ½ of the quotient. (Called per segment of every
-        // ray sheet, where an integer division cost more than the rest of the lookup.)
         debug_assert_eq!(base % self.dims[0].max(1), 0, "not a row's first voxel");
-        let n = (base as f64 * self.per_row + 0.5) as usize;
-        (self.first.get(n).is_some_and(|&f| f != u32::MAX))
-            .then(|| (self.first[n] as usize, self.last[n] as usize))
+        self.row_from(base as f64)
+            .map(|(f, l)| (f as usize, l as usize))
+    }
+
+    /// As [`RowExtents::row_at`], for `base` held as a whole number in an f64 (as the ray
+    /// sheets' segments hold it) and the extent in u32: the form called per segment of
+    /// every ray sheet, with one conversion (each usize–f64 conversion is several
+    /// instructions on x86-64).
+    pub fn row_from(&self, base: f64) -> Option<(u32, u32)> {
+        // base / nx, by the reciprocal: `base` is a whole multiple of nx below 2⁵³, so the
+        // product is within far less than ½ of the quotient (an integer division cost
+        // more than the rest of the lookup).
+        let n = (base * self.per_row + 0.5) as usize;
+        let first = *self.first.get(n)?;
+        (first != u32::MAX).then(|| (first, self.last[n]))
     }
 
     /// The smallest box of voxels holding every non-zero value, or `None` if all are zero.

@@ -341,9 +341,10 @@ impl Sheet {
         if self.a != 0 {
             return;
         }
-        let (a_lo, a_hi) = (bounds.lo[0], bounds.hi[0].saturating_sub(1));
+        // As u32, like the extents (a grid's axis is below 2³² voxels).
+        let (a_lo, a_hi) = (bounds.lo[0] as u32, bounds.hi[0].saturating_sub(1) as u32);
         for s in &mut self.segments {
-            (s.nz_lo, s.nz_hi) = match rows.row_at(s.base as usize) {
+            (s.nz_lo, s.nz_hi) = match rows.row_from(s.base) {
                 None => (f64::INFINITY, f64::NEG_INFINITY),
                 // A ray clamped into the box reads its first or last voxel wherever it
                 // stands beyond them: no zeros to count on at a side where those are not.
@@ -351,12 +352,12 @@ impl Sheet {
                     if first <= a_lo {
                         f64::NEG_INFINITY
                     } else {
-                        first as f64
+                        f64::from(first)
                     },
                     if last >= a_hi {
                         f64::INFINITY
                     } else {
-                        (last + 1) as f64
+                        f64::from(last) + 1.0
                     },
                 ),
             };
