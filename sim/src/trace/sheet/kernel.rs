@@ -236,10 +236,11 @@ macro_rules! sheet_kernel {
         /// floors, the entry's where positions rise and the exit's where they fall; both
         /// lie in the box, so `piece`'s clamps change nothing, its `max(f0, f1)` is the
         /// other end's floor, and the lower end's voxel is the pair's lower one. `piece`
-        /// clamps `w` at 0 too: where the floors differ `w` is ≥ 0 already; where they
-        /// agree it may be < 0 here, but is finite (every `inv_slope` is) and multiplies
-        /// `v0 - v1` = +0, so the piece is `db·v1` but for the sign of a zero, which leaves
-        /// the sum's bits as they are (sums are ≥ +0).
+        /// clamps `w` at 0 too: where the floors differ `w` is ≥ 0 already (at most −0
+        /// for +0); where they agree it may be < 0 here, but is finite (every `inv_slope`
+        /// is) and multiplies `v0 - v1` = +0. Either way the piece can differ from
+        /// `piece`'s only in the sign of a zero, which leaves the sum's bits as they are
+        /// (sums are ≥ +0).
         ///
         /// # Safety
         /// As `integrate_with`, and every lane's pairs lie in the box as said.
