@@ -18,7 +18,7 @@ pub struct RowExtents {
     /// Last non-zero i per row; 0 for a row of zeros.
     last: Vec<u32>,
     /// `1 / nx`, to find a row from its first voxel's index without a division
-    /// ([`RowExtents::row_at`]).
+    /// ([`RowExtents::row_from`]).
     per_row: f64,
 }
 
@@ -99,8 +99,7 @@ impl RowExtents {
     /// As [`RowExtents::row`], for the row whose voxel `i = 0` has linear index `base`
     /// (`i + nx·(j + ny·k)`).
     pub fn row_at(&self, base: usize) -> Option<(usize, usize)> {
-        debug_assert_eq!(base % self.dims[0].max(1), 0, "not a row's first voxel");
-        self.row_from(base as f64)
+        self.extent(base / self.dims[0].max(1))
             .map(|(f, l)| (f as usize, l as usize))
     }
 
@@ -112,7 +111,11 @@ impl RowExtents {
         // base / nx, by the reciprocal: `base` is a whole multiple of nx below 2⁵³, so the
         // product is within far less than ½ of the quotient (an integer division cost
         // more than the rest of the lookup).
-        let n = (base * self.per_row + 0.5) as usize;
+        self.extent((base * self.per_row + 0.5) as usize)
+    }
+
+    /// The first and last non-zero voxel of row `n` (`j + ny·k`), if it has any.
+    fn extent(&self, n: usize) -> Option<(u32, u32)> {
         let first = *self.first.get(n)?;
         (first != u32::MAX).then(|| (first, self.last[n]))
     }

@@ -37,15 +37,15 @@ sheet_kernel!("avx512f,avx512dq,avx2,fma", {
         // (`vpmovqd` for the evens, `vshufps` and `vpermpd` for the odds), three more
         // instructions on the two ports that execute 512-bit operations (docs/projector.md,
         // "Session 30").
-        let index = _mm512_setr_epi32(0, 2, 4, 6, 8, 10, 12, 14, 1, 3, 5, 7, 9, 11, 13, 15);
+        let order = _mm512_setr_epi32(0, 2, 4, 6, 8, 10, 12, 14, 1, 3, 5, 7, 9, 11, 13, 15);
         let split: __m512d;
         // SAFETY: a register-to-register permutation; AVX-512F is enabled (the function's
         // target features).
         unsafe {
             std::arch::asm!(
-                "vpermps {split}, {index}, {both}",
+                "vpermps {split}, {order}, {both}",
                 split = lateout(zmm_reg) split,
-                index = in(zmm_reg) index,
+                order = in(zmm_reg) order,
                 both = in(zmm_reg) both,
                 options(pure, nomem, nostack, preserves_flags),
             );

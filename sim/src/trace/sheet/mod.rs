@@ -366,11 +366,12 @@ impl Sheet {
 
     /// How the SIMD kernels take each (group of `lanes` rays, block of segments) pair when
     /// they integrate lines in a box whose first and last voxel along the sheet's axis are
-    /// `bounds`' (for tests and benchmarks; `lanes` 4 or 8).
+    /// `bounds`' (for tests and benchmarks; `lanes` 4 or 8). As the kernels, only sheets
+    /// along i (contiguous lines, read in pairs) take [`Passes::rising`] and `falling`.
     pub fn passes(&self, lanes: usize, bounds: &GridBox) -> Passes {
         let spans = self.rays.spans(lanes.max(Rays::GROUP));
         let (a_lo, a_hi) = (bounds.lo[self.a], bounds.hi[self.a] - 1);
-        let monotone = (a_hi > a_lo).then_some((a_lo as f64, a_hi as f64));
+        let monotone = (self.a == 0 && a_hi > a_lo).then_some((a_lo as f64, a_hi as f64));
         let mut n = Passes::default();
         for block in self.segments.chunks(BLOCK) {
             let block = Block::of(block);

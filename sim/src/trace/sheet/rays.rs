@@ -44,8 +44,6 @@ pub(super) struct Block {
     pub(super) b1: f64,
     nz_lo: f64,
     nz_hi: f64,
-    /// Whether any voxel line of the block is known to hold zeros (`nz_lo`, `nz_hi`).
-    zeros: bool,
 }
 
 impl Block {
@@ -56,7 +54,6 @@ impl Block {
             b1: block[block.len() - 1].b1,
             nz_lo,
             nz_hi,
-            zeros: nz_lo > f64::NEG_INFINITY || nz_hi < f64::INFINITY,
         }
     }
 }
@@ -113,15 +110,15 @@ impl Span {
     /// pairs of voxels), else `None`.
     #[inline]
     pub(super) fn pass(&self, block: &Block, monotone: Option<(f64, f64)>) -> Pass {
-        const MARGIN: f64 = Span::MARGIN;
         let (b0, b1) = (block.b0, block.b1);
         if b1 <= self.reach_lo || b0 >= self.reach_hi {
             return Pass::Miss;
         }
         // Finite: a group whose rays are all padding misses every block (its reach is
-        // empty), and a real ray's slope is below 1.
+        // empty), and a real ray's slope is below 1. A block with no zeros to count on has
+        // the range ±∞, which no position lies outside.
         let (x_lo, x_hi) = self.positions(b0, b1);
-        if block.zeros && (x_hi + MARGIN < block.nz_lo || x_lo - MARGIN >= block.nz_hi) {
+        if x_hi + Self::MARGIN < block.nz_lo || x_lo - Self::MARGIN >= block.nz_hi {
             return Pass::Zeros;
         }
         if !(b0 >= self.inside_lo && b1 <= self.inside_hi) {
@@ -133,7 +130,7 @@ impl Span {
         // holds the lower voxel of its pair and needs no clamping.
         match monotone {
             Some((a_lo, a_hi))
-                if self.inv_finite && x_lo - MARGIN >= a_lo && x_hi + MARGIN < a_hi =>
+                if self.inv_finite && x_lo - Self::MARGIN >= a_lo && x_hi + Self::MARGIN < a_hi =>
             {
                 if self.slope_lo >= 0.0 {
                     Pass::Monotone { rising: true }
