@@ -12,6 +12,7 @@ use anyhow::{Result, bail};
 use clap::Args;
 use std::path::PathBuf;
 use tomograf_datasets::anatomy::Profile;
+use tomograf_datasets::population::Population;
 use tomograf_datasets::preprocess::HuWindow;
 use tomograf_scene::dataset::{DatasetJob, ItemSettings, ItemSource, expand_inputs};
 
@@ -64,6 +65,20 @@ pub struct DatasetArgs {
     /// Take only items i, i+n, … of the job: I/N (0-based), for running across machines.
     #[arg(long)]
     pub shard: Option<String>,
+    /// Keep what lies around a CT's body — the couch, the scanner's padding, stray voxels —
+    /// instead of setting it to air before the crop (docs/datasets.md, "Real CTs").
+    #[arg(long)]
+    pub keep_table: bool,
+    /// Shape augmentation for training sets, seeded: each item drawn from this seed and its
+    /// index — a small roll (±5°) and tilt (±3°), and a body section that tapers (±12 %)
+    /// and drifts (±12 % of the half-width, ±15 % of the half-depth) along the patient
+    /// (docs/datasets.md, "Shape augmentation").
+    #[arg(long)]
+    pub augment: Option<u64>,
+    /// Warn about items far from this training population: a data-set or checkpoint folder
+    /// holding population.json [default: the shipped checkpoint's].
+    #[arg(long)]
+    pub like: Option<PathBuf>,
     /// Real detector physics instead of ideal DRRs (item i's noise is seeded from the
     /// noise seed and i, so shards give the same bytes).
     #[command(flatten)]
@@ -71,7 +86,35 @@ pub struct DatasetArgs {
 }
 
 pub fn run(args: DatasetArgs) -> Result<()> {
-    run_job(&job(&args)?)
+    let job = job(&args)?;
+    run_job(&job)?;
+    let like = args
+        .like
+        .clone()
+        .unwrap_or_else(|| PathBuf::from(crate::demo::SHIPPED_CHECKPOINT));
+    warn_outliers(&job.output, &like)
+}
+
+/// Warns, naming the numbers, about each item of the data set `dir` that lies far from the
+/// population recorded in `like` (a data set or checkpoint folder); says so when `like`
+/// records none.
+pub fn warn_outliers(dir: &std::path::Path, like: &std::path::Path) -> Result<()> {
+    let Some(reference) = Population::read(like)? else {
+        eprintln!(
+            "note: {} records no training population (population.json): items not compared",
+            like.display()
+        );
+        return Ok(());
+    };
+    for (id, problems) in tomograf_scene::dataset::outliers(dir, &reference)? {
+        eprintln!(
+            "warning: item {id} lies far from the training population of {} ({} items): {}",
+            like.display(),
+            reference.items,
+            problems.join("; ")
+        );
+    }
+    Ok(())
 }
 
 /// Runs a data-set job with a progress bar and a summary line.
@@ -121,6 +164,11 @@ pub fn job(args: &DatasetArgs) -> Result<DatasetJob> {
             sid_mm: args.sid,
             split: args.split.clone(),
             acquisition,
+            keep_table: args.keep_table,
+            augment: args
+                .augment
+                .map(|seed| (tomograf_datasets::augment::AugmentRanges::default(), seed)),
+            ..ItemSettings::default()
         },
         output: args.output.clone(),
         shard,

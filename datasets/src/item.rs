@@ -72,6 +72,28 @@ pub struct ItemRecord {
     /// (θ, φ) of each projection, degrees.
     #[serde(default)]
     pub angles_deg: Vec<[f64; 2]>,
+    /// The frame the CT's voxel axes run in ([`crate::frame::PATIENT_FRAME`]); empty for
+    /// items made before it was recorded (their CTs kept the source's own axes).
+    #[serde(default, skip_serializing_if = "String::is_empty")]
+    pub frame: String,
+    /// How the source was brought into that frame ([`crate::frame::Reorientation`]; null
+    /// for phantoms, which are generated in it).
+    #[serde(default, skip_serializing_if = "serde_json::Value::is_null")]
+    pub reorientation: serde_json::Value,
+    /// What was removed around the body: "couch, padding and stray voxels set to air" or
+    /// "kept" (`--keep-table`); empty for phantoms (they hold what their spec asks).
+    #[serde(default, skip_serializing_if = "String::is_empty")]
+    pub outside_body: String,
+    /// The fraction of the item's CT grid inside the body ([`crate::body`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub body_fraction: Option<f64>,
+    /// The fraction of the body in each tissue class ([`crate::body::TISSUE_CLASSES`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub tissue_fractions: Option<crate::body::TissueFractions>,
+    /// The shape augmentation applied before the crop ([`crate::augment::Augmentation`]);
+    /// null for none.
+    #[serde(default, skip_serializing_if = "serde_json::Value::is_null")]
+    pub augmentation: serde_json::Value,
 }
 
 /// An item's acquisition: the settings and the seed of its detector noise.

@@ -9,6 +9,10 @@
 //!   PNG (windowed, for viewing). Images are `rows × cols`, row 0 at the top.
 //! * [`item`]: the data-set item (`item.json`, `views.json`, `projections.npy`, `ct.nii.gz`)
 //!   and `manifest.jsonl`, written by `tomograf dataset` and read by the model.
+//! * [`frame`]: every CT brought into one patient frame (LPS, `i` left, `j` posterior, `k`
+//!   superior) before it is cropped; [`body`]: the body alone (couch, padding and stray
+//!   voxels set to air) and its tissue fractions; [`population`]: their range over a data
+//!   set, to name an input far from a model's training population.
 //! * [`sidecar`]: the projection sidecar (`<prefix>.json`) of `tomograf project`, read back
 //!   by `reconstruct-classical`.
 //! * [`atomic`]: every file is written atomically (through [`atomic::write_atomic`], or
@@ -22,11 +26,15 @@
 
 pub mod anatomy;
 pub mod atomic;
+pub mod augment;
+pub mod body;
 pub mod dicom;
 pub mod error;
+pub mod frame;
 pub mod image;
 pub mod item;
 pub mod nifti;
+pub mod population;
 pub mod preprocess;
 pub mod sidecar;
 

@@ -163,6 +163,9 @@ pub fn evaluate(e: &Evaluation) -> Result<usize> {
     // The checkpoint's inference settings, mean training volume and projection scale.
     let model = match e.checkpoint {
         Some(ck) => {
+            for item in &items {
+                crate::protocol::warn_population(&e.data.join(&item.id), ck, e.progress)?;
+            }
             let generator = checkpoint::load_generator(ck, &device)
                 .with_context(|| format!("checkpoint {}", ck.display()))?;
             let infer = generator.config.infer.overridden(&e.infer)?;

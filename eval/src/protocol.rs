@@ -4,6 +4,7 @@
 
 use anyhow::{Context, Result, bail};
 use std::path::Path;
+use tomograf_datasets::population::Population;
 use tomograf_model::baseline::{Baseline, MeanVolume};
 use tomograf_model::checkpoint;
 use tomograf_model::config::{InferConfig, InferOverrides};
@@ -166,6 +167,7 @@ pub fn reconstruct_item(
         r.backend.unwrap_or(tomograf_model::backend::default_name()),
     )?;
     let item = tomograf_model::data::load_item(r.item)?;
+    warn_population(r.item, r.checkpoint, progress)?;
     let generator = checkpoint::load_generator(r.checkpoint, &device)?;
     let corrected = correct_scatter(
         &item,
@@ -187,6 +189,30 @@ pub fn reconstruct_item(
         progress,
     )?;
     Ok((item, rec))
+}
+
+/// Notes (through `progress`), naming the numbers, when the item in `item_dir` lies far
+/// from the training population the checkpoint records (`population.json`;
+/// [`Population::outliers`]): its body fraction or tissue fractions. Silent when either
+/// records none.
+pub fn warn_population(item_dir: &Path, checkpoint: &Path, progress: &dyn Progress) -> Result<()> {
+    let (Some(record), Some(population)) = (
+        tomograf_datasets::item::finished_record(item_dir),
+        Population::read(checkpoint)?,
+    ) else {
+        return Ok(());
+    };
+    let off = population.outliers(&record);
+    if !off.is_empty() {
+        progress.note(&format!(
+            "warning: item {} lies far from the checkpoint's training population ({} items): \
+             {}; its reconstruction leans on a prior that has not seen such a CT",
+            item_dir.display(),
+            population.items,
+            off.join("; ")
+        ));
+    }
+    Ok(())
 }
 
 /// A normalised volume of `item`'s data set in HU.

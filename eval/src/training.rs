@@ -7,6 +7,7 @@ use anyhow::{Context, Result, bail};
 use std::io::Write;
 use std::path::Path;
 use std::time::Instant;
+use tomograf_datasets::population::Population;
 use tomograf_model::baseline::MeanVolume;
 use tomograf_model::config::TrainConfig;
 use tomograf_model::train::{StepMetrics, Trainer, projection_scale};
@@ -42,6 +43,9 @@ pub fn train(args: &Training, progress: &dyn Progress) -> Result<()> {
     let items = data::load_dataset(args.data, args.split)
         .with_context(|| format!("loading the data set {}", args.data.display()))?;
     let scale = items[0].scale;
+    let population = Population::of(&tomograf_datasets::item::read_manifest(
+        args.data, args.split,
+    )?);
     let ck = args.output.join("checkpoint");
     let ids: Vec<String> = items.iter().map(|i| i.id.clone()).collect();
     if args.output.is_dir() {
@@ -115,12 +119,28 @@ pub fn train(args: &Training, progress: &dyn Progress) -> Result<()> {
             ));
         }
         if m.iteration % trainer.config.checkpoint_every == 0 || m.iteration == total {
-            save(&trainer, scale, &ck, &csv_path, &rows, args.output)?;
+            save(
+                &trainer,
+                scale,
+                &ck,
+                &csv_path,
+                &rows,
+                args.output,
+                population.as_ref(),
+            )?;
         }
         progress.inc();
     }
     progress.finish();
-    save(&trainer, scale, &ck, &csv_path, &rows, args.output)?;
+    save(
+        &trainer,
+        scale,
+        &ck,
+        &csv_path,
+        &rows,
+        args.output,
+        population.as_ref(),
+    )?;
     progress.note(&format!(
         "trained {} iterations: {}, {}",
         trainer.iteration,
@@ -173,6 +193,7 @@ fn save(
     csv_path: &Path,
     rows: &[String],
     out: &Path,
+    population: Option<&Population>,
 ) -> Result<()> {
     // The metrics before the checkpoint: a run killed between the two resumes from the
     // previous checkpoint and recomputes the rows after it (the other order lost the rows
@@ -208,5 +229,10 @@ fn save(
         ],
     )?;
     checkpoint::save(trainer, scale, ck)?;
+    // What the training CTs look like, for `reconstruct` and `evaluate` to compare inputs
+    // with (docs/datasets.md, "Real CTs"); absent for items that do not record it.
+    if let Some(p) = population {
+        p.write(ck)?;
+    }
     Ok(())
 }

@@ -1,7 +1,10 @@
 //! Data-set items as in the TomoGRAF paper, the one definition behind `tomograf dataset`,
 //! the studies and `tomograf.make_item` in Python.
 //!
-//! Per item (a CT file or DICOM folder, or a seeded anatomical phantom): the
+//! Per item (a CT file or DICOM folder, or a seeded anatomical phantom): a CT is first
+//! brought into the patient frame ([`tomograf_datasets::frame`]) and, unless
+//! [`ItemSettings::keep_table`], reduced to its body ([`tomograf_datasets::body`]); then,
+//! optionally shape-augmented ([`tomograf_datasets::augment`]), the
 //! black-border-cropped CT resampled to `size³` and normalised to [0, 1] over an HU window
 //! (`ct.nii.gz`, whose affine keeps the world frame), and `views` projections every
 //! 360/`views` degrees plus AP and lateral at `size²` (`projections.npy`, shape views × rows
@@ -25,7 +28,11 @@ use serde::Serialize;
 use sha2::{Digest, Sha256};
 use std::path::{Path, PathBuf};
 use tomograf_datasets::anatomy::{self, AnatomySpec, Profile};
+use tomograf_datasets::augment::{AugmentRanges, Augmentation};
+use tomograf_datasets::body::{self, BodySettings};
+use tomograf_datasets::frame::{PATIENT_FRAME, to_patient_frame};
 use tomograf_datasets::item::{self, AcquisitionRecord, ItemRecord};
+use tomograf_datasets::population::Population;
 use tomograf_datasets::preprocess::{HuWindow, crop_black_border, resample};
 use tomograf_datasets::{atomic, image, nifti};
 use tomograf_sim::acquisition::Acquisition;
@@ -54,6 +61,14 @@ pub struct ItemSettings {
     pub split: String,
     /// Real detector physics and its noise seed; `None`: ideal line integrals.
     pub acquisition: Option<(Acquisition, u64)>,
+    /// Keep what lies around a CT's body (couch, padding, stray voxels) instead of setting
+    /// it to air before the crop.
+    pub keep_table: bool,
+    /// How a CT's body is told from the rest ([`tomograf_datasets::body`]).
+    pub body: BodySettings,
+    /// Shape augmentation ([`tomograf_datasets::augment`]) within these ranges, item i's
+    /// drawn from [`item_seed`]`(seed, i)`; `None`: none.
+    pub augment: Option<(AugmentRanges, u64)>,
 }
 
 impl Default for ItemSettings {
@@ -68,6 +83,9 @@ impl Default for ItemSettings {
             sid_mm: 1500.0,
             split: "train".into(),
             acquisition: None,
+            keep_table: false,
+            body: BodySettings::default(),
+            augment: None,
         }
     }
 }
@@ -286,12 +304,25 @@ impl DatasetJob {
             progress(index, !done);
         }
         let listed = item::write_manifest(&self.output, self.sources.len())?;
+        if let Some(p) = Population::of(&item::read_manifest(&self.output, None)?) {
+            p.write(&self.output)?;
+        }
         Ok(DatasetSummary {
             made,
             skipped,
             listed,
         })
     }
+}
+
+/// The finished items of the data set in `dir` whose body fraction or tissue fractions lie
+/// far outside `reference` ([`Population::outliers`]): (item id, what is off) for each.
+pub fn outliers(dir: &Path, reference: &Population) -> Result<Vec<(String, Vec<String>)>> {
+    Ok(item::read_manifest(dir, None)?
+        .iter()
+        .map(|r| (r.id.clone(), reference.outliers(r)))
+        .filter(|(_, o)| !o.is_empty())
+        .collect())
 }
 
 /// Makes item `index` of a set from `source` into `dir` (created if missing).
@@ -312,6 +343,19 @@ pub fn make_item(
             );
             (anatomy::generate(spec)?, sha)
         }
+    };
+    let (hu, reorientation, outside_body) = match source {
+        ItemSource::File { path } => patient_of(hu, path, settings)?,
+        // Generated in the frame, holding what its spec asks for (a table only if asked).
+        ItemSource::Phantom { .. } => (hu, serde_json::Value::Null, String::new()),
+    };
+    let augmentation = settings
+        .augment
+        .as_ref()
+        .map(|(ranges, seed)| Augmentation::draw(item_seed(*seed, index), ranges));
+    let hu = match &augmentation {
+        Some(a) => a.apply(&hu)?,
+        None => hu,
     };
     let cropped = crop_black_border(&hu, settings.crop_hu)?;
 
@@ -356,8 +400,10 @@ pub fn make_item(
         }
     };
 
-    // The CT on the training grid, normalised.
-    let ct = settings.window.normalize(&resample(&cropped, [size; 3])?)?;
+    // The CT on the training grid, normalised; how much of it is body, and of what.
+    let grid = resample(&cropped, [size; 3])?;
+    let (body_fraction, tissue_fractions) = grid_body(&grid);
+    let ct = settings.window.normalize(&grid)?;
 
     std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
     nifti::write_nifti(&dir.join("ct.nii.gz"), &ct)?;
@@ -391,6 +437,59 @@ pub fn make_item(
             .unwrap_or(serde_json::Value::Null),
         views: "views.json".into(),
         angles_deg: poses.iter().map(|p| [p.theta_deg, p.phi_deg]).collect(),
+        frame: PATIENT_FRAME.into(),
+        reorientation,
+        outside_body,
+        body_fraction,
+        tissue_fractions,
+        augmentation: augmentation
+            .map(serde_json::to_value)
+            .transpose()?
+            .unwrap_or(serde_json::Value::Null),
     };
     Ok(item::write_record(dir, &record)?)
+}
+
+/// A CT (HU, read from `path`) in the patient frame and, unless `settings.keep_table`,
+/// with everything but the body set to air; with how it was reoriented and what was done
+/// around the body, as `item.json` records them.
+fn patient_of(
+    hu: tomograf_sim::Volume,
+    path: &Path,
+    settings: &ItemSettings,
+) -> Result<(tomograf_sim::Volume, serde_json::Value, String)> {
+    let (framed, how) = to_patient_frame(&hu, PADDING_HU)
+        .with_context(|| format!("{}: bringing it into the patient frame", path.display()))?;
+    let how = serde_json::to_value(how)?;
+    if settings.keep_table {
+        return Ok((framed, how, "kept".to_string()));
+    }
+    let mask = body::body_mask(&framed, &settings.body)
+        .with_context(|| format!("{}: finding the body", path.display()))?;
+    let note = format!(
+        "set to air ({} HU): what is not the body (threshold {} HU, opening {} mm)",
+        body::AIR_HU,
+        settings.body.threshold_hu,
+        settings.body.opening_mm
+    );
+    Ok((body::isolate_body(&framed, &mask)?, how, note))
+}
+
+/// Value of grid points outside an oblique CT once it is resampled into the patient frame,
+/// HU (the scanners' padding; cropped away with the border).
+const PADDING_HU: f32 = -1024.0;
+
+/// The fraction of an item's grid (HU) inside the body, and the body's tissue fractions,
+/// measured the same way for CTs and phantoms: [`body::body_mask`] without the opening
+/// (the grid is coarse, and a CT's surroundings are already air unless kept). `None` when
+/// the grid holds no tissue.
+fn grid_body(grid: &tomograf_sim::Volume) -> (Option<f64>, Option<body::TissueFractions>) {
+    let settings = BodySettings {
+        opening_mm: 0.0,
+        ..BodySettings::default()
+    };
+    match body::body_mask(grid, &settings) {
+        Ok(b) => (Some(b.fraction()), Some(b.tissue_fractions(grid))),
+        Err(_) => (None, None),
+    }
 }

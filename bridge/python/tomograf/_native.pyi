@@ -370,6 +370,7 @@ def make_item(
     sid_mm: float = 1500.0,
     split: str = "train",
     physics: Optional[dict] = None,
+    keep_table: bool = False,
 ) -> "PathLike[str]":
     """Makes one TomoGRAF data-set item in the folder `output`, the same files (and bytes)
     as item `index` of `tomograf dataset`: ct.nii.gz (cropped CT resampled to size³, [0, 1]
@@ -378,5 +379,7 @@ def make_item(
     or the detector's signal when `physics` holds a scene's physics tables such as
     {"acquisition": {"preset": "kv-flat-panel-120kvp", "seed": 5}}), views.json and
     item.json (written last). Source: exactly one of `ct` (NIfTI or DICOM folder) and
-    `phantom_seed` (profile "lidc" or "full-chest"). Distances in mm. Returns the folder.
+    `phantom_seed` (profile "lidc" or "full-chest"). A CT is brought into the patient frame
+    (i left, j posterior, k superior) and reduced to its body (couch, padding and stray
+    voxels set to air) unless `keep_table`. Distances in mm. Returns the folder.
     ValueError for bad settings, FileNotFoundError for a missing CT."""

@@ -2,6 +2,7 @@
 //! more realistic physics) and domain shifts (other patients, hardware or exposure).
 
 use anyhow::{Result, bail};
+use std::path::PathBuf;
 use tomograf_model::scatter_correction::ScatterCorrection;
 use tomograf_scene::overrides::PhysicsOverrides;
 
@@ -23,6 +24,9 @@ pub struct DataSpec {
     pub data_of: Option<&'static str>,
     /// The scatter correction every method's views get before reconstruction.
     pub correction: ScatterCorrection,
+    /// The user's CTs (NIfTI files or DICOM series folders) instead of phantoms: the
+    /// population, in this order; empty for phantoms of `profile`.
+    pub cts: Vec<PathBuf>,
 }
 
 impl DataSpec {
@@ -36,7 +40,36 @@ impl DataSpec {
             physics,
             data_of: None,
             correction: ScatterCorrection::None,
+            cts: Vec::new(),
         }
+    }
+
+    /// The same set made of `cts` instead of phantoms (unchanged when `cts` is empty).
+    pub fn with_cts(mut self, cts: &[PathBuf]) -> Self {
+        if !cts.is_empty() {
+            self.cts = cts.to_vec();
+        }
+        self
+    }
+
+    /// Who is in the set, for the report: "lidc phantoms", "3 CTs (a.nii.gz, …)".
+    pub fn population(&self) -> String {
+        if self.cts.is_empty() {
+            return format!("{} phantoms", self.profile);
+        }
+        let names: Vec<String> = self
+            .cts
+            .iter()
+            .take(3)
+            .map(|p| {
+                p.file_name()
+                    .unwrap_or(p.as_os_str())
+                    .to_string_lossy()
+                    .into_owned()
+            })
+            .collect();
+        let more = if self.cts.len() > 3 { ", …" } else { "" };
+        format!("{} CT(s): {}{more}", self.cts.len(), names.join(", "))
     }
 
     /// The folder name of the data this set evaluates.
@@ -125,6 +158,18 @@ pub fn shift_training() -> DataSpec {
         "lidc phantoms (cropped thorax), preset kv-flat-panel-120kvp (120 kVp, 1 mAs, CsI panel)",
         kv(None, None, None),
     )
+}
+
+/// The name of the domain-shift test set made of the user's CTs.
+pub const USER_CT: &str = "user-ct";
+
+/// The domain-shift test set of the user's `cts`: the training physics on real anatomy.
+pub fn user_ct_shift(cts: &[PathBuf]) -> DataSpec {
+    DataSpec {
+        name: USER_CT,
+        about: "the user's CTs (into the patient frame, the body alone), the training physics",
+        ..shift_training().with_cts(cts)
+    }
 }
 
 /// The domain-shift test sets: one change each from the training set, and the paper's

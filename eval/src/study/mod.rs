@@ -79,6 +79,13 @@ pub struct Settings {
     pub seed: u64,
     pub train_sets: Vec<String>,
     pub test_sets: Vec<String>,
+    /// The user's CTs the training sets are made of (empty: phantoms).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub train_cts: Vec<PathBuf>,
+    /// The user's CTs the test sets (realism gap) or the `user-ct` set (domain shift) are
+    /// made of.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub test_cts: Vec<PathBuf>,
 }
 
 /// A study: its folder, settings and data sets.
@@ -123,6 +130,14 @@ impl Study {
         )?)
     }
 
+    /// The number of items of a test set: its CTs, or the scale's test phantoms.
+    pub fn test_items(&self, name: &str) -> usize {
+        match self.test.iter().find(|t| t.name == name) {
+            Some(t) if !t.cts.is_empty() => t.cts.len(),
+            _ => self.settings.scale.test_phantoms,
+        }
+    }
+
     fn data_dir(&self, split: &str, spec: &DataSpec) -> PathBuf {
         self.dir.join("data").join(split).join(spec.data_name())
     }
@@ -161,10 +176,18 @@ impl Study {
             (s.scale.train_phantoms, s.scale.views)
         };
         let profile = Profile::parse(spec.profile)?;
-        Ok(DatasetJob {
-            sources: (0..count)
+        let sources = if spec.cts.is_empty() {
+            (0..count)
                 .map(|n| ItemSource::phantom(first + n as u64, profile, spec.table, spec.pacemaker))
-                .collect(),
+                .collect()
+        } else {
+            spec.cts
+                .iter()
+                .map(|path| ItemSource::File { path: path.clone() })
+                .collect()
+        };
+        Ok(DatasetJob {
+            sources,
             settings: ItemSettings {
                 views,
                 size: s.scale.size,

@@ -8,7 +8,7 @@ use super::{Kind, Study, VIEWS, relative};
 use crate::evaluation::{NETWORK_ONLY, Row, Scores, merge};
 use crate::figures::{Axes, COLOUR_NAMES, plot_histograms, plot_points};
 use anyhow::{Context, Result};
-use std::collections::BTreeSet;
+use std::collections::{BTreeMap, BTreeSet};
 use std::fmt::Write as _;
 use std::path::Path;
 use tomograf_datasets::atomic::write_atomic;
@@ -118,33 +118,45 @@ pub fn write(study: &Study, partial: bool) -> Result<()> {
             cells.push((test.clone(), train, rows));
         }
     }
-    // The items every non-empty cell has scored (all items, when complete).
-    let mut common: Option<BTreeSet<String>> = None;
-    for (_, _, rows) in cells.iter().filter(|c| !c.2.is_empty()) {
+    // Per test set, the items every non-empty cell of that set has scored (all its items,
+    // when complete): test sets may hold different items (phantoms, the user's CTs).
+    let mut common: BTreeMap<String, BTreeSet<String>> = BTreeMap::new();
+    for (test, _, rows) in cells.iter().filter(|c| !c.2.is_empty()) {
         let items: BTreeSet<String> = rows.iter().map(|r| r.item.clone()).collect();
-        common = Some(match common {
-            Some(c) => c.intersection(&items).cloned().collect(),
-            None => items,
-        });
+        let entry = common.entry(test.clone()).or_insert_with(|| items.clone());
+        *entry = entry.intersection(&items).cloned().collect();
     }
-    let common = common.unwrap_or_default();
     let mut stats = Vec::new();
     let mut unscored = Vec::new();
-    let mut left_out = BTreeSet::new();
+    let mut left_out: BTreeMap<String, BTreeSet<String>> = BTreeMap::new();
     for (test, train, rows) in cells {
         if rows.is_empty() {
             unscored.push((test, cell_name(train)));
             continue;
         }
+        let keep = common.get(&test).cloned().unwrap_or_default();
         let (kept, other): (Vec<Row>, Vec<Row>) =
-            rows.into_iter().partition(|r| common.contains(&r.item));
-        left_out.extend(other.into_iter().map(|r| r.item));
+            rows.into_iter().partition(|r| keep.contains(&r.item));
+        left_out
+            .entry(test.clone())
+            .or_default()
+            .extend(other.into_iter().map(|r| r.item));
         stats_of(&kept, train, &test, &mut stats);
     }
-    let first_item = common.first().cloned();
+    let first_item = s
+        .test_sets
+        .iter()
+        .find_map(|t| common.get(t).and_then(|c| c.first().cloned()));
     let coverage = Coverage {
-        common: common.into_iter().collect(),
-        left_out: left_out.into_iter().collect(),
+        common: common
+            .into_iter()
+            .map(|(t, c)| (t, c.into_iter().collect()))
+            .collect(),
+        left_out: left_out
+            .into_iter()
+            .filter(|(_, l)| !l.is_empty())
+            .map(|(t, l)| (t, l.into_iter().collect()))
+            .collect(),
         unscored,
     };
     write_csv(&study.dir, &stats)?;
@@ -204,17 +216,30 @@ fn intro(study: &Study) -> Vec<Block> {
     let s = &study.settings;
     let sc = &s.scale;
     let mut b = vec![Block::Para(format!(
-        "Scale `{}` (CT {n}³, detector {n}², {} training and {} test phantoms per set, {} \
+        "Scale `{}` (CT {n}³, detector {n}², {} per set, {} \
          training and {} test views per rotation + AP + lateral, model configuration `{}`), \
          seed {}. Views as in \
          the paper: 1 = AP, 2 = AP + lateral, 5 = every 72°, 10 = every 36°. Metrics on the \
          [0, 1]-normalised CT (HU window −1024..2048): PSNR, 3D SSIM (7³ windows), RMSE in \
-         HU; mean ± std over the test phantoms. FDK and SART-TV use the same views and do \
+         HU; mean ± std over the test items. FDK and SART-TV use the same views and do \
          not depend on the training set. Regenerate with `tomograf study {} -o DIR --scale \
-         {} --seed {}`.",
+         {} --seed {}{}`.",
         sc.name,
-        sc.train_phantoms,
-        sc.test_phantoms,
+        match (s.train_cts.len(), s.test_cts.len()) {
+            (0, 0) => format!(
+                "{} training and {} test phantoms",
+                sc.train_phantoms, sc.test_phantoms
+            ),
+            (0, t) => format!(
+                "{} training phantoms, {t} test CT(s) (phantom test sets: {})",
+                sc.train_phantoms, sc.test_phantoms
+            ),
+            (r, 0) => format!("{r} training CT(s), {} test phantoms", sc.test_phantoms),
+            (r, t) => format!(
+                "{r} training CT(s), {t} test CT(s) (phantom test sets: {})",
+                sc.test_phantoms
+            ),
+        },
         sc.views,
         sc.test_views,
         sc.config,
@@ -225,6 +250,14 @@ fn intro(study: &Study) -> Vec<Block> {
         },
         sc.name,
         s.seed,
+        [("--train-ct", &s.train_cts), ("--test-ct", &s.test_cts)]
+            .iter()
+            .filter(|(_, c)| !c.is_empty())
+            .map(|(flag, c)| {
+                let paths: Vec<String> = c.iter().map(|p| p.display().to_string()).collect();
+                format!(" {flag} {}", paths.join(","))
+            })
+            .collect::<String>(),
         n = sc.size,
     ))];
     if sc.name == "tiny" {
@@ -241,7 +274,7 @@ fn intro(study: &Study) -> Vec<Block> {
             rows.push(vec![
                 role.to_string(),
                 format!("`{}`", d.name),
-                d.profile.to_string(),
+                d.population(),
                 if d.table { "yes" } else { "no" }.into(),
                 if d.pacemaker { "yes" } else { "no" }.into(),
                 d.about.to_string(),
@@ -252,7 +285,7 @@ fn intro(study: &Study) -> Vec<Block> {
         [
             "role",
             "set",
-            "profile",
+            "population",
             "table",
             "pacemaker",
             "physics / content",
@@ -307,12 +340,13 @@ fn cell_name(train: Option<&str>) -> String {
 }
 
 /// What a partial report averages over (a sharded evaluation that ran only some shards):
-/// the tables then average fewer test phantoms than the intro names.
+/// the tables then average fewer test items than the intro names.
 struct Coverage {
-    /// The test items every non-empty cell has scored: every cell averages these.
-    common: Vec<String>,
-    /// Items some cells have scored and others not (not averaged anywhere).
-    left_out: Vec<String>,
+    /// Per test set, the items every non-empty cell of it has scored: its cells average
+    /// these.
+    common: Vec<(String, Vec<String>)>,
+    /// Per test set, items some cells have scored and others not (not averaged anywhere).
+    left_out: Vec<(String, Vec<String>)>,
     /// (test set, cell) with nothing scored yet.
     unscored: Vec<(String, String)>,
 }
@@ -320,21 +354,43 @@ struct Coverage {
 impl Coverage {
     /// The paragraph of a partial report (`None` when every cell has every item).
     fn paragraph(&self, study: &Study) -> Option<Block> {
-        let want = study.settings.scale.test_phantoms;
-        if self.common.len() == want && self.unscored.is_empty() {
+        let short: Vec<String> = study
+            .settings
+            .test_sets
+            .iter()
+            .filter_map(|t| {
+                let want = study.test_items(t);
+                let have = self
+                    .common
+                    .iter()
+                    .find(|(n, _)| n == t)
+                    .map_or(&[][..], |(_, c)| c.as_slice());
+                (have.len() != want).then(|| {
+                    format!(
+                        "`{t}` averages {} of its {want} test items ({})",
+                        have.len(),
+                        have.join(", ")
+                    )
+                })
+            })
+            .collect();
+        if short.is_empty() && self.unscored.is_empty() {
             return None;
         }
-        let mut text = format!(
-            "**Partial evaluation**: every cell averages the same {} of the scale's {want} test \
-             phantoms, those scored in every cell that has any ({}).",
-            self.common.len(),
-            self.common.join(", ")
+        let mut text = String::from(
+            "**Partial evaluation**: every cell of a test set averages the items scored in \
+             every cell of that set that has any.",
         );
+        if !short.is_empty() {
+            text += &format!(" {}.", short.join("; "));
+        }
         if !self.left_out.is_empty() {
-            text += &format!(
-                " Left out, scored in some cells only: {}.",
-                self.left_out.join(", ")
-            );
+            let l: Vec<String> = self
+                .left_out
+                .iter()
+                .map(|(t, items)| format!("`{t}`: {}", items.join(", ")))
+                .collect();
+            text += &format!(" Left out, scored in some cells only: {}.", l.join("; "));
         }
         if !self.unscored.is_empty() {
             let cells: Vec<String> = self
@@ -632,7 +688,7 @@ fn plots(study: &Study, stats: &[Stat]) -> Result<Vec<Block>> {
 /// The evaluations' example figures of the first test item.
 fn examples(study: &Study, id: &str) -> Vec<Block> {
     let s = &study.settings;
-    let mut b = vec![Block::Heading(format!("Example: test phantom {id}"))];
+    let mut b = vec![Block::Heading(format!("Example: test item {id}"))];
     let last = s.test_sets.last().map(String::as_str).unwrap_or_default();
     let mut cells: Vec<(String, Option<&str>, usize)> = Vec::new();
     match s.kind {
