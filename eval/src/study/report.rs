@@ -366,10 +366,14 @@ impl Coverage {
                     .find(|(n, _)| n == t)
                     .map_or(&[][..], |(_, c)| c.as_slice());
                 (have.len() != want).then(|| {
+                    let which = if have.is_empty() {
+                        String::new()
+                    } else {
+                        format!(" ({})", have.join(", "))
+                    };
                     format!(
-                        "`{t}` averages {} of its {want} test items ({})",
-                        have.len(),
-                        have.join(", ")
+                        "`{t}` averages {} of its {want} test items{which}",
+                        have.len()
                     )
                 })
             })
