@@ -10,6 +10,7 @@
 //! atomically. Stages (`--stage data|train|evaluate|report`) and `--shard I/N` split the
 //! work across machines: see docs/studies.md.
 
+mod coverage;
 pub mod levels;
 mod render;
 mod report;

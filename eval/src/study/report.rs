@@ -3,12 +3,12 @@
 //! views, metric vs realism level or shift, SSIM histograms as the paper's Fig. 4) and the
 //! evaluations' example slices, residual maps and line profiles.
 
+use super::coverage::Coverage;
 use super::render::{Block, render};
 use super::{Kind, Study, VIEWS, relative};
 use crate::evaluation::{NETWORK_ONLY, Row, Scores, merge};
 use crate::figures::{Axes, COLOUR_NAMES, plot_histograms, plot_points};
 use anyhow::{Context, Result};
-use std::collections::{BTreeMap, BTreeSet};
 use std::fmt::Write as _;
 use std::path::Path;
 use tomograf_datasets::atomic::write_atomic;
@@ -118,47 +118,12 @@ pub fn write(study: &Study, partial: bool) -> Result<()> {
             cells.push((test.clone(), train, rows));
         }
     }
-    // Per test set, the items every non-empty cell of that set has scored (all its items,
-    // when complete): test sets may hold different items (phantoms, the user's CTs).
-    let mut common: BTreeMap<String, BTreeSet<String>> = BTreeMap::new();
-    for (test, _, rows) in cells.iter().filter(|c| !c.2.is_empty()) {
-        let items: BTreeSet<String> = rows.iter().map(|r| r.item.clone()).collect();
-        let entry = common.entry(test.clone()).or_insert_with(|| items.clone());
-        *entry = entry.intersection(&items).cloned().collect();
-    }
+    let (coverage, cells) = Coverage::of(cells);
     let mut stats = Vec::new();
-    let mut unscored = Vec::new();
-    let mut left_out: BTreeMap<String, BTreeSet<String>> = BTreeMap::new();
-    for (test, train, rows) in cells {
-        if rows.is_empty() {
-            unscored.push((test, cell_name(train)));
-            continue;
-        }
-        let keep = common.get(&test).cloned().unwrap_or_default();
-        let (kept, other): (Vec<Row>, Vec<Row>) =
-            rows.into_iter().partition(|r| keep.contains(&r.item));
-        left_out
-            .entry(test.clone())
-            .or_default()
-            .extend(other.into_iter().map(|r| r.item));
-        stats_of(&kept, train, &test, &mut stats);
+    for (test, train, rows) in &cells {
+        stats_of(rows, *train, test, &mut stats);
     }
-    let first_item = s
-        .test_sets
-        .iter()
-        .find_map(|t| common.get(t).and_then(|c| c.first().cloned()));
-    let coverage = Coverage {
-        common: common
-            .into_iter()
-            .map(|(t, c)| (t, c.into_iter().collect()))
-            .collect(),
-        left_out: left_out
-            .into_iter()
-            .filter(|(_, l)| !l.is_empty())
-            .map(|(t, l)| (t, l.into_iter().collect()))
-            .collect(),
-        unscored,
-    };
+    let first_item = coverage.first_item(&s.test_sets);
     write_csv(&study.dir, &stats)?;
     let figures = study.dir.join("figures");
     std::fs::create_dir_all(&figures)?;
@@ -335,81 +300,8 @@ fn row_keys(study: &Study) -> Vec<(Option<String>, String, String)> {
 }
 
 /// How a cell is named in the report: its model, or the classical baselines.
-fn cell_name(train: Option<&str>) -> String {
+pub(super) fn cell_name(train: Option<&str>) -> String {
     train.map_or_else(|| "classical baselines".into(), |t| format!("model `{t}`"))
-}
-
-/// What a partial report averages over (a sharded evaluation that ran only some shards):
-/// the tables then average fewer test items than the intro names.
-struct Coverage {
-    /// Per test set, the items every non-empty cell of it has scored: its cells average
-    /// these.
-    common: Vec<(String, Vec<String>)>,
-    /// Per test set, items some cells have scored and others not (not averaged anywhere).
-    left_out: Vec<(String, Vec<String>)>,
-    /// (test set, cell) with nothing scored yet.
-    unscored: Vec<(String, String)>,
-}
-
-impl Coverage {
-    /// The paragraph of a partial report (`None` when every cell has every item).
-    fn paragraph(&self, study: &Study) -> Option<Block> {
-        let short: Vec<String> = study
-            .settings
-            .test_sets
-            .iter()
-            .filter_map(|t| {
-                let want = study.test_items(t);
-                let have = self
-                    .common
-                    .iter()
-                    .find(|(n, _)| n == t)
-                    .map_or(&[][..], |(_, c)| c.as_slice());
-                (have.len() != want).then(|| {
-                    let which = if have.is_empty() {
-                        String::new()
-                    } else {
-                        format!(" ({})", have.join(", "))
-                    };
-                    format!(
-                        "`{t}` averages {} of its {want} test items{which}",
-                        have.len()
-                    )
-                })
-            })
-            .collect();
-        if short.is_empty() && self.unscored.is_empty() {
-            return None;
-        }
-        let mut text = String::from(
-            "**Partial evaluation**: every cell of a test set averages the items scored in \
-             every cell of that set that has any.",
-        );
-        if !short.is_empty() {
-            text += &format!(" {}.", short.join("; "));
-        }
-        if !self.left_out.is_empty() {
-            let l: Vec<String> = self
-                .left_out
-                .iter()
-                .map(|(t, items)| format!("`{t}`: {}", items.join(", ")))
-                .collect();
-            text += &format!(" Left out, scored in some cells only: {}.", l.join("; "));
-        }
-        if !self.unscored.is_empty() {
-            let cells: Vec<String> = self
-                .unscored
-                .iter()
-                .map(|(t, w)| format!("`{t}` × {w}"))
-                .collect();
-            text += &format!(
-                " Nothing scored yet (\"—\" in the tables): {}.",
-                cells.join("; ")
-            );
-        }
-        text += " Run the evaluate stage on the remaining shards to complete it.";
-        Some(Block::Para(text))
-    }
 }
 
 fn find<'a>(
