@@ -87,26 +87,32 @@ pub struct DatasetArgs {
 
 pub fn run(args: DatasetArgs) -> Result<()> {
     let job = job(&args)?;
-    run_job(&job)?;
     let like = args
         .like
         .clone()
         .unwrap_or_else(|| PathBuf::from(crate::demo::SHIPPED_CHECKPOINT));
-    warn_outliers(&job.output, &like)
+    // Read (and checked) before any work: a corrupt population.json is named up front.
+    let reference = Population::read(&like)?;
+    run_job(&job)?;
+    warn_outliers(&job.output, &like, reference.as_ref())
 }
 
-/// Warns, naming the numbers, about each item of the data set `dir` that lies far from the
-/// population recorded in `like` (a data set or checkpoint folder); says so when `like`
-/// records none.
-pub fn warn_outliers(dir: &std::path::Path, like: &std::path::Path) -> Result<()> {
-    let Some(reference) = Population::read(like)? else {
+/// Warns, naming the numbers, about each item of the data set `dir` that lies far from
+/// `reference`, the population recorded in `like` (a data set or checkpoint folder); says
+/// so when `like` records none.
+fn warn_outliers(
+    dir: &std::path::Path,
+    like: &std::path::Path,
+    reference: Option<&Population>,
+) -> Result<()> {
+    let Some(reference) = reference else {
         eprintln!(
             "note: {} records no training population (population.json): items not compared",
             like.display()
         );
         return Ok(());
     };
-    for (id, problems) in tomograf_scene::dataset::outliers(dir, &reference)? {
+    for (id, problems) in tomograf_scene::dataset::outliers(dir, reference)? {
         eprintln!(
             "warning: item {id} lies far from the training population of {} ({} items): {}",
             like.display(),

@@ -102,6 +102,9 @@ pub fn run(command: StudyCommand) -> Result<()> {
         if !given.is_empty() && found.is_empty() {
             bail!("{flag}: no NIfTI file or DICOM series found in {given:?}");
         }
+        if let Some(missing) = found.iter().find(|p| !p.exists()) {
+            bail!("{flag}: {} does not exist", missing.display());
+        }
     }
     let (kind, common, train, test) = match command {
         StudyCommand::RealismGap(a) => {

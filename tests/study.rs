@@ -611,4 +611,18 @@ fn studies_take_the_users_cts() {
         ],
         "made of --test-ct",
     );
+    // A CT that is not there is named before any work.
+    let nope = tmp.path().join("nope.nii.gz");
+    fails_with(
+        &[
+            "study",
+            "domain-shift",
+            "-o",
+            tmp.path().join("y").to_str().unwrap(),
+            "--test-ct",
+            nope.to_str().unwrap(),
+        ],
+        "does not exist",
+    );
+    assert!(!tmp.path().join("y/data").exists());
 }

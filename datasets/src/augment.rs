@@ -20,6 +20,7 @@
 
 use crate::body::AIR_HU;
 use crate::error::{DatasetError, Result};
+use crate::frame::sample_world;
 use glam::{DMat3, DVec2, DVec3};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -120,43 +121,11 @@ impl Augmentation {
         let dims = [n[0] + 2 * grow[0], n[1] + 2 * grow[1], n[2]];
         let spacing = volume.spacing();
         let origin = volume.origin() - DVec3::new(grow[0] as f64, grow[1] as f64, 0.0) * spacing;
-        let in_origin = volume.origin();
         let centre = volume.centre();
         let half = DVec3::new(n[0] as f64, n[1] as f64, n[2] as f64) * spacing * 0.5;
         let inverse = (DMat3::from_rotation_x(self.tilt_deg.to_radians())
             * DMat3::from_rotation_z(self.roll_deg.to_radians()))
         .transpose();
-        let input = volume.data();
-        let at = |i: usize, j: usize, k: usize| f64::from(input[i + n[0] * (j + n[1] * k)]);
-        let sample = |p: DVec3| -> f32 {
-            let g = (p - in_origin) / spacing;
-            if (0..3).any(|a| g[a] < -0.5 || g[a] > n[a] as f64 - 0.5) {
-                return AIR_HU;
-            }
-            let mut lo = [0usize; 3];
-            let mut t = [0.0f64; 3];
-            for a in 0..3 {
-                let x = g[a].clamp(0.0, (n[a] - 1) as f64);
-                lo[a] = (x.floor() as usize).min(n[a].saturating_sub(2));
-                t[a] = if n[a] == 1 { 0.0 } else { x - lo[a] as f64 };
-            }
-            let mut acc = 0.0;
-            for c in 0..8 {
-                let pick = |a: usize| {
-                    if c >> a & 1 == 0 {
-                        (lo[a], 1.0 - t[a])
-                    } else {
-                        ((lo[a] + 1).min(n[a] - 1), t[a])
-                    }
-                };
-                let ((i, wi), (j, wj), (k, wk)) = (pick(0), pick(1), pick(2));
-                let w = wi * wj * wk;
-                if w != 0.0 {
-                    acc += w * at(i, j, k);
-                }
-            }
-            acc as f32
-        };
         let mut data = vec![0.0f32; dims[0] * dims[1] * dims[2]];
         data.par_chunks_mut(dims[0] * dims[1])
             .enumerate()
@@ -172,7 +141,8 @@ impl Augmentation {
                         origin.y + j as f64 * spacing.y - centre.y,
                     );
                     let xy = (q - shift) / scale;
-                    *out = sample(centre + inverse * DVec3::new(xy.x, xy.y, z));
+                    *out =
+                        sample_world(volume, centre + inverse * DVec3::new(xy.x, xy.y, z), AIR_HU);
                 }
             });
         Volume::new(dims, spacing, origin, DMat3::IDENTITY, data)

@@ -188,52 +188,33 @@ fn resample_axis_aligned(volume: &Volume, fill: f32) -> Result<Volume> {
     })?;
     let size = DVec3::new(dims[0] as f64, dims[1] as f64, dims[2] as f64) * spacing;
     let origin = (lo + hi) * 0.5 - size * 0.5 + spacing * 0.5;
-    let n = volume.dims();
-    let input = volume.data();
-    let at = |i: usize, j: usize, k: usize| f64::from(input[i + n[0] * (j + n[1] * k)]);
-    let sample = |p: DVec3| -> f32 {
-        let g = volume.world_to_index(p);
-        let inside = (0..3).all(|a| g[a] >= -0.5 && g[a] <= n[a] as f64 - 0.5);
-        if !inside {
-            return fill;
-        }
-        let mut i0 = [0usize; 3];
-        let mut t = [0.0f64; 3];
-        for a in 0..3 {
-            let x = g[a].clamp(0.0, (n[a] - 1) as f64);
-            let f = (x.floor() as usize).min(n[a].saturating_sub(2));
-            i0[a] = f;
-            t[a] = if n[a] == 1 { 0.0 } else { x - f as f64 };
-        }
-        let i1: [usize; 3] = std::array::from_fn(|a| (i0[a] + 1).min(n[a] - 1));
-        let mut acc = 0.0;
-        for c in 0..8 {
-            let pick = |a: usize| {
-                if c >> a & 1 == 0 {
-                    (i0[a], 1.0 - t[a])
-                } else {
-                    (i1[a], t[a])
-                }
-            };
-            let ((i, wi), (j, wj), (k, wk)) = (pick(0), pick(1), pick(2));
-            let w = wi * wj * wk;
-            if w != 0.0 {
-                acc += w * at(i, j, k);
-            }
-        }
-        acc as f32
-    };
     let mut data = vec![0.0f32; dims[0] * dims[1] * dims[2]];
     data.par_chunks_mut(dims[0] * dims[1])
         .enumerate()
         .for_each(|(z, plane)| {
             for (e, out) in plane.iter_mut().enumerate() {
                 let (x, y) = (e % dims[0], e / dims[0]);
-                *out = sample(origin + DVec3::new(x as f64, y as f64, z as f64) * spacing);
+                *out = sample_world(
+                    volume,
+                    origin + DVec3::new(x as f64, y as f64, z as f64) * spacing,
+                    fill,
+                );
             }
         });
     Volume::new(dims, spacing, origin, DMat3::IDENTITY, data)
         .map_err(|e| DatasetError::Invalid(format!("patient frame: {e}")))
+}
+
+/// `volume` at world point `p` (mm): sim's trilinear field
+/// ([`tomograf_sim::trace::trilinear::sample`]: voxel centres, clamped in the outer half
+/// voxel), `fill` outside the grid box.
+pub(crate) fn sample_world(volume: &Volume, p: DVec3, fill: f32) -> f32 {
+    let g = volume.world_to_grid(p);
+    let n = volume.dims();
+    if (0..3).any(|a| !(g[a] >= 0.0 && g[a] <= n[a] as f64)) {
+        return fill;
+    }
+    tomograf_sim::trace::trilinear::sample(volume.data(), n, g.to_array()) as f32
 }
 
 #[cfg(test)]

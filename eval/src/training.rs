@@ -101,6 +101,17 @@ pub fn train(args: &Training, progress: &dyn Progress) -> Result<()> {
         g,
         d
     ));
+    let checkpoint_now = |trainer: &Trainer, rows: &[String]| {
+        save(
+            trainer,
+            scale,
+            &ck,
+            &csv_path,
+            rows,
+            args.output,
+            population.as_ref(),
+        )
+    };
     let total = trainer.config.iterations;
     progress.start(
         "iteration",
@@ -119,28 +130,12 @@ pub fn train(args: &Training, progress: &dyn Progress) -> Result<()> {
             ));
         }
         if m.iteration % trainer.config.checkpoint_every == 0 || m.iteration == total {
-            save(
-                &trainer,
-                scale,
-                &ck,
-                &csv_path,
-                &rows,
-                args.output,
-                population.as_ref(),
-            )?;
+            checkpoint_now(&trainer, &rows)?;
         }
         progress.inc();
     }
     progress.finish();
-    save(
-        &trainer,
-        scale,
-        &ck,
-        &csv_path,
-        &rows,
-        args.output,
-        population.as_ref(),
-    )?;
+    checkpoint_now(&trainer, &rows)?;
     progress.note(&format!(
         "trained {} iterations: {}, {}",
         trainer.iteration,
