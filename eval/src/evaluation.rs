@@ -267,9 +267,15 @@ pub fn evaluate(e: &Evaluation) -> Result<usize> {
                 });
                 volumes.push(rec.volume);
                 if let Some(net) = rec.network {
+                    let start = net.start.map_or(String::new(), |w| {
+                        format!(
+                            " (sweeps from {:.2} × network + {:.2} × mean)",
+                            w.network, w.mean
+                        )
+                    });
                     e.progress.note(&format!(
                         "  projection PSNR (dB) of the network's volume {:.1?}, after data \
-                         consistency {:.1?}",
+                         consistency {:.1?}{start}",
                         net.psnr, rec.psnr
                     ));
                     rows.push(Row {

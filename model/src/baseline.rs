@@ -168,7 +168,7 @@ impl Baseline for SartTv {
         scale: &DensityScale,
     ) -> Result<Volume> {
         let start = match &self.start {
-            None => None,
+            None => vec![],
             Some(m) => {
                 ensure!(
                     m.dims == grid.dims(),
@@ -176,22 +176,23 @@ impl Baseline for SartTv {
                     m.dims,
                     grid.dims()
                 );
-                Some((m.data.as_slice(), 1.0))
+                vec![(m.data.as_slice(), 1.0)]
             }
         };
-        sart_tv_density(refs, grid, scale, start, SartOptions::default().iterations)
+        sart_tv_density(refs, grid, scale, &start, SartOptions::default().iterations)
     }
 }
 
 /// SART-TV (`tomograf_sim::recon::sart_tv_from` with its defaults, `iterations` sweeps,
-/// `min(views, 10)` ordered subsets) from the reference views, started from `start = (density,
-/// weight)`: weight times the attenuation of the normalised density `start` on `grid` (`None`: zero
-/// attenuation; weight 1: `start` itself); returns normalised density.
+/// `min(views, 10)` ordered subsets) from the reference views, started from the sum over
+/// `start`'s `(density, weight)` terms of weight times the attenuation of the normalised
+/// density on `grid` (empty: zero attenuation; one term of weight 1: that volume itself);
+/// returns normalised density.
 pub fn sart_tv_density(
     refs: &[Reference],
     grid: &Volume,
     scale: &DensityScale,
-    start: Option<(&[f32], f64)>,
+    start: &[(&[f32], f64)],
     iterations: usize,
 ) -> Result<Volume> {
     let views: Vec<View> = refs.iter().map(|r| r.view).collect();
@@ -200,9 +201,23 @@ pub fn sart_tv_density(
         subsets: refs.len().min(10),
         ..SartOptions::default()
     };
-    let start: Option<Vec<f32>> = start.map(|(d, weight)| {
-        d.iter()
-            .map(|&d| (weight * scale.mu_scalar(f64::from(d))) as f32)
+    let voxels = grid.data().len();
+    for (d, _) in start {
+        ensure!(
+            d.len() == voxels,
+            "a SART-TV start holds {} voxels but the grid {:?} has {voxels}",
+            d.len(),
+            grid.dims()
+        );
+    }
+    let start: Option<Vec<f32>> = (!start.is_empty()).then(|| {
+        (0..voxels)
+            .map(|n| {
+                start
+                    .iter()
+                    .map(|(d, w)| w * scale.mu_scalar(f64::from(d[n])))
+                    .sum::<f64>() as f32
+            })
             .collect()
     });
     let r = sart_tv_from(

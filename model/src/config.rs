@@ -144,6 +144,28 @@ pub struct InferConfig {
     /// whole volume.
     #[serde(default = "default_refine_start_weight")]
     pub refine_start_weight: f64,
+    /// When no reference view is explained, the sweeps' start also holds this fraction of
+    /// the mean training volume's attenuation (0: none), added to `refine_start_weight`
+    /// times the network volume's. Ignored with `refine_start = "fitted"`.
+    #[serde(default)]
+    pub refine_start_mean_weight: f64,
+    /// How the two weights of the start are set when no view is explained.
+    #[serde(default)]
+    pub refine_start: RefineStart,
+}
+
+/// How the data-consistency sweeps' start weighs the network volume against the mean
+/// training volume when no reference view is explained.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum RefineStart {
+    /// `refine_start_weight` × network + `refine_start_mean_weight` × mean.
+    #[default]
+    Fixed,
+    /// The non-negative weights (a, b) whose start a × network + b × mean best explains the
+    /// reference views in least squares (its projections against the views'), so the views
+    /// decide how far each volume is trusted.
+    Fitted,
 }
 
 fn default_lr_codes() -> f64 {
@@ -360,6 +382,12 @@ impl TrainConfig {
             "infer.refine_start_weight = {} must be in [0, 1] (the fraction of the network \
              volume's attenuation the data-consistency sweeps start from)",
             self.infer.refine_start_weight
+        );
+        ensure!(
+            (0.0..=1.0).contains(&self.infer.refine_start_mean_weight),
+            "infer.refine_start_mean_weight = {} must be in [0, 1] (the fraction of the mean \
+             training volume's attenuation the data-consistency sweeps start from)",
+            self.infer.refine_start_mean_weight
         );
         ensure!(
             !self.infer.refine_below_db.is_nan(),

@@ -38,6 +38,7 @@ pub mod pca;
 pub mod prior;
 pub mod rays;
 pub mod reconstruct;
+pub mod refine;
 pub mod render;
 pub mod scatter_correction;
 pub mod train;

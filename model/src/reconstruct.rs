@@ -10,10 +10,7 @@
 //! 3. With `refine_iterations` > 0, when some reference view's full-image PSNR against the
 //!    network volume's projection is below `refine_below_db` (the prior could not explain
 //!    the views: anatomy outside the training population), SART-TV (sim's defaults) runs
-//!    that many sweeps from the network's volume. When no view is explained, the prior's
-//!    body is wrong and the sweeps start from `refine_start_weight` (default ½) times the
-//!    volume's attenuation; when some view is explained (an object the prior lacks, seen
-//!    only from other angles, e.g. a table from the side) they start from the whole volume.
+//!    that many sweeps from the network's volume ([`crate::refine`]: where they start).
 //!    The network's own volume is kept beside the result.
 //!
 //! Each iteration fits one randomly drawn reference view with eq. 13's loss,
@@ -22,7 +19,6 @@
 //! projected with sim's Siddon projector into every reference view; inference stops when
 //! each view's full-image PSNR reaches the threshold, or at the iteration cap.
 
-use crate::baseline::sart_tv_density;
 use crate::checkpoint::Generator;
 use crate::config::{InferConfig, Tune};
 use crate::error::{Result, ensure};
@@ -30,6 +26,7 @@ use crate::field::{Codes, Tuned};
 use crate::losses::{self, Perceptual, SsimL1};
 use crate::prior::{CodeStats, MeanVolume};
 use crate::rays::{Patch, bilinear, full_image, sample_rays};
+use crate::refine::{StartWeights, refine};
 use crate::render::{DensityScale, RayTensors, render_field};
 use crate::train::adam;
 use burn::module::Module;
@@ -85,6 +82,8 @@ pub struct NetworkVolume {
     pub psnr: Vec<f64>,
     /// Whether the sweeps ran (some view's PSNR was below `refine_below_db`).
     pub refined: bool,
+    /// The weights of the sweeps' start (network volume, mean volume), when they ran.
+    pub start: Option<StartWeights>,
     /// Seconds the sweeps took.
     pub refine_seconds: f64,
 }
@@ -233,25 +232,15 @@ pub fn reconstruct(
             volume: volume.clone(),
             psnr: psnr.clone(),
             refined: unexplained,
+            start: None,
             refine_seconds: 0.0,
         };
         if unexplained {
-            // Some view explained: the prior's body is right and what is missing is seen
-            // only in other views (an object beside it); no view explained: its body is
-            // wrong, and it is only partly trusted.
-            let start_weight = if psnr.iter().any(|&p| p >= infer.refine_below_db) {
-                1.0
-            } else {
-                infer.refine_start_weight
-            };
             let t0 = std::time::Instant::now();
-            volume = sart_tv_density(
-                refs,
-                &net.volume,
-                &density_scale,
-                Some((net.volume.data(), start_weight)),
-                infer.refine_iterations,
-            )?;
+            let (refined, weights) =
+                refine(refs, &net.volume, &prior, &density_scale, infer, &psnr)?;
+            volume = refined;
+            net.start = Some(weights);
             net.refine_seconds = t0.elapsed().as_secs_f64();
             psnr = projection_psnr(&volume, &density_scale, refs, proj_scale)?;
         }

@@ -28,6 +28,8 @@
 
 use crate::error::{Result, SimError};
 use crate::material;
+use crate::scatter::cross_sections::ScatterFactors;
+use crate::scatter::interaction_table::{InteractionTable, TOTAL};
 use glam::DVec3;
 use serde::{Deserialize, Serialize};
 
@@ -126,23 +128,23 @@ impl AntiScatterGrid {
         self.interspace_mm() / self.period_mm()
     }
 
-    /// The grid tabulated on a 1 keV grid (index k ↔ k + 1 keV) up to `e_max_kev`.
+    /// The grid with its interspace's μ/ρ tabulated up to `e_max_kev`
+    /// ([`InteractionTable`]: log–log between knots, edges exact).
     pub fn tabulate(&self, e_max_kev: f64) -> Result<GridTransmission> {
         self.validate()?;
         let n = e_max_kev.ceil().max(1.0) as usize + 1;
-        let mu = if self.interspace == "air" {
-            vec![0.0; n]
+        let interspace = if self.interspace == "air" {
+            None
         } else {
             let m = material::by_name(&self.interspace)?;
-            (0..n)
-                .map(|k| Ok(m.mass_attenuation((k as f64 + 1.0).min(500.0))? * m.density() / 10.0))
-                .collect::<Result<Vec<f64>>>()?
+            let table = InteractionTable::new(&m, &ScatterFactors::new(&m)?, n)?;
+            Some((table, m.density() / 10.0))
         };
         Ok(GridTransmission {
             open: self.open_fraction(),
             ratio: self.ratio,
             height_mm: self.height_mm(),
-            mu_per_mm: mu,
+            interspace,
         })
     }
 }
@@ -153,20 +155,17 @@ pub struct GridTransmission {
     open: f64,
     ratio: f64,
     height_mm: f64,
-    /// Interspace μ, mm⁻¹, on the 1 keV grid.
-    mu_per_mm: Vec<f64>,
+    /// The interspace's interaction table and density / 10 (μ/ρ cm²/g × this = μ mm⁻¹);
+    /// `None`: air, taken as transparent.
+    interspace: Option<(InteractionTable, f64)>,
 }
 
 impl GridTransmission {
+    /// Interspace μ at `e` keV, mm⁻¹.
     fn mu(&self, e: f64) -> f64 {
-        let t = &self.mu_per_mm;
-        if t.len() == 1 {
-            return t[0];
-        }
-        let x = (e - 1.0).clamp(0.0, (t.len() - 1) as f64);
-        let i = (x as usize).min(t.len() - 2);
-        let f = x - i as f64;
-        t[i] * (1.0 - f) + t[i + 1] * f
+        self.interspace
+            .as_ref()
+            .map_or(0.0, |(t, scale)| t.at(e, TOTAL) * scale)
     }
 
     /// Primary transmission Tp(E) (normal incidence along the focus).

@@ -78,25 +78,15 @@ impl MajorantGrid {
         })
     }
 
-    /// Tabulates every brick's majorant for the energy intervals `[k, k+1]` of a table of
-    /// μ/ρ at `knots` energies (`mu_per_density(m, k)`, mm⁻¹ per g/cm³): the larger of the
-    /// two knots' majorants, which bounds any interpolation between them; rounded up to f32.
-    pub fn tabulate(&mut self, knots: usize, mu_per_density: impl Fn(usize, usize) -> f64 + Sync) {
+    /// Tabulates every brick's majorant for `cells` energy cells, given for each material
+    /// `m` and cell `k` a bound `mu_per_density(m, k)` (mm⁻¹ per g/cm³) on its μ/ρ anywhere
+    /// in the cell; rounded up to f32.
+    pub fn tabulate(&mut self, cells: usize, mu_per_density: impl Fn(usize, usize) -> f64 + Sync) {
         let n = self.bricks_total;
-        let at_knot = |k: usize| -> Vec<f64> {
+        let mut sigma = Vec::with_capacity(cells * n);
+        for k in 0..cells {
             let mu: Vec<f64> = (0..self.materials).map(|m| mu_per_density(m, k)).collect();
-            (0..n).map(|b| self.sigma_of(b, &mu)).collect()
-        };
-        let mut sigma = Vec::with_capacity(knots.saturating_sub(1) * n);
-        let mut lo = at_knot(0);
-        for k in 1..knots {
-            let hi = at_knot(k);
-            sigma.extend(
-                lo.iter()
-                    .zip(&hi)
-                    .map(|(a, b)| (a.max(*b) * (1.0 + 1e-6)) as f32),
-            );
-            lo = hi;
+            sigma.extend((0..n).map(|b| (self.sigma_of(b, &mu) * (1.0 + 1e-6)) as f32));
         }
         self.sigma = sigma;
     }

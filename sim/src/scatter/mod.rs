@@ -3,6 +3,8 @@
 //!
 //! * [`anti_scatter_grid`] — the focused linear grid's transmission for primary and scatter;
 //! * [`cross_sections`] — where a scattered photon goes (KN × S, Thomson × F²);
+//! * [`interaction_table`] — a material's cross sections as the transport reads them
+//!   (log–log between knots at every keV and at the absorption edges);
 //! * [`majorant`] — per-brick majorants for Woodcock tracking;
 //! * [`transport`] — Woodcock tracking and interaction sampling in the voxel composition;
 //! * [`estimator`] — the point-detector (forced detection) estimator on a coarse grid;
@@ -27,6 +29,7 @@ pub mod engine;
 pub mod estimate;
 pub mod estimator;
 pub mod field;
+pub mod interaction_table;
 pub mod majorant;
 pub mod matched;
 pub mod region;

@@ -1,6 +1,7 @@
 //! Photon transport through a voxel composition: Woodcock (delta) tracking with a majorant
 //! per brick of voxels ([`super::majorant`]; or one for the whole volume), interactions
-//! sampled from the material tables — photoelectric absorption
+//! sampled from the material tables ([`super::interaction_table`], log–log between knots
+//! at every keV and at the edges) — photoelectric absorption
 //! (no fluorescence: the energy is taken as deposited locally), Compton (Klein–Nishina ×
 //! S) and Rayleigh (Thomson × F²).
 //!
@@ -8,6 +9,10 @@
 //! linear attenuation mm⁻¹.
 
 use super::cross_sections::{ScatterFactors, compton_ratio};
+use super::interaction_table::{
+    COMPTON_NORM, INCOHERENT, InteractionTable, PHOTOELECTRIC, RAYLEIGH_NORM, TOTAL,
+    TRANSFER_FRACTION,
+};
 use super::majorant::{DEFAULT_BRICK, MajorantGrid};
 use crate::accel::intervals::walk_bricks;
 use crate::composition::{Composition, unpack};
@@ -21,13 +26,12 @@ use rand::Rng;
 /// Lowest energy tracked (keV); a photon scattered below it is counted as absorbed.
 pub const E_CUTOFF_KEV: f64 = 1.0;
 
-/// One material's interaction data on a 1 keV grid (index k ↔ k + 1 keV).
+/// One material's angular distributions and interaction table (`None`: absent from the
+/// composition, never looked up).
 #[derive(Debug, Clone)]
 struct MaterialData {
     factors: ScatterFactors,
-    /// [photoelectric, incoherent, coherent, total] cm²/g, Compton norm, Rayleigh norm,
-    /// Compton mean energy-transfer fraction.
-    tab: Vec<[f64; 7]>,
+    tab: Option<InteractionTable>,
 }
 
 /// The medium a photon crosses: the composition and, per material, its cross sections.
@@ -35,7 +39,7 @@ struct MaterialData {
 pub struct Medium {
     composition: Composition,
     materials: Vec<MaterialData>,
-    /// Global majorant per 1 keV grid point, mm⁻¹.
+    /// Global majorant per whole-keV cell (k: [k + 1, k + 2] keV), mm⁻¹.
     majorant: Vec<f64>,
     /// Per-brick majorants; `None`: the global one everywhere.
     bricks: Option<MajorantGrid>,
@@ -93,30 +97,16 @@ impl Medium {
         let mut data = Vec::with_capacity(materials.len());
         for (i, m) in materials.iter().enumerate() {
             let factors = ScatterFactors::new(m)?;
-            let mut tab = Vec::new();
-            if present[i] {
-                for k in 0..n {
-                    let e = (k as f64 + 1.0).min(500.0);
-                    let x = m.interactions(e)?;
-                    tab.push([
-                        x.photoelectric,
-                        x.incoherent,
-                        x.coherent,
-                        x.total(),
-                        factors.compton_norm(e),
-                        factors.rayleigh_norm(e),
-                        factors.compton_transfer_fraction(e),
-                    ]);
-                }
-            }
+            let tab = present[i]
+                .then(|| InteractionTable::new(m, &factors, n))
+                .transpose()?;
             data.push(MaterialData { factors, tab });
         }
-        let majorant = (0..n)
+        let majorant = (0..n - 1)
             .map(|k| {
                 data.iter()
                     .zip(&rho_max)
-                    .filter(|(d, _)| !d.tab.is_empty())
-                    .map(|(d, r)| d.tab[k][3] * r / 10.0)
+                    .filter_map(|(d, r)| Some(d.tab.as_ref()?.cell_max_total(k) * r / 10.0))
                     .fold(0.0, f64::max)
                     * (1.0 + 1e-9)
             })
@@ -134,13 +124,13 @@ impl Medium {
         })
     }
 
-    /// `grid` with its majorants tabulated on this medium's 1 keV grid.
+    /// `grid` with its majorants tabulated for this medium's whole-keV cells.
     fn tabulated(&self, mut grid: MajorantGrid) -> MajorantGrid {
         grid.tabulate(self.majorant.len(), |m, k| {
             self.materials[m]
                 .tab
-                .get(k)
-                .map_or(0.0, |row| row[3] / 10.0)
+                .as_ref()
+                .map_or(0.0, |t| t.cell_max_total(k) / 10.0)
         });
         grid
     }
@@ -166,30 +156,27 @@ impl Medium {
         self.e_max_kev
     }
 
-    /// Linear interpolation of column `col` of material `m`'s table at `e`.
+    /// Column `col` of material `m`'s interaction table at `e` keV (log–log between its
+    /// knots; 0 for a material absent from the composition).
     #[inline]
     fn table(&self, m: usize, e: f64, col: usize) -> f64 {
-        let t = &self.materials[m].tab;
-        let x = (e - 1.0).clamp(0.0, (t.len() - 1) as f64);
-        let i = (x as usize).min(t.len() - 2);
-        let f = x - i as f64;
-        t[i][col] * (1.0 - f) + t[i + 1][col] * f
+        self.materials[m].tab.as_ref().map_or(0.0, |t| t.at(e, col))
+    }
+
+    /// The whole-keV cell holding `e` (the majorants' index).
+    #[inline]
+    fn cell(&self, e: f64) -> usize {
+        ((e - 1.0).max(0.0) as usize).min(self.majorant.len() - 1)
     }
 
     #[inline]
     fn majorant(&self, e: f64) -> f64 {
-        let x = (e - 1.0).clamp(0.0, (self.majorant.len() - 1) as f64);
-        let i = (x as usize).min(self.majorant.len() - 2);
-        // The maximum of the two bracketing knots bounds the interpolated tables.
-        self.majorant[i].max(self.majorant[i + 1])
+        self.majorant[self.cell(e)]
     }
 
     /// Mass attenuation (cm²/g) of material `m` at `e` keV (total).
     pub fn mass_attenuation(&self, m: usize, e: f64) -> f64 {
-        if self.materials[m].tab.is_empty() {
-            return 0.0;
-        }
-        self.table(m, e, 3)
+        self.table(m, e, TOTAL)
     }
 
     /// Mass energy-deposition coefficient (cm²/g) of material `m` at `e` keV as this
@@ -197,10 +184,8 @@ impl Medium {
     /// μ_inc/ρ × the mean Compton energy-transfer fraction under KN × S. Times the photon
     /// energy, the expected energy deposited per g/cm² crossed.
     pub fn deposition_coefficient(&self, m: usize, e: f64) -> f64 {
-        if self.materials[m].tab.is_empty() {
-            return 0.0;
-        }
-        self.table(m, e, 0) + self.table(m, e, 1) * self.table(m, e, 6)
+        self.table(m, e, PHOTOELECTRIC)
+            + self.table(m, e, INCOHERENT) * self.table(m, e, TRANSFER_FRACTION)
     }
 
     /// Expected energy (keV) a photon of `e` keV deposits per unit weight while crossing
@@ -253,8 +238,11 @@ impl Medium {
             None => self.fly_global(&g, e, rng),
             Some(grid) => self.fly_bricks(grid, &g, e, rng),
         }?;
-        let tot = self.table(m, e, 3);
-        let (pe, inc) = (self.table(m, e, 0), self.table(m, e, 1));
+        let tot = self.table(m, e, TOTAL);
+        let (pe, inc) = (
+            self.table(m, e, PHOTOELECTRIC),
+            self.table(m, e, INCOHERENT),
+        );
         Some(Collision {
             position: p + d * t,
             energy_kev: e,
@@ -295,7 +283,7 @@ impl Medium {
         e: f64,
         rng: &mut R,
     ) -> Option<(f64, usize)> {
-        let interval = ((e - 1.0).max(0.0) as usize).min(self.majorant.len() - 2);
+        let interval = self.cell(e);
         let mut depth = -(1.0 - rng.random::<f64>()).ln();
         let mut hit = None;
         walk_bricks(grid.size(), grid.brick_dims(), g, |b, t0, t1| {
@@ -333,7 +321,7 @@ impl Medium {
         rng: &mut R,
     ) -> Option<usize> {
         let (rho, m) = self.voxel_at(g, t)?;
-        (rng.random::<f64>() * sigma < self.table(m, e, 3) * rho / 10.0).then_some(m)
+        (rng.random::<f64>() * sigma < self.table(m, e, TOTAL) * rho / 10.0).then_some(m)
     }
 
     /// The packed voxel at parameter `t` of `g`: (density g/cm³, material), `None` past
@@ -357,7 +345,7 @@ impl Medium {
     pub fn compton_towards(&self, c: &Collision, mu: f64) -> (f64, f64) {
         let e = c.energy_kev;
         let d = &self.materials[c.material];
-        let norm = self.table(c.material, e, 4);
+        let norm = self.table(c.material, e, COMPTON_NORM);
         (
             d.factors.compton_density(e, mu, norm),
             e * compton_ratio(e, mu),
@@ -368,7 +356,7 @@ impl Medium {
     #[inline]
     pub fn rayleigh_towards(&self, c: &Collision, mu: f64) -> f64 {
         let e = c.energy_kev;
-        let norm = self.table(c.material, e, 5);
+        let norm = self.table(c.material, e, RAYLEIGH_NORM);
         self.materials[c.material]
             .factors
             .rayleigh_density(e, mu, norm)
