@@ -169,6 +169,96 @@ fn nonnegative_least_squares(g: [f64; 3], r: [f64; 2]) -> StartWeights {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use glam::DVec3;
+    use tomograf_sim::{Beam, Detector, Geometry, Pose};
+
+    /// Views made (with sim's projector) from 0.3 × one volume + 0.6 × another give those
+    /// weights back through [`fitted_weights`], and the fixed and fitted starts run.
+    #[test]
+    fn the_fitted_start_recovers_the_weights_that_made_the_views() {
+        let n = 12;
+        let scale = DensityScale::from_window(-1024.0, 2048.0, 0.02).unwrap();
+        let threshold = scale.threshold as f32;
+        // Two unlike densities above air: a ball and a slab.
+        let make = |f: &dyn Fn(f64, f64, f64) -> f32| {
+            let mut d = Vec::with_capacity(n * n * n);
+            for k in 0..n {
+                for j in 0..n {
+                    for i in 0..n {
+                        let c = |a: usize| (a as f64 + 0.5) / n as f64 - 0.5;
+                        d.push(threshold + f(c(i), c(j), c(k)));
+                    }
+                }
+            }
+            Volume::centred([n; 3], DVec3::splat(4.0), DVec3::ZERO, d).unwrap()
+        };
+        let ball = make(&|x, y, z| {
+            if x * x + y * y + z * z < 0.12 {
+                0.4
+            } else {
+                0.0
+            }
+        });
+        let slab = make(&|x, _, z| {
+            if x.abs() < 0.3 && z > -0.2 {
+                0.3 + x as f32
+            } else {
+                0.0
+            }
+        });
+        let mu = |v: &Volume| v.map(|d| scale.mu_scalar(f64::from(d)) as f32).unwrap();
+        let (mb, ms) = (mu(&ball), mu(&slab));
+        let truth = Volume::centred(
+            [n; 3],
+            DVec3::splat(4.0),
+            DVec3::ZERO,
+            mb.data()
+                .iter()
+                .zip(ms.data())
+                .map(|(a, b)| 0.3 * a + 0.6 * b)
+                .collect(),
+        )
+        .unwrap();
+        let g = Geometry {
+            beam: Beam::Cone {
+                sad_mm: 400.0,
+                sid_mm: 600.0,
+            },
+            detector: Detector::new(16, 16, 6.0),
+            isocentre: DVec3::ZERO,
+        };
+        let r = Renderer::new(&truth, Projector::Siddon).unwrap();
+        let refs: Vec<Reference> = [Pose::AP, Pose::LATERAL]
+            .iter()
+            .map(|&p| {
+                let view = g.view(p).unwrap();
+                Reference {
+                    view,
+                    pose: p,
+                    image: r.render(&view).unwrap().data,
+                }
+            })
+            .collect();
+        let w = fitted_weights(&refs, &ball, slab.data(), &scale).unwrap();
+        assert!(
+            (w.network - 0.3).abs() < 1e-4 && (w.mean - 0.6).abs() < 1e-4,
+            "{w:?}"
+        );
+        // Through `refine`: the fitted start is chosen when no view is explained, the
+        // whole network volume when one is.
+        let prior = MeanVolume {
+            data: slab.data().to_vec(),
+            dims: [n; 3],
+        };
+        let mut infer = crate::config::TrainConfig::load("tiny").unwrap().infer;
+        infer.refine_start = RefineStart::Fitted;
+        infer.refine_iterations = 1;
+        let (_, w) = refine(&refs, &ball, &prior, &scale, &infer, &[10.0, 10.0]).unwrap();
+        assert!((w.network - 0.3).abs() < 1e-4 && (w.mean - 0.6).abs() < 1e-4);
+        let (_, w) = refine(&refs, &ball, &prior, &scale, &infer, &[10.0, 40.0]).unwrap();
+        assert_eq!((w.network, w.mean), (1.0, 0.0));
+        assert_eq!(mean_on_grid(&prior, &ball), slab.data());
+    }
 
     /// Weights recovered exactly from right-hand sides made with known ones, and the
     /// non-negativity constraint picking the better single volume.
