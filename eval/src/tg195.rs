@@ -17,12 +17,14 @@ use tomograf_sim::validation::tg195::{self, Beam, Comparison};
 pub struct Validation {
     /// Output folder (tg195.md, tg195.csv, tg195-deviations.png, tg195-case42.png).
     pub output: PathBuf,
-    /// Cases to run: "1", "2", "4.2".
+    /// Cases to run: "1", "2", "3", "4.2".
     pub cases: Vec<String>,
     /// Photons per Case 1 run (three runs per beam, four beams), per Case 2 run (four
-    /// runs) and per Case 4.2 run (four runs; each scores all 36 angles).
+    /// runs), per Case 3 run (four runs) and per Case 4.2 run (four runs; each scores all
+    /// 36 angles).
     pub photons_case1: u64,
     pub photons_case2: u64,
+    pub photons_case3: u64,
     pub photons_case42: u64,
     /// Random seed.
     pub seed: u64,
@@ -30,6 +32,9 @@ pub struct Validation {
     /// folder's tg195.csv and tg195.md.
     pub update: bool,
 }
+
+/// The cases this validation runs, in report order.
+const CASES: [&str; 4] = ["1", "2", "3", "4.2"];
 
 /// One run of the validation: its label and how to make it.
 type Job = (
@@ -57,8 +62,8 @@ pub fn replot(dir: &Path, progress: &dyn Progress) -> Result<()> {
 pub fn validate(args: &Validation, progress: &dyn Progress) -> Result<()> {
     for c in &args.cases {
         anyhow::ensure!(
-            ["1", "2", "4.2"].contains(&c.as_str()),
-            "--cases: unknown case '{c}'; give 1, 2 and/or 4.2"
+            CASES.contains(&c.as_str()),
+            "--cases: unknown case '{c}'; give 1, 2, 3 and/or 4.2"
         );
     }
     let want = |c: &str| args.cases.iter().any(|x| x == c);
@@ -95,6 +100,21 @@ pub fn validate(args: &Validation, progress: &dyn Progress) -> Result<()> {
             }
         }
     }
+    if want("3") {
+        for beam in [Beam::Mono(16.8), Beam::Kvp(30)] {
+            for tomo in [false, true] {
+                let n = args.photons_case3;
+                jobs.push((
+                    format!(
+                        "case 3, {} {}",
+                        if tomo { "tomosynthesis" } else { "radiography" },
+                        beam.label()
+                    ),
+                    Box::new(move || tg195::case3(beam, tomo, n, seed)),
+                ));
+            }
+        }
+    }
     if want("4.2") {
         for beam in [Beam::Mono(56.4), Beam::Kvp(120)] {
             for wide in [false, true] {
@@ -125,13 +145,14 @@ pub fn validate(args: &Validation, progress: &dyn Progress) -> Result<()> {
     }
     progress.finish();
     let total = start.elapsed().as_secs_f64();
-    let ran: Vec<String> = ["1", "2", "4.2"]
+    let ran: Vec<String> = CASES
         .iter()
         .filter(|c| want(c))
         .map(|c| {
             let n = match *c {
                 "1" => args.photons_case1,
                 "2" => args.photons_case2,
+                "3" => args.photons_case3,
                 _ => args.photons_case42,
             };
             format!("case {c} {n}")
@@ -187,12 +208,9 @@ fn case_id(case: &str) -> &str {
     case.split([' ', ',']).next().unwrap_or_default()
 }
 
-/// 0, 1, 2 for cases 1, 2, 4.2 (sorting is stable within a case).
+/// 0, 1, 2, 3 for cases 1, 2, 3, 4.2 (sorting is stable within a case).
 fn case_order(case: &str) -> usize {
-    ["1", "2", "4.2"]
-        .iter()
-        .position(|c| *c == case_id(case))
-        .unwrap_or(3)
+    CASES.iter().position(|c| *c == case_id(case)).unwrap_or(3)
 }
 
 /// The rows, seconds and settings of the cases not re-run, from `dir`'s tg195.csv and
@@ -239,7 +257,7 @@ fn kept_from(dir: &std::path::Path, rerun: &dyn Fn(&str) -> bool) -> Result<Kept
 }
 
 /// The agreement targets of the issue: Case 1 ratios within 1 % of the codes' mean,
-/// everything of Cases 2 and 4.2 within 2 % or inside the codes' range.
+/// everything of Cases 2, 3 and 4.2 within 2 % or inside the codes' range.
 fn target(r: &Comparison) -> Option<f64> {
     if r.case.starts_with("1 ") {
         r.quantity.starts_with("ratio").then_some(1.0)
@@ -263,9 +281,9 @@ fn table(rows: &[Comparison], settings: &str, times: &[(String, f64)]) -> String
         s,
         "# TG-195: tomograf against EGSnrc, Geant4, MCNP and Penelope\n\n{settings}.\n\n\
          Case 1: air kerma at 100 cm per source photon in the transcription's convention \
-         (Σ E·μen/ρ·Φ / 100) and its HVL/QVL ratios; Cases 2 and 4.2: energy imparted, eV per \
+         (Σ E·μen/ρ·Φ / 100) and its HVL/QVL ratios; Cases 2, 3 and 4.2: energy imparted, eV per \
          source photon. \"±\": one standard error. \"target\": within 1 % (Case 1 ratios) \
-         or 2 % (Cases 2, 4.2) of the codes' mean, or inside their range.\n"
+         or 2 % (Cases 2, 3, 4.2) of the codes' mean, or inside their range.\n"
     );
     let _ = writeln!(
         s,

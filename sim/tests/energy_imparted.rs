@@ -536,7 +536,18 @@ fn region_chords_match_a_brute_force_walk() {
             8.0,
         ),
         Region::cube("box", DVec3::new(0.5, 0.0, -1.0), DVec3::new(6.0, 3.0, 4.0)),
+        Region::half_cylinder(
+            "half",
+            DVec3::new(0.5, 0.0, 0.5),
+            DVec3::new(1.0, 2.0, -1.0),
+            3.5,
+            7.0,
+            DVec3::new(2.0, -1.0, 0.0),
+        ),
     ];
+    for r in &regions {
+        r.validate().unwrap();
+    }
     let mut hits = 0;
     for _ in 0..400 {
         // From a point 8 mm out towards a point near the regions.
@@ -564,7 +575,7 @@ fn region_chords_match_a_brute_force_walk() {
             );
         }
     }
-    assert!(hits > 400, "only {hits} of 800 lines hit a region");
+    assert!(hits > 600, "only {hits} of 1200 lines hit a region");
 }
 
 #[test]

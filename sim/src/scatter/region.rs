@@ -1,4 +1,4 @@
-//! Scoring regions: exact analytic volumes (boxes, cylinders) in which the energy imparted
+//! Scoring regions: exact analytic volumes (boxes, cylinders, half-cylinders) in which the energy imparted
 //! is tallied at the interaction point itself, so a region's tally carries no voxelisation
 //! error even where the material grid is coarse (TG-195's VOIs and scoring cylinders).
 //!
@@ -29,6 +29,21 @@ pub enum Shape {
         radius: f64,
         /// Half the length along the axis, mm.
         half_length: f64,
+    },
+    /// The half of a right circular cylinder on one side of a plane through its axis:
+    /// the points of the cylinder with (p − centre)·side ≥ 0 (TG-195's breast).
+    HalfCylinder {
+        /// Centre (on the cutting plane), mm.
+        centre: [f64; 3],
+        /// Axis direction (normalised on use).
+        axis: [f64; 3],
+        /// Radius, mm.
+        radius: f64,
+        /// Half the length along the axis, mm.
+        half_length: f64,
+        /// Normal of the cutting plane towards the half kept (perpendicular to the axis;
+        /// normalised on use).
+        side: [f64; 3],
     },
 }
 
@@ -64,6 +79,50 @@ impl Region {
                 radius,
                 half_length: length * 0.5,
             },
+        }
+    }
+
+    /// A half-cylinder region: the half of the cylinder on the side of `side`.
+    pub fn half_cylinder(
+        name: &str,
+        centre: DVec3,
+        axis: DVec3,
+        radius: f64,
+        length: f64,
+        side: DVec3,
+    ) -> Self {
+        Self {
+            name: name.into(),
+            shape: Shape::HalfCylinder {
+                centre: centre.to_array(),
+                axis: axis.to_array(),
+                radius,
+                half_length: length * 0.5,
+                side: side.to_array(),
+            },
+        }
+    }
+
+    /// The full cylinder of a (half-)cylinder region, and the half kept (`None`: all).
+    fn cylinder_part(&self) -> Option<(Shape, Option<(DVec3, DVec3)>)> {
+        match self.shape {
+            Shape::Box { .. } => None,
+            Shape::Cylinder { .. } => Some((self.shape, None)),
+            Shape::HalfCylinder {
+                centre,
+                axis,
+                radius,
+                half_length,
+                side,
+            } => Some((
+                Shape::Cylinder {
+                    centre,
+                    axis,
+                    radius,
+                    half_length,
+                },
+                Some((DVec3::from(centre), DVec3::from(side).normalize())),
+            )),
         }
     }
 
@@ -109,6 +168,31 @@ impl Region {
                     return bad("radius and length must be finite and > 0");
                 }
             }
+            Shape::HalfCylinder {
+                centre,
+                axis,
+                radius,
+                half_length,
+                side,
+            } => {
+                let full = Region {
+                    name: self.name.clone(),
+                    shape: Shape::Cylinder {
+                        centre,
+                        axis,
+                        radius,
+                        half_length,
+                    },
+                };
+                full.validate()?;
+                let (a, n) = (DVec3::from(axis), DVec3::from(side));
+                if !n.is_finite() || n.length() == 0.0 {
+                    return bad("the side must be a finite, non-zero vector");
+                }
+                if a.normalize().dot(n.normalize()).abs() > 1e-9 {
+                    return bad("the side must be perpendicular to the axis");
+                }
+            }
         }
         Ok(())
     }
@@ -129,6 +213,15 @@ impl Region {
                 let along = r.dot(a);
                 along.abs() <= half_length && (r - a * along).length_squared() <= radius * radius
             }
+            Shape::HalfCylinder { centre, side, .. } => {
+                let (full, _) = self.cylinder_part().expect("a cylinder");
+                (p - DVec3::from(centre)).dot(DVec3::from(side)) >= 0.0
+                    && Region {
+                        name: String::new(),
+                        shape: full,
+                    }
+                    .contains(p)
+            }
         }
     }
 
@@ -137,7 +230,29 @@ impl Region {
     /// the clipped line misses it (or only touches it).
     pub fn chord(&self, p: DVec3, d: DVec3, t_min: f64, t_max: f64) -> Option<(f64, f64)> {
         let (mut t0, mut t1) = (t_min, t_max);
+        if let Some((full, Some((c, n)))) = self.cylinder_part() {
+            // The half-space (p + t·d − c)·n ≥ 0, then the full cylinder.
+            let (h, dn) = ((p - c).dot(n), d.dot(n));
+            if dn == 0.0 {
+                if h < 0.0 {
+                    return None;
+                }
+            } else if dn > 0.0 {
+                t0 = t0.max(-h / dn);
+            } else {
+                t1 = t1.min(-h / dn);
+            }
+            if t0 >= t1 {
+                return None;
+            }
+            let cylinder = Region {
+                name: String::new(),
+                shape: full,
+            };
+            return cylinder.chord(p, d, t0, t1);
+        }
         match self.shape {
+            Shape::HalfCylinder { .. } => unreachable!("handled above"),
             Shape::Box { min, max } => {
                 for a in 0..3 {
                     if d[a] == 0.0 {
@@ -208,15 +323,35 @@ impl Region {
     /// The same region with its axis (if any) scaled to unit length.
     pub fn with_unit_axis(&self) -> Self {
         let mut r = self.clone();
-        if let Shape::Cylinder { ref mut axis, .. } = r.shape {
-            *axis = DVec3::from(*axis).normalize().to_array();
+        match r.shape {
+            Shape::Cylinder { ref mut axis, .. } => {
+                *axis = DVec3::from(*axis).normalize().to_array();
+            }
+            Shape::HalfCylinder {
+                ref mut axis,
+                ref mut side,
+                ..
+            } => {
+                *axis = DVec3::from(*axis).normalize().to_array();
+                *side = DVec3::from(*side).normalize().to_array();
+            }
+            Shape::Box { .. } => {}
         }
         r
     }
 
     /// The axis-aligned box that holds the region: (lower, upper corner), mm.
+    /// (A half-cylinder's are its full cylinder's: a box that holds it, not the tightest.)
     pub fn bounds(&self) -> (DVec3, DVec3) {
+        if let Some((full, Some(_))) = self.cylinder_part() {
+            return Region {
+                name: String::new(),
+                shape: full,
+            }
+            .bounds();
+        }
         match self.shape {
+            Shape::HalfCylinder { .. } => unreachable!("handled above"),
             Shape::Box { min, max } => (min.into(), max.into()),
             Shape::Cylinder {
                 centre,
@@ -244,6 +379,11 @@ impl Region {
                 half_length,
                 ..
             } => std::f64::consts::PI * radius * radius * 2.0 * half_length,
+            Shape::HalfCylinder {
+                radius,
+                half_length,
+                ..
+            } => std::f64::consts::PI * radius * radius * half_length,
         }
     }
 }

@@ -5,6 +5,7 @@ use crate::error::{Result, SimError};
 
 const CASE1_CSV: &str = include_str!("../../data/tg195/tg195_case1_air_kerma.csv");
 const CASE2_CSV: &str = include_str!("../../data/tg195/tg195_case2_energy_imparted.csv");
+const CASE3_CSV: &str = include_str!("../../data/tg195/tg195_case3_energy_imparted.csv");
 const CASE42_CSV: &str =
     include_str!("../../data/tg195/tg195_case4_2_energy_imparted_vs_angle.csv");
 const SPECTRA_CSV: &str = include_str!("../../data/tg195/tg195_spectra.csv");
@@ -90,6 +91,11 @@ pub fn case1() -> Result<Vec<Reference>> {
 /// Case 2 energy imparted rows: key = [volume, VOI centre, beam, mode].
 pub fn case2() -> Result<Vec<Reference>> {
     parse(CASE2_CSV, "case 2", 4)
+}
+
+/// Case 3 energy imparted rows: key = [volume, VOI centre, beam, mode].
+pub fn case3() -> Result<Vec<Reference>> {
+    parse(CASE3_CSV, "case 3", 4)
 }
 
 /// Case 4.2 rows: key = [angle, beam, volume and collimation].

@@ -17,6 +17,7 @@
 //!   390 × 390 mm at 1800 mm; tomosynthesis: source moved to y = −1800·tan 15°. Whole box
 //!   and nine 30 mm VOIs. Voxels of 5 mm hold the box exactly (its faces lie on voxel
 //!   faces); the VOIs are scored analytically.
+//! * **Case 3** — mammography and breast tomosynthesis ([`super::tg195_case3`]).
 //! * **Case 4.2** — a PMMA cylinder of radius 160 mm along z (1000 mm long: "very long";
 //!   scatter from beyond ±500 mm back into the ±50 mm scoring cylinders is negligible),
 //!   source 600 mm from the axis, fan 320 mm wide and 10 or 80 mm thick at the axis.
@@ -32,6 +33,7 @@
 //! fluorescence, Compton with S, Rayleigh with F², Elam/xraydb cross sections).
 
 use super::reference::{self, CODES, Reference};
+pub use super::tg195_case3::case3;
 use crate::composition::Composition;
 use crate::error::{Result, SimError};
 use crate::material::Material;
@@ -98,7 +100,7 @@ impl Beam {
         }
     }
 
-    fn spectrum(&self) -> Result<BeamSpectrum> {
+    pub(super) fn spectrum(&self) -> Result<BeamSpectrum> {
         match *self {
             Beam::Mono(e) => BeamSpectrum::monoenergetic(e),
             Beam::Kvp(k) => {
@@ -158,7 +160,7 @@ pub fn pmma() -> Result<Material> {
 
 /// A grid from `min` (outer corner, mm) with `dims` voxels of `spacing`, filled by
 /// `fill(voxel centre)` → (density g/cm³, material index), as a medium of `materials`.
-fn medium(
+pub(super) fn medium(
     min: DVec3,
     dims: [usize; 3],
     spacing: DVec3,
@@ -187,7 +189,7 @@ fn medium(
     Medium::new(&composition, &materials, e_max_kev)
 }
 
-fn run(
+pub(super) fn run(
     medium: &Medium,
     source: &FieldSource,
     beam: &BeamSpectrum,
