@@ -94,7 +94,7 @@ def ci(d):
 print(f"\nPaired difference from TomoGRAF {settings[0]} (dB, mean ± 95 % t-interval over items):\n")
 print("| set | views | setting | PSNR | body PSNR |\n|---|---:|---|---:|---:|")
 for (name, v, m), x in sorted(rows.items()):
-    if not m.startswith("TomoGRAF ") or m == f"TomoGRAF {settings[0]}":
+    if not m.startswith("TomoGRAF ") or m.startswith("TomoGRAF (") or m == f"TomoGRAF {settings[0]}":
         continue
     base = rows[(name, v, f"TomoGRAF {settings[0]}")]
     common = sorted(set(x) & set(base))

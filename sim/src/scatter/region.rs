@@ -387,3 +387,37 @@ impl Region {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A half-cylinder keeps the side it names, holds half the volume, and refuses a side
+    /// along its axis.
+    #[test]
+    fn a_half_cylinder_is_the_half_it_names() {
+        let h = Region::half_cylinder("h", DVec3::ZERO, DVec3::Z, 10.0, 4.0, DVec3::X);
+        h.validate().unwrap();
+        assert!(h.contains(DVec3::new(5.0, 0.0, 1.0)));
+        assert!(!h.contains(DVec3::new(-5.0, 0.0, 1.0)));
+        assert!(!h.contains(DVec3::new(5.0, 0.0, 3.0)));
+        let full = Region::cylinder("c", DVec3::ZERO, DVec3::Z, 10.0, 4.0);
+        assert!((2.0 * h.volume_mm3() - full.volume_mm3()).abs() < 1e-9);
+        // A line along x through the centre: 10 mm inside the half, 20 in the full one.
+        let (t0, t1) = h
+            .chord(DVec3::new(-20.0, 0.0, 0.0), DVec3::X, 0.0, 100.0)
+            .unwrap();
+        assert!((t0 - 20.0).abs() < 1e-12 && (t1 - 30.0).abs() < 1e-12);
+        assert!(
+            h.chord(DVec3::new(-5.0, -20.0, 0.0), DVec3::Y, 0.0, 100.0)
+                .is_none()
+        );
+        let bad = Region::half_cylinder("b", DVec3::ZERO, DVec3::Z, 10.0, 4.0, DVec3::Z);
+        assert!(
+            bad.validate()
+                .unwrap_err()
+                .to_string()
+                .contains("perpendicular")
+        );
+    }
+}
