@@ -440,11 +440,40 @@ fn figures(dir: &std::path::Path, rows: &[Comparison]) -> Result<()> {
                 )
             })
             .collect();
+        // Which comparisons each case holds, in table order (e.g. "0–7 case 1").
+        let mut spans: Vec<(&str, usize, usize)> = Vec::new();
+        for (i, r) in judged.iter().enumerate() {
+            let c = case_id(&r.case);
+            match spans.last_mut() {
+                Some((last, _, end)) if *last == c => *end = i,
+                _ => spans.push((c, i, i)),
+            }
+        }
+        let what = |c: &str| match c {
+            "1" => "HVL/QVL ratios",
+            "2" => "box and VOIs",
+            "3" => "breast and VOIs",
+            _ => "rows",
+        };
+        let x = format!(
+            "comparison: {} (tg195.md order)",
+            spans
+                .iter()
+                .map(|(c, a, b)| format!("{a}–{b} case {c} {}", what(c)))
+                .collect::<Vec<_>>()
+                .join(", ")
+        );
+        let cases: Vec<&str> = spans.iter().map(|(c, _, _)| *c).collect();
+        let title = format!(
+            "TG-195 case{} {}: tomograf vs the codes' mean",
+            if cases.len() > 1 { "s" } else { "" },
+            cases.join(", ")
+        );
         plot_deviations(
             &dir.join("tg195-deviations.png"),
             &Axes {
-                title: "TG-195 cases 1 (ratios) and 2: tomograf vs the codes' mean",
-                x: "comparison: 0–7 case 1 HVL/QVL ratios, 8–47 case 2 box and VOIs (tg195.md order)",
+                title: &title,
+                x: &x,
                 y: "deviation from the codes' mean (%)",
             },
             &points,
