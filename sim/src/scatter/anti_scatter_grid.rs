@@ -29,7 +29,7 @@
 use crate::error::{Result, SimError};
 use crate::material;
 use crate::scatter::cross_sections::ScatterFactors;
-use crate::scatter::interaction_table::{InteractionTable, TOTAL};
+use crate::scatter::interaction_table::{EnergyKnots, InteractionTable, TOTAL};
 use glam::DVec3;
 use serde::{Deserialize, Serialize};
 
@@ -137,8 +137,9 @@ impl AntiScatterGrid {
             None
         } else {
             let m = material::by_name(&self.interspace)?;
-            let table = InteractionTable::new(&m, &ScatterFactors::new(&m)?, n)?;
-            Some((table, m.density() / 10.0))
+            let knots = EnergyKnots::for_materials(&[&m], n)?;
+            let table = InteractionTable::new(&m, &ScatterFactors::new(&m)?, &knots)?;
+            Some((knots, table, m.density() / 10.0))
         };
         Ok(GridTransmission {
             open: self.open_fraction(),
@@ -155,9 +156,9 @@ pub struct GridTransmission {
     open: f64,
     ratio: f64,
     height_mm: f64,
-    /// The interspace's interaction table and density / 10 (μ/ρ cm²/g × this = μ mm⁻¹);
-    /// `None`: air, taken as transparent.
-    interspace: Option<(InteractionTable, f64)>,
+    /// The interspace's knots, interaction table and density / 10 (μ/ρ cm²/g × this = μ
+    /// mm⁻¹); `None`: air, taken as transparent.
+    interspace: Option<(EnergyKnots, InteractionTable, f64)>,
 }
 
 impl GridTransmission {
@@ -165,7 +166,7 @@ impl GridTransmission {
     fn mu(&self, e: f64) -> f64 {
         self.interspace
             .as_ref()
-            .map_or(0.0, |(t, scale)| t.at(e, TOTAL) * scale)
+            .map_or(0.0, |(k, t, scale)| t.at(k.locate(e), TOTAL) * scale)
     }
 
     /// Primary transmission Tp(E) (normal incidence along the focus).

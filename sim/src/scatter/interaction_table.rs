@@ -35,84 +35,72 @@ const COLUMNS: usize = 7;
 /// intervals (cell `k` starting at `k` keV): steps of at most 2 % in energy.
 const SUBDIVIDE_BELOW_KEV: usize = 50;
 
-/// A material's transport data from 1 keV to a highest energy (see the module docs).
+/// The energies (keV) the tables of one medium are tabulated at: every whole keV from
+/// 1 keV, steps of at most 2 % below 50 keV, the element tables' own energies and both
+/// sides of every absorption edge, of every material the medium holds. Shared by the
+/// materials' tables, so that one lookup of an energy ([`EnergyKnots::locate`]) serves
+/// every material and column at that energy.
 #[derive(Debug, Clone, PartialEq)]
-pub struct InteractionTable {
+pub struct EnergyKnots {
     /// Knot energies (keV), non-decreasing; an edge appears twice (below, then above).
     e_kev: Vec<f64>,
     ln_e: Vec<f64>,
-    /// Values at the knots, and their logarithms (−∞ where a value is 0).
-    values: Vec<[f64; COLUMNS]>,
-    ln_values: Vec<[f64; COLUMNS]>,
+    /// Whether the knot holds the value just below its energy (an edge's lower side).
+    below: Vec<bool>,
     /// For each whole-keV cell `k` (energies in [k + 1, k + 2) keV): the last knot at or
     /// below k + 1 keV.
     cell_first: Vec<u32>,
 }
 
-impl InteractionTable {
-    /// Tabulates `material` (with its scatter `factors`) from 1 keV to `knots` whole-keV
-    /// knots (1, 2, …, `knots` keV, capped at 500 keV), with both sides of every absorption
-    /// edge of its elements in between.
-    pub fn new(material: &Material, factors: &ScatterFactors, knots: usize) -> Result<Self> {
+/// Where an energy lies among the knots: interval `j` ([e_j, e_{j+1})) and the log–log
+/// weight `w` of its upper end.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Located {
+    j: usize,
+    w: f64,
+}
+
+impl EnergyKnots {
+    /// The knots for `materials` from 1 keV to `knots` whole-keV knots (1, 2, …, `knots`
+    /// keV, capped at 500 keV).
+    pub fn for_materials(materials: &[&Material], knots: usize) -> Result<Self> {
+        let knots = knots.max(2);
         let top = (knots as f64).min(500.0);
-        let row = |e: f64, below_edge: bool| -> Result<[f64; COLUMNS]> {
-            // Just below an edge the element tables give the value of the interval under it.
-            let x = material.interactions(if below_edge { e * (1.0 - 1e-12) } else { e })?;
-            Ok([
-                x.photoelectric,
-                x.incoherent,
-                x.coherent,
-                x.total(),
-                factors.compton_norm(e),
-                factors.rayleigh_norm(e),
-                factors.compton_transfer_fraction(e),
-            ])
-        };
         // Whole keV, and below 50 keV finer steps, so that no knot interval spans more than
         // 2 % in energy (log–log error grows with the square of that ratio).
-        let mut knots_at: Vec<(f64, bool)> = Vec::new();
+        let mut at: Vec<(f64, bool)> = Vec::new();
         for k in 1..=knots {
             let e = (k as f64).min(500.0);
-            knots_at.push((e, false));
+            at.push((e, false));
             let parts = SUBDIVIDE_BELOW_KEV.div_ceil(k).max(1);
             if k < knots {
                 for s in 1..parts {
-                    knots_at.push(((e + s as f64 / parts as f64).min(500.0), false));
+                    at.push(((e + s as f64 / parts as f64).min(500.0), false));
                 }
             }
         }
-        // The element tables' own energies: between knots, each element is one power law.
-        for &(z, _) in material.composition() {
-            for &e in element(z)?.tabulated_energies_kev() {
-                if e > 1.0 && e < top {
-                    knots_at.push((e, false));
+        for material in materials {
+            // The element tables' own energies: between knots, each element is one power law.
+            for &(z, _) in material.composition() {
+                for &e in element(z)?.tabulated_energies_kev() {
+                    if e > 1.0 && e < top {
+                        at.push((e, false));
+                    }
                 }
             }
-        }
-        for edge in material.edges_kev()? {
-            if edge > 1.0 && edge < top && edge.fract() != 0.0 {
-                knots_at.push((edge, true));
-                knots_at.push((edge, false));
-            } else if edge > 1.0 && edge < top {
-                // An edge on a whole keV: the knot there already holds the value above.
-                knots_at.push((edge, true));
+            for edge in material.edges_kev()? {
+                if edge > 1.0 && edge < top {
+                    // The value just below; the knot at the edge itself holds the one above.
+                    at.push((edge, true));
+                    at.push((edge, false));
+                }
             }
         }
         // Below-edge knots sort before the value above at the same energy.
-        knots_at.sort_by(|a, b| a.0.total_cmp(&b.0).then(b.1.cmp(&a.1)));
-        knots_at.dedup();
-        let mut e_kev = Vec::with_capacity(knots_at.len());
-        let mut values = Vec::with_capacity(knots_at.len());
-        for &(e, below) in &knots_at {
-            e_kev.push(e);
-            values.push(row(e, below)?);
-        }
-        let ln_values = values
-            .iter()
-            .map(|v| v.map(|x| if x > 0.0 { x.ln() } else { f64::NEG_INFINITY }))
-            .collect();
-        let cells = knots.saturating_sub(1).max(1);
-        let cell_first = (0..cells)
+        at.sort_by(|a, b| a.0.total_cmp(&b.0).then(b.1.cmp(&a.1)));
+        at.dedup();
+        let e_kev: Vec<f64> = at.iter().map(|k| k.0).collect();
+        let cell_first = (0..knots - 1)
             .map(|k| {
                 let lo = (k + 1) as f64;
                 (e_kev.partition_point(|&e| e <= lo).max(1) - 1) as u32
@@ -120,33 +108,84 @@ impl InteractionTable {
             .collect();
         Ok(Self {
             ln_e: e_kev.iter().map(|e| e.ln()).collect(),
+            below: at.iter().map(|k| k.1).collect(),
             e_kev,
-            values,
-            ln_values,
             cell_first,
         })
     }
 
-    /// Index `j` of the knot interval [e_j, e_{j+1}) holding `e` (clamped to the table).
+    /// Where `e` keV lies (clamped to the knots' range).
     #[inline]
-    fn interval(&self, e: f64) -> usize {
+    pub fn locate(&self, e: f64) -> Located {
         let last = self.e_kev.len() - 2;
         let cell = ((e - 1.0).max(0.0) as usize).min(self.cell_first.len() - 1);
         let mut j = self.cell_first[cell] as usize;
         while j < last && self.e_kev[j + 1] <= e {
             j += 1;
         }
-        j.min(last)
+        let j = j.min(last);
+        let e = e.clamp(self.e_kev[0], self.e_kev[j + 1]);
+        Located {
+            j,
+            w: (e.ln() - self.ln_e[j]) / (self.ln_e[j + 1] - self.ln_e[j]),
+        }
     }
 
-    /// Column `col` at `e` keV: log–log between the knots around it (linear where either
-    /// knot holds 0), clamped to the end knots outside the table.
+    /// Whole-keV cells covered.
+    pub fn cells(&self) -> usize {
+        self.cell_first.len()
+    }
+
+    /// The knots of whole-keV cell `k` ([k + 1, k + 2] keV), as an index range.
+    fn cell_knots(&self, k: usize) -> std::ops::Range<usize> {
+        let lo = self.cell_first[k.min(self.cell_first.len() - 1)] as usize;
+        let hi_e = (k + 2) as f64;
+        let mut hi = lo + 1;
+        while hi < self.e_kev.len() && self.e_kev[hi] <= hi_e {
+            hi += 1;
+        }
+        lo..hi
+    }
+}
+
+/// One material's interaction data on a medium's [`EnergyKnots`] (see the module docs).
+#[derive(Debug, Clone, PartialEq)]
+pub struct InteractionTable {
+    /// Values at the knots, and their logarithms (−∞ where a value is 0).
+    values: Vec<[f64; COLUMNS]>,
+    ln_values: Vec<[f64; COLUMNS]>,
+}
+
+impl InteractionTable {
+    /// Tabulates `material` (with its scatter `factors`) at `knots`.
+    pub fn new(material: &Material, factors: &ScatterFactors, knots: &EnergyKnots) -> Result<Self> {
+        let mut values = Vec::with_capacity(knots.e_kev.len());
+        for (&e, &below) in knots.e_kev.iter().zip(&knots.below) {
+            // Just below an edge the element tables give the value of the interval under it.
+            let x = material.interactions(if below { e * (1.0 - 1e-12) } else { e })?;
+            values.push([
+                x.photoelectric,
+                x.incoherent,
+                x.coherent,
+                x.total(),
+                factors.compton_norm(e),
+                factors.rayleigh_norm(e),
+                factors.compton_transfer_fraction(e),
+            ]);
+        }
+        let ln_values = values
+            .iter()
+            .map(|v| v.map(|x| if x > 0.0 { x.ln() } else { f64::NEG_INFINITY }))
+            .collect();
+        Ok(Self { values, ln_values })
+    }
+
+    /// Column `col` at the energy `at` locates: log–log between the knots around it (linear
+    /// where either knot holds 0).
     #[inline]
-    pub fn at(&self, e: f64, col: usize) -> f64 {
-        let j = self.interval(e);
+    pub fn at(&self, at: Located, col: usize) -> f64 {
+        let Located { j, w } = at;
         let (a, b) = (self.ln_values[j][col], self.ln_values[j + 1][col]);
-        let e = e.clamp(self.e_kev[0], self.e_kev[j + 1]);
-        let w = (e.ln() - self.ln_e[j]) / (self.ln_e[j + 1] - self.ln_e[j]);
         if a.is_finite() && b.is_finite() {
             (a + w * (b - a)).exp()
         } else {
@@ -155,25 +194,14 @@ impl InteractionTable {
         }
     }
 
-    /// The largest total μ/ρ (cm²/g) at any energy in the whole-keV cell `k`
-    /// ([k + 1, k + 2] keV): the largest of its knots, as log–log interpolation between
-    /// two knots is monotone.
-    pub fn cell_max_total(&self, k: usize) -> f64 {
-        let lo = self.cell_first[k.min(self.cell_first.len() - 1)] as usize;
-        let hi_e = (k + 2) as f64;
-        let mut m = self.values[lo][TOTAL];
-        // Every whole keV is a knot, so the cell's intervals end at knots inside it.
-        let mut j = lo + 1;
-        while j < self.e_kev.len() && self.e_kev[j] <= hi_e {
-            m = m.max(self.values[j][TOTAL]);
-            j += 1;
-        }
-        m
-    }
-
-    /// Whole-keV cells tabulated.
-    pub fn cells(&self) -> usize {
-        self.cell_first.len()
+    /// The largest total μ/ρ (cm²/g) at any energy in whole-keV cell `k` of `knots`
+    /// ([k + 1, k + 2] keV): the largest of its knots (every whole keV is one), as log–log
+    /// interpolation between two knots is monotone.
+    pub fn cell_max_total(&self, knots: &EnergyKnots, k: usize) -> f64 {
+        knots
+            .cell_knots(k)
+            .map(|j| self.values[j][TOTAL])
+            .fold(0.0, f64::max)
     }
 }
 
@@ -182,11 +210,24 @@ mod tests {
     use super::*;
     use crate::material::by_name;
 
-    fn table(name: &str, knots: usize) -> (Material, InteractionTable) {
+    /// A material's table on its own knots, read at energies (keV) through `at(e, col)`.
+    struct One {
+        knots: EnergyKnots,
+        table: InteractionTable,
+    }
+
+    impl One {
+        fn at(&self, e: f64, col: usize) -> f64 {
+            self.table.at(self.knots.locate(e), col)
+        }
+    }
+
+    fn table(name: &str, knots: usize) -> (Material, One) {
         let m = by_name(name).expect(name);
         let f = ScatterFactors::new(&m).expect("factors");
-        let t = InteractionTable::new(&m, &f, knots).expect("table");
-        (m, t)
+        let knots = EnergyKnots::for_materials(&[&m], knots).expect("knots");
+        let table = InteractionTable::new(&m, &f, &knots).expect("table");
+        (m, One { knots, table })
     }
 
     /// Between the knots, the cross sections follow the element tables (log–log within
@@ -237,9 +278,8 @@ mod tests {
     #[test]
     fn scatter_normalisations_between_knots_follow_their_integrals() {
         for name in ["water", "cortical-bone", "iodine-contrast"] {
-            let m = by_name(name).unwrap();
-            let f = ScatterFactors::new(&m).unwrap();
-            let t = InteractionTable::new(&m, &f, 151).unwrap();
+            let f = ScatterFactors::new(&by_name(name).unwrap()).unwrap();
+            let (_, t) = table(name, 151);
             for e in [1.37, 4.9, 10.25, 17.25, 33.3, 61.7, 99.5, 149.2] {
                 for (col, want) in [
                     (COMPTON_NORM, f.compton_norm(e)),
@@ -290,8 +330,8 @@ mod tests {
     #[test]
     fn the_cell_maximum_bounds_the_table() {
         let (_, t) = table("csi", 121);
-        for k in 0..t.cells() {
-            let bound = t.cell_max_total(k);
+        for k in 0..t.knots.cells() {
+            let bound = t.table.cell_max_total(&t.knots, k);
             for s in 0..=40 {
                 let e = (k + 1) as f64 + s as f64 / 40.0;
                 assert!(

@@ -10,8 +10,8 @@
 
 use super::cross_sections::{ScatterFactors, compton_ratio};
 use super::interaction_table::{
-    COMPTON_NORM, INCOHERENT, InteractionTable, PHOTOELECTRIC, RAYLEIGH_NORM, TOTAL,
-    TRANSFER_FRACTION,
+    COMPTON_NORM, EnergyKnots, INCOHERENT, InteractionTable, Located, PHOTOELECTRIC, RAYLEIGH_NORM,
+    TOTAL, TRANSFER_FRACTION,
 };
 use super::majorant::{DEFAULT_BRICK, MajorantGrid};
 use crate::accel::intervals::walk_bricks;
@@ -38,6 +38,8 @@ struct MaterialData {
 #[derive(Debug, Clone)]
 pub struct Medium {
     composition: Composition,
+    /// The energies every material's table holds (one lookup per energy serves them all).
+    knots: EnergyKnots,
     materials: Vec<MaterialData>,
     /// Global majorant per whole-keV cell (k: [k + 1, k + 2] keV), mm⁻¹.
     majorant: Vec<f64>,
@@ -57,6 +59,11 @@ pub struct Collision {
     pub material: usize,
     /// Probability that the collision is photoelectric / Compton / Rayleigh.
     pub p_photo: f64,
+    /// Normalisations of the Compton and Rayleigh angular densities at the site's material
+    /// and energy (looked up once per collision, used for every scoring point).
+    pub compton_norm: f64,
+    /// See `compton_norm`.
+    pub rayleigh_norm: f64,
     /// Compton probability.
     pub p_compton: f64,
     /// Rayleigh probability.
@@ -94,25 +101,32 @@ impl Medium {
         let present = composition.present();
         let grid = MajorantGrid::build(composition.packed(), materials.len(), DEFAULT_BRICK)?;
         let rho_max = grid.global_max();
+        let in_use: Vec<&Material> = materials
+            .iter()
+            .zip(&present)
+            .filter_map(|(m, &p)| p.then_some(m))
+            .collect();
+        let knots = EnergyKnots::for_materials(&in_use, n)?;
         let mut data = Vec::with_capacity(materials.len());
         for (i, m) in materials.iter().enumerate() {
             let factors = ScatterFactors::new(m)?;
             let tab = present[i]
-                .then(|| InteractionTable::new(m, &factors, n))
+                .then(|| InteractionTable::new(m, &factors, &knots))
                 .transpose()?;
             data.push(MaterialData { factors, tab });
         }
-        let majorant = (0..n - 1)
+        let majorant = (0..knots.cells())
             .map(|k| {
                 data.iter()
                     .zip(&rho_max)
-                    .filter_map(|(d, r)| Some(d.tab.as_ref()?.cell_max_total(k) * r / 10.0))
+                    .filter_map(|(d, r)| Some(d.tab.as_ref()?.cell_max_total(&knots, k) * r / 10.0))
                     .fold(0.0, f64::max)
                     * (1.0 + 1e-9)
             })
             .collect();
         let medium = Self {
             composition: composition.clone(),
+            knots,
             materials: data,
             majorant,
             bricks: None,
@@ -130,7 +144,7 @@ impl Medium {
             self.materials[m]
                 .tab
                 .as_ref()
-                .map_or(0.0, |t| t.cell_max_total(k) / 10.0)
+                .map_or(0.0, |t| t.cell_max_total(&self.knots, k) / 10.0)
         });
         grid
     }
@@ -156,11 +170,14 @@ impl Medium {
         self.e_max_kev
     }
 
-    /// Column `col` of material `m`'s interaction table at `e` keV (log–log between its
-    /// knots; 0 for a material absent from the composition).
+    /// Column `col` of material `m`'s interaction table at the energy `at` locates
+    /// (log–log between the knots; 0 for a material absent from the composition).
     #[inline]
-    fn table(&self, m: usize, e: f64, col: usize) -> f64 {
-        self.materials[m].tab.as_ref().map_or(0.0, |t| t.at(e, col))
+    fn table(&self, m: usize, at: Located, col: usize) -> f64 {
+        self.materials[m]
+            .tab
+            .as_ref()
+            .map_or(0.0, |t| t.at(at, col))
     }
 
     /// The whole-keV cell holding `e` (the majorants' index).
@@ -176,7 +193,7 @@ impl Medium {
 
     /// Mass attenuation (cm²/g) of material `m` at `e` keV (total).
     pub fn mass_attenuation(&self, m: usize, e: f64) -> f64 {
-        self.table(m, e, TOTAL)
+        self.table(m, self.knots.locate(e), TOTAL)
     }
 
     /// Mass energy-deposition coefficient (cm²/g) of material `m` at `e` keV as this
@@ -184,8 +201,14 @@ impl Medium {
     /// μ_inc/ρ × the mean Compton energy-transfer fraction under KN × S. Times the photon
     /// energy, the expected energy deposited per g/cm² crossed.
     pub fn deposition_coefficient(&self, m: usize, e: f64) -> f64 {
-        self.table(m, e, PHOTOELECTRIC)
-            + self.table(m, e, INCOHERENT) * self.table(m, e, TRANSFER_FRACTION)
+        self.deposition_at(m, self.knots.locate(e))
+    }
+
+    /// [`Medium::deposition_coefficient`] at a located energy.
+    #[inline]
+    fn deposition_at(&self, m: usize, at: Located) -> f64 {
+        self.table(m, at, PHOTOELECTRIC)
+            + self.table(m, at, INCOHERENT) * self.table(m, at, TRANSFER_FRACTION)
     }
 
     /// Expected energy (keV) a photon of `e` keV deposits per unit weight while crossing
@@ -194,10 +217,11 @@ impl Medium {
     /// estimator of the energy imparted.
     pub fn deposited_along(&self, from: DVec3, to: DVec3, e: f64) -> f64 {
         let sums = self.paths(from, to);
+        let at = self.knots.locate(e);
         let mut depth = 0.0;
         for (m, &s) in sums.iter().enumerate().take(self.materials.len()) {
             if s > 0.0 {
-                depth += self.deposition_coefficient(m, e) * s / 10.0;
+                depth += self.deposition_at(m, at) * s / 10.0;
             }
         }
         e * depth
@@ -215,10 +239,11 @@ impl Medium {
 
     /// Transmission exp(−Σ μ/ρ·ρℓ) at energy `e` for paths from [`Medium::paths`].
     pub fn transmission(&self, sums: &[f64], e: f64) -> f64 {
+        let at = self.knots.locate(e);
         let mut tau = 0.0;
         for (m, &s) in sums.iter().enumerate().take(self.materials.len()) {
             if s > 0.0 {
-                tau += self.mass_attenuation(m, e) * s / 10.0;
+                tau += self.table(m, at, TOTAL) * s / 10.0;
             }
         }
         (-tau).exp()
@@ -234,19 +259,22 @@ impl Medium {
             t_max: f64::INFINITY,
         };
         let g = GridRay::clip(self.composition.packed(), &ray)?;
+        let at = self.knots.locate(e);
         let (t, m) = match &self.bricks {
-            None => self.fly_global(&g, e, rng),
-            Some(grid) => self.fly_bricks(grid, &g, e, rng),
+            None => self.fly_global(&g, e, at, rng),
+            Some(grid) => self.fly_bricks(grid, &g, e, at, rng),
         }?;
-        let tot = self.table(m, e, TOTAL);
+        let tot = self.table(m, at, TOTAL);
         let (pe, inc) = (
-            self.table(m, e, PHOTOELECTRIC),
-            self.table(m, e, INCOHERENT),
+            self.table(m, at, PHOTOELECTRIC),
+            self.table(m, at, INCOHERENT),
         );
         Some(Collision {
             position: p + d * t,
             energy_kev: e,
             material: m,
+            compton_norm: self.table(m, at, COMPTON_NORM),
+            rayleigh_norm: self.table(m, at, RAYLEIGH_NORM),
             p_photo: pe / tot,
             p_compton: inc / tot,
             p_rayleigh: 1.0 - (pe + inc) / tot,
@@ -255,7 +283,13 @@ impl Medium {
 
     /// Woodcock tracking with the global majorant: the parameter of the real collision and
     /// the material there.
-    fn fly_global<R: Rng>(&self, g: &GridRay, e: f64, rng: &mut R) -> Option<(f64, usize)> {
+    fn fly_global<R: Rng>(
+        &self,
+        g: &GridRay,
+        e: f64,
+        at: Located,
+        rng: &mut R,
+    ) -> Option<(f64, usize)> {
         let maj = self.majorant(e);
         if maj <= 0.0 {
             return None;
@@ -266,7 +300,7 @@ impl Medium {
             if t >= g.t_exit {
                 return None;
             }
-            if let Some(m) = self.accept(g, t, e, maj, rng) {
+            if let Some(m) = self.accept(g, t, at, maj, rng) {
                 return Some((t, m));
             }
         }
@@ -281,6 +315,7 @@ impl Medium {
         grid: &MajorantGrid,
         g: &GridRay,
         e: f64,
+        at: Located,
         rng: &mut R,
     ) -> Option<(f64, usize)> {
         let interval = self.cell(e);
@@ -299,7 +334,7 @@ impl Medium {
                     return true;
                 }
                 t += depth / sigma;
-                if let Some(m) = self.accept(g, t, e, sigma, rng) {
+                if let Some(m) = self.accept(g, t, at, sigma, rng) {
                     hit = Some((t, m));
                     return false;
                 }
@@ -316,12 +351,12 @@ impl Medium {
         &self,
         g: &GridRay,
         t: f64,
-        e: f64,
+        at: Located,
         sigma: f64,
         rng: &mut R,
     ) -> Option<usize> {
         let (rho, m) = self.voxel_at(g, t)?;
-        (rng.random::<f64>() * sigma < self.table(m, e, TOTAL) * rho / 10.0).then_some(m)
+        (rng.random::<f64>() * sigma < self.table(m, at, TOTAL) * rho / 10.0).then_some(m)
     }
 
     /// The packed voxel at parameter `t` of `g`: (density g/cm³, material), `None` past
@@ -345,9 +380,8 @@ impl Medium {
     pub fn compton_towards(&self, c: &Collision, mu: f64) -> (f64, f64) {
         let e = c.energy_kev;
         let d = &self.materials[c.material];
-        let norm = self.table(c.material, e, COMPTON_NORM);
         (
-            d.factors.compton_density(e, mu, norm),
+            d.factors.compton_density(e, mu, c.compton_norm),
             e * compton_ratio(e, mu),
         )
     }
@@ -355,11 +389,9 @@ impl Medium {
     /// Rayleigh density p(μ) (sr⁻¹) at a collision towards cos θ = `mu`.
     #[inline]
     pub fn rayleigh_towards(&self, c: &Collision, mu: f64) -> f64 {
-        let e = c.energy_kev;
-        let norm = self.table(c.material, e, RAYLEIGH_NORM);
         self.materials[c.material]
             .factors
-            .rayleigh_density(e, mu, norm)
+            .rayleigh_density(c.energy_kev, mu, c.rayleigh_norm)
     }
 
     /// Samples a scatter at a collision: Compton with probability p_c/(p_c + p_r), else
