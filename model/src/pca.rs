@@ -232,7 +232,6 @@ impl Baseline for PcaMap {
 mod tests {
     use super::*;
     use glam::DVec3;
-    use tomograf_sim::{Beam, Detector, Geometry, Pose};
 
     /// Volumes m + Σ a_k b_k with two orthogonal patterns: the components span them, and
     /// a MAP fit with little noise recovers a held-out member from its views.
@@ -270,27 +269,8 @@ mod tests {
         assert_eq!(pca.components.len(), 2, "two patterns, two components");
         let truth = make(0.7, -0.3);
         let scale = DensityScale::from_window(-1024.0, 2048.0, 0.02).unwrap();
-        let g = Geometry {
-            beam: Beam::Cone {
-                sad_mm: 400.0,
-                sid_mm: 600.0,
-            },
-            detector: Detector::new(16, 16, 6.0),
-            isocentre: DVec3::ZERO,
-        };
         let mu = truth.map(|d| scale.mu_scalar(f64::from(d)) as f32).unwrap();
-        let r = Renderer::new(&mu, Projector::Siddon).unwrap();
-        let refs: Vec<Reference> = [Pose::AP, Pose::LATERAL]
-            .iter()
-            .map(|&p| {
-                let view = g.view(p).unwrap();
-                Reference {
-                    view,
-                    pose: p,
-                    image: r.render(&view).unwrap().data,
-                }
-            })
-            .collect();
+        let refs = crate::reconstruct::test_references(&mu);
         let v = pca.reconstruct(&refs, &truth, &scale).unwrap();
         let err = v
             .data()

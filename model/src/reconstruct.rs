@@ -338,3 +338,31 @@ pub fn render_volume(
         out,
     )?)
 }
+
+/// AP and lateral references of attenuation `mu` (mm⁻¹) with sim's Siddon projector: a
+/// 16 × 16 cone-beam detector of 6 mm pixels, source 400 mm and detector 600 mm from the
+/// origin (for the tests of the methods that reconstruct from them).
+#[cfg(test)]
+pub(crate) fn test_references(mu: &Volume) -> Vec<Reference> {
+    use tomograf_sim::{Beam, Detector, Geometry};
+    let g = Geometry {
+        beam: Beam::Cone {
+            sad_mm: 400.0,
+            sid_mm: 600.0,
+        },
+        detector: Detector::new(16, 16, 6.0),
+        isocentre: glam::DVec3::ZERO,
+    };
+    let r = Renderer::new(mu, Projector::Siddon).expect("a renderer");
+    [Pose::AP, Pose::LATERAL]
+        .iter()
+        .map(|&p| {
+            let view = g.view(p).expect("a view");
+            Reference {
+                view,
+                pose: p,
+                image: r.render(&view).expect("a projection").data,
+            }
+        })
+        .collect()
+}

@@ -40,7 +40,8 @@ pub fn refine(
     infer: &InferConfig,
     psnr: &[f64],
 ) -> Result<(Volume, StartWeights)> {
-    let mean = mean_on_grid(prior, network);
+    // The mean on the grid, made only when a fit or the start needs it.
+    let mut mean: Option<Vec<f32>> = None;
     let weights = if psnr.iter().any(|&p| p >= infer.refine_below_db) {
         StartWeights {
             network: 1.0,
@@ -52,12 +53,16 @@ pub fn refine(
                 network: infer.refine_start_weight,
                 mean: infer.refine_start_mean_weight,
             },
-            RefineStart::Fitted => fitted_weights(refs, network, &mean, scale)?,
+            RefineStart::Fitted => {
+                let m = mean.insert(mean_on_grid(prior, network));
+                fitted_weights(refs, network, m, scale)?
+            }
         }
     };
     let mut start = vec![(network.data(), weights.network)];
     if weights.mean > 0.0 {
-        start.push((mean.as_slice(), weights.mean));
+        let m = mean.get_or_insert_with(|| mean_on_grid(prior, network));
+        start.push((m.as_slice(), weights.mean));
     }
     let volume = sart_tv_density(refs, network, scale, &start, infer.refine_iterations)?;
     Ok((volume, weights))
@@ -170,7 +175,6 @@ fn nonnegative_least_squares(g: [f64; 3], r: [f64; 2]) -> StartWeights {
 mod tests {
     use super::*;
     use glam::DVec3;
-    use tomograf_sim::{Beam, Detector, Geometry, Pose};
 
     /// Views made (with sim's projector) from 0.3 × one volume + 0.6 × another give those
     /// weights back through [`fitted_weights`], and the fixed and fitted starts run.
@@ -219,26 +223,7 @@ mod tests {
                 .collect(),
         )
         .unwrap();
-        let g = Geometry {
-            beam: Beam::Cone {
-                sad_mm: 400.0,
-                sid_mm: 600.0,
-            },
-            detector: Detector::new(16, 16, 6.0),
-            isocentre: DVec3::ZERO,
-        };
-        let r = Renderer::new(&truth, Projector::Siddon).unwrap();
-        let refs: Vec<Reference> = [Pose::AP, Pose::LATERAL]
-            .iter()
-            .map(|&p| {
-                let view = g.view(p).unwrap();
-                Reference {
-                    view,
-                    pose: p,
-                    image: r.render(&view).unwrap().data,
-                }
-            })
-            .collect();
+        let refs = crate::reconstruct::test_references(&truth);
         let w = fitted_weights(&refs, &ball, slab.data(), &scale).unwrap();
         assert!(
             (w.network - 0.3).abs() < 1e-4 && (w.mean - 0.6).abs() < 1e-4,

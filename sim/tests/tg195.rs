@@ -32,6 +32,16 @@ fn check(rows: &[Comparison]) {
     }
 }
 
+/// The rows of `rows` whose quantity is one of `keep`, all of them there.
+fn only(rows: Vec<Comparison>, keep: &[&str]) -> Vec<Comparison> {
+    let rows: Vec<_> = rows
+        .into_iter()
+        .filter(|r| keep.contains(&r.quantity.as_str()))
+        .collect();
+    assert_eq!(rows.len(), keep.len());
+    rows
+}
+
 #[test]
 fn case1_half_and_quarter_value_layers() {
     for beam in [Beam::Mono(30.0), Beam::Kvp(100)] {
@@ -59,13 +69,7 @@ fn case3_tomosynthesis_breast_and_the_vois_either_side() {
     // the turn makes differ by 20 % (a turn the wrong way swaps them: 3 eV, twice the
     // tolerance). 10⁶ photons.
     let rows = tg195::case3(Beam::Mono(16.8), true, 1_000_000, 4).unwrap();
-    let keep = ["Total body", "VOI 1", "VOI 5"];
-    let rows: Vec<_> = rows
-        .into_iter()
-        .filter(|r| keep.contains(&r.quantity.as_str()))
-        .collect();
-    assert_eq!(rows.len(), keep.len());
-    check(&rows);
+    check(&only(rows, &["Total body", "VOI 1", "VOI 5"]));
 }
 
 #[test]
@@ -79,10 +83,5 @@ fn case42_centre_and_three_peripheral_angles() {
         "Periphery 90°",
         "Periphery 180°",
     ];
-    let rows: Vec<_> = rows
-        .into_iter()
-        .filter(|r| keep.contains(&r.quantity.as_str()))
-        .collect();
-    assert_eq!(rows.len(), keep.len());
-    check(&rows);
+    check(&only(rows, &keep));
 }

@@ -220,6 +220,7 @@ pub fn score(
     } else {
         (Component::Multiple as usize, Component::Multiple as usize)
     };
+    let norms = medium.angular_norms(c);
     for (p, &q) in grid.points.iter().enumerate() {
         let to = q - c.position;
         let d2 = to.length_squared();
@@ -228,9 +229,9 @@ pub fn score(
         let solid = grid.area * w.dot(grid.normal).abs() / d2;
         let mu = dir.dot(w).clamp(-1.0, 1.0);
         let paths = medium.paths(c.position, q);
-        let (pc, ec) = medium.compton_towards(c, mu);
+        let (pc, ec) = medium.compton_towards(c, &norms, mu);
         let vc = weight * c.p_compton * pc * solid * medium.transmission(&paths, ec);
-        let pr = medium.rayleigh_towards(c, mu);
+        let pr = medium.rayleigh_towards(c, &norms, mu);
         let mut vr = weight * c.p_rayleigh * pr * solid * medium.transmission(&paths, c.energy_kev);
         let mut vc = vc;
         if let Some(a) = anti {

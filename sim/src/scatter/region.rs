@@ -168,23 +168,13 @@ impl Region {
                     return bad("radius and length must be finite and > 0");
                 }
             }
-            Shape::HalfCylinder {
-                centre,
-                axis,
-                radius,
-                half_length,
-                side,
-            } => {
-                let full = Region {
+            Shape::HalfCylinder { axis, side, .. } => {
+                let (full, _) = self.cylinder_part().expect("a cylinder");
+                Region {
                     name: self.name.clone(),
-                    shape: Shape::Cylinder {
-                        centre,
-                        axis,
-                        radius,
-                        half_length,
-                    },
-                };
-                full.validate()?;
+                    shape: full,
+                }
+                .validate()?;
                 let (a, n) = (DVec3::from(axis), DVec3::from(side));
                 if !n.is_finite() || n.length() == 0.0 {
                     return bad("the side must be a finite, non-zero vector");

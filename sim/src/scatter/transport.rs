@@ -59,15 +59,19 @@ pub struct Collision {
     pub material: usize,
     /// Probability that the collision is photoelectric / Compton / Rayleigh.
     pub p_photo: f64,
-    /// Normalisations of the Compton and Rayleigh angular densities at the site's material
-    /// and energy (looked up once per collision, used for every scoring point).
-    pub compton_norm: f64,
-    /// See `compton_norm`.
-    pub rayleigh_norm: f64,
     /// Compton probability.
     pub p_compton: f64,
     /// Rayleigh probability.
     pub p_rayleigh: f64,
+}
+
+/// Normalisations of the angular densities at one collision ([`Medium::angular_norms`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct AngularNorms {
+    /// Of the Compton density (KN × S).
+    pub compton: f64,
+    /// Of the Rayleigh density (Thomson × F²).
+    pub rayleigh: f64,
 }
 
 /// The fate of one analog photon history ([`Medium::walk`]).
@@ -273,8 +277,6 @@ impl Medium {
             position: p + d * t,
             energy_kev: e,
             material: m,
-            compton_norm: self.table(m, at, COMPTON_NORM),
-            rayleigh_norm: self.table(m, at, RAYLEIGH_NORM),
             p_photo: pe / tot,
             p_compton: inc / tot,
             p_rayleigh: 1.0 - (pe + inc) / tot,
@@ -375,23 +377,34 @@ impl Medium {
         (rho > 0.0).then_some((f64::from(rho), m))
     }
 
+    /// The normalisations of the Compton and Rayleigh angular densities at collision `c`'s
+    /// material and energy: looked up once per collision, used for every direction scored
+    /// from it ([`Medium::compton_towards`], [`Medium::rayleigh_towards`]).
+    pub fn angular_norms(&self, c: &Collision) -> AngularNorms {
+        let at = self.knots.locate(c.energy_kev);
+        AngularNorms {
+            compton: self.table(c.material, at, COMPTON_NORM),
+            rayleigh: self.table(c.material, at, RAYLEIGH_NORM),
+        }
+    }
+
     /// Compton density p(μ) (sr⁻¹) and E′ at a collision towards cos θ = `mu`.
     #[inline]
-    pub fn compton_towards(&self, c: &Collision, mu: f64) -> (f64, f64) {
+    pub fn compton_towards(&self, c: &Collision, norms: &AngularNorms, mu: f64) -> (f64, f64) {
         let e = c.energy_kev;
         let d = &self.materials[c.material];
         (
-            d.factors.compton_density(e, mu, c.compton_norm),
+            d.factors.compton_density(e, mu, norms.compton),
             e * compton_ratio(e, mu),
         )
     }
 
     /// Rayleigh density p(μ) (sr⁻¹) at a collision towards cos θ = `mu`.
     #[inline]
-    pub fn rayleigh_towards(&self, c: &Collision, mu: f64) -> f64 {
+    pub fn rayleigh_towards(&self, c: &Collision, norms: &AngularNorms, mu: f64) -> f64 {
         self.materials[c.material]
             .factors
-            .rayleigh_density(c.energy_kev, mu, c.rayleigh_norm)
+            .rayleigh_density(c.energy_kev, mu, norms.rayleigh)
     }
 
     /// Samples a scatter at a collision: Compton with probability p_c/(p_c + p_r), else

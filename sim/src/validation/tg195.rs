@@ -402,7 +402,18 @@ pub fn case2(
         (RegionEstimator::Collision, photons),
         seed,
     )?;
-    let refs = reference::case2()?;
+    regions_against(&r, &reference::case2()?, "2", &label, mode)
+}
+
+/// Each scored region of `r` beside its reference row (key: [volume, VOI centre, beam,
+/// mode]) from `refs`, as rows of case `case` ("2 radiography 56.4 keV", …).
+pub(super) fn regions_against(
+    r: &EnergyImparted,
+    refs: &[Reference],
+    case: &str,
+    label: &str,
+    mode: &str,
+) -> Result<Vec<Comparison>> {
     r.regions
         .iter()
         .map(|(name, e)| {
@@ -410,9 +421,11 @@ pub fn case2(
                 .iter()
                 .find(|x| x.key[0] == *name && x.key[2] == label && x.key[3] == mode)
                 .cloned()
-                .ok_or_else(|| SimError::OutOfRange(format!("no case 2 reference for {name}")))?;
+                .ok_or_else(|| {
+                    SimError::OutOfRange(format!("no case {case} reference for {name}"))
+                })?;
             Ok(Comparison {
-                case: format!("2 {mode} {label}"),
+                case: format!("{case} {mode} {label}"),
                 quantity: name.clone(),
                 ours: e.ev_per_photon,
                 ours_se: e.standard_error,

@@ -26,7 +26,7 @@
 //! too thick there, 125 mm from the breast).
 
 use super::reference;
-use super::tg195::{Beam, Comparison, air, medium, pmma, run};
+use super::tg195::{Beam, Comparison, air, medium, pmma, regions_against, run};
 use crate::error::{Result, SimError};
 use crate::material::{Material, mixture};
 use crate::scatter::energy_imparted::RegionEstimator;
@@ -222,24 +222,7 @@ pub fn case3(beam: Beam, tomo: bool, photons: u64, seed: u64) -> Result<Vec<Comp
         (RegionEstimator::Collision, photons),
         seed,
     )?;
-    let refs = reference::case3()?;
-    r.regions
-        .iter()
-        .map(|(name, e)| {
-            let reference = refs
-                .iter()
-                .find(|x| x.key[0] == *name && x.key[2] == label && x.key[3] == mode)
-                .cloned()
-                .ok_or_else(|| SimError::OutOfRange(format!("no case 3 reference for {name}")))?;
-            Ok(Comparison {
-                case: format!("3 {mode} {label}"),
-                quantity: name.clone(),
-                ours: e.ev_per_photon,
-                ours_se: e.standard_error,
-                reference,
-            })
-        })
-        .collect()
+    regions_against(&r, &reference::case3()?, "3", &label, mode)
 }
 
 #[cfg(test)]
