@@ -4,7 +4,7 @@
 use anyhow::Result;
 use clap::Args;
 use std::path::{Path, PathBuf};
-use tomograf_bench::{Options, accel, backend, cpu_model, model, physics, projector};
+use tomograf_bench::{Options, accel, backend, cpu_model, model, physics, projector, scatter};
 
 #[derive(Debug, Args)]
 pub struct BenchArgs {
@@ -36,6 +36,20 @@ pub struct BenchArgs {
     /// With --accel-only: only this section (skipping or meshes).
     #[arg(long, requires = "accel_only")]
     pub section: Option<String>,
+    /// Measure the scatter engine's speed against its error on this CT instead (NIfTI or
+    /// DICOM folder; e.g. with `--out docs/scatter-speed.md`).
+    #[arg(long, value_name = "CT")]
+    pub scatter: Option<PathBuf>,
+    /// With --scatter: histories of the full-resolution reference.
+    #[arg(long, requires = "scatter", default_value_t = 400_000)]
+    pub reference_photons: u64,
+    /// With --scatter: keep the reference image here (NPY, and a .txt key beside it) and
+    /// reuse it when the CT, photons and view are the same.
+    #[arg(long, requires = "scatter")]
+    pub reference_cache: Option<PathBuf>,
+    /// With --scatter: runs of each setting, taken in turn (the median is reported).
+    #[arg(long, requires = "scatter", default_value_t = 2)]
+    pub rounds: usize,
 }
 
 pub fn run(args: BenchArgs) -> Result<()> {
@@ -44,6 +58,21 @@ pub fn run(args: BenchArgs) -> Result<()> {
         repeats: args.repeats,
     };
     let out = args.out.as_deref();
+    if let Some(ct) = &args.scatter {
+        let so = scatter::ScatterOptions {
+            quick: o.quick,
+            rounds: args.rounds,
+            reference_photons: args.reference_photons,
+            reference_cache: args.reference_cache.clone(),
+        };
+        let md = format!(
+            "Measured by `tomograf bench --scatter {}{}`.\n\n{}",
+            ct.display(),
+            if o.quick { " --quick" } else { "" },
+            scatter::section(ct, &so)?
+        );
+        return write_page("Scatter at data-set speed", &md, out);
+    }
     if args.physics {
         return write_page(
             "Physics benchmarks",

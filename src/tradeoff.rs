@@ -24,10 +24,19 @@ pub struct TradeoffArgs {
     /// Energy-bin counts to try (real physics only).
     #[arg(long, value_delimiter = ',', default_values_t = vec![64, 32, 16, 8, 4])]
     pub bins: Vec<usize>,
-    /// Fractions of the scene's scatter photons to try (scatter scenes only): each rung
-    /// is timed and compared against the scene's own photon count.
+    /// Fractions of the reference's scatter photons to try (scatter scenes only): each
+    /// rung is timed and compared against the reference.
     #[arg(long, value_delimiter = ',', default_values_t = vec![0.25, 0.0625])]
     pub scatter_fractions: Vec<f64>,
+    /// Cell sizes (mm) to try for the scatter's forced detection (scatter scenes only;
+    /// those coarser than the reference's own).
+    #[arg(long, value_delimiter = ',', default_values_t = vec![8.0, 16.0])]
+    pub scatter_cells: Vec<f64>,
+    /// Histories of the reference's scatter Monte Carlo, which bounds its cost (default:
+    /// the scene's own for a Monte Carlo scene; 20000 through 4 mm cells for a scene that
+    /// asks for the estimate).
+    #[arg(long)]
+    pub scatter_reference_photons: Option<u64>,
     /// Renders per timing (the median is reported).
     #[arg(long, default_value_t = 3)]
     pub repeats: usize,
@@ -43,6 +52,8 @@ pub fn run(args: TradeoffArgs) -> Result<()> {
         steps: args.steps,
         bins: args.bins,
         scatter_fractions: args.scatter_fractions,
+        scatter_cells: args.scatter_cells,
+        scatter_reference_photons: args.scatter_reference_photons,
         repeats: args.repeats,
         report: args.report,
     };

@@ -158,3 +158,58 @@ fn scatter_rungs_are_measured_against_the_full_reference() {
     assert!(r500 > r2000 && r2000 > 0.0, "500: {r500}, 2000: {r2000}");
     assert!(est > 0.0);
 }
+
+#[test]
+fn the_scatter_reference_is_bounded_and_detection_cells_are_a_knob() {
+    let dir = tempfile::tempdir().unwrap();
+    let csv = tradeoff(
+        dir.path(),
+        &[
+            "--preset",
+            "kv-flat-panel-120kvp",
+            "--scatter",
+            "estimate",
+            "--scatter-reference-photons",
+            "3000",
+            "--scatter-fractions",
+            "0.25",
+            "--scatter-cells",
+            "2,16",
+            "--steps",
+            "1",
+            "--bins",
+            "8",
+        ],
+    );
+    // An estimate scene's reference: the Monte Carlo with the photons asked for, through
+    // 4 mm cells; cells no coarser than the reference's are not tried.
+    assert!(
+        csv.contains("scatter Monte Carlo, 3000 photons, 4 mm cells"),
+        "{csv}"
+    );
+    assert!(!csv.contains("through 2 mm cells"), "{csv}");
+    let (cells, _) = row(&csv, "scatter forced detection through 16 mm cells");
+    assert!(cells > 0.0 && cells < 0.05, "{cells}");
+    assert!(
+        csv.lines().any(|l| l.starts_with("scatter cells,")),
+        "{csv}"
+    );
+
+    let r0 = dir.path().join("r0");
+    let mut args = vec![
+        "tradeoff",
+        "--report",
+        r0.to_str().unwrap(),
+        "--preset",
+        "kv-flat-panel-120kvp",
+        "--scatter",
+        "estimate",
+        "--scatter-reference-photons",
+        "0",
+    ];
+    args.extend(SMALL);
+    let out = tomograf(&args);
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("reference photons"), "{err}");
+}

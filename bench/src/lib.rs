@@ -9,13 +9,15 @@
 //! * [`accel`]: empty-space skipping and meshes (docs/benchmarks.md, docs/meshes.md);
 //! * [`physics`]: the polychromatic chain and detector (docs/physics-benchmarks.md);
 //! * [`model`]: TomoGRAF's training and inference iterations (docs/model-benchmarks.md);
-//! * [`backend`]: a GPU backend against `flex` (docs/gpu-benchmarks.md).
+//! * [`backend`]: a GPU backend against `flex` (docs/gpu-benchmarks.md);
+//! * [`scatter`]: the scatter engine's speed against its error on a CT (docs/scatter.md).
 
 pub mod accel;
 pub mod backend;
 pub mod model;
 pub mod physics;
 pub mod projector;
+pub mod scatter;
 
 /// How much to measure.
 #[derive(Debug, Clone, Copy)]

@@ -22,8 +22,13 @@ pub struct Tradeoff {
     pub steps: Vec<f64>,
     /// Energy-bin counts to try (real physics only).
     pub bins: Vec<usize>,
-    /// Fractions of the scene's scatter photons to try (scatter scenes only).
+    /// Fractions of the reference's scatter photons to try (scatter scenes only).
     pub scatter_fractions: Vec<f64>,
+    /// Detection cells to try for the scatter's forced detection, mm (scatter scenes only).
+    pub scatter_cells: Vec<f64>,
+    /// Histories of the reference's scatter Monte Carlo (`None`: see
+    /// [`tomograf_sim::tradeoff::Options::scatter_reference_photons`]).
+    pub scatter_reference_photons: Option<u64>,
     /// Renders per timing (the median is reported).
     pub repeats: usize,
     /// Folder for tradeoff.md, tradeoff.csv and tradeoff.png.
@@ -48,6 +53,8 @@ pub fn tradeoff(scene: &Scene, t: &Tradeoff, progress: &dyn Progress) -> Result<
         steps: t.steps.clone(),
         bins: t.bins.clone(),
         scatter_fractions: t.scatter_fractions.clone(),
+        scatter_cells: t.scatter_cells.clone(),
+        scatter_reference_photons: t.scatter_reference_photons,
         repeats: t.repeats.max(1),
     };
     let (vol, job) = match &acquisition {
@@ -122,7 +129,13 @@ fn write(path: &std::path::Path, text: &str) -> Result<()> {
 /// Speed-up against log₁₀ of the rms error, one series per knob, and the budget's line.
 fn plot(ladder: &Ladder, budget: f64, path: &std::path::Path) -> Result<()> {
     let mut series: Vec<(&str, Vec<(f64, f64)>)> = Vec::new();
-    for k in [Knob::Projector, Knob::EnergyBins, Knob::Scatter, Knob::Blur] {
+    for k in [
+        Knob::Projector,
+        Knob::EnergyBins,
+        Knob::Scatter,
+        Knob::ScatterCells,
+        Knob::Blur,
+    ] {
         let mut pts: Vec<(f64, f64)> = ladder
             .rungs
             .iter()
@@ -154,6 +167,7 @@ fn knob_name(k: Knob) -> &'static str {
         Knob::Projector => "projector",
         Knob::EnergyBins => "energy bins",
         Knob::Scatter => "scatter",
+        Knob::ScatterCells => "scatter cells",
         Knob::Blur => "blur",
     }
 }
@@ -210,7 +224,11 @@ fn report(
             "ideal DRR"
         },
         t.repeats.max(1),
-        if ladder.rungs.iter().any(|r| r.knob == Knob::Scatter) {
+        if ladder
+            .rungs
+            .iter()
+            .any(|r| matches!(r.knob, Knob::Scatter | Knob::ScatterCells))
+        {
             " Scatter adds the same image whatever the other settings, so the projector, \
              energy-bin and blur rows are measured without it, against the reference without \
              scatter; the scatter rows against the full reference, whose own Monte Carlo \

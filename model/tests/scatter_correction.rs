@@ -17,6 +17,7 @@ fn the_objects_own_scatter_is_removed_from_its_views() {
         photons: 20_000,
         grid: 6,
         smoothing: 1.0,
+        detection_cell_mm: 0.0,
     };
     // The views as a scatter-contaminated acquisition records them (expected signal, no
     // noise), and as the primary alone would be.
@@ -84,6 +85,7 @@ fn items_without_scatter_or_acquisition_are_named() {
         photons: 10,
         grid: 2,
         smoothing: 1.0,
+        detection_cell_mm: 0.0,
     };
     item.acquisition = Some(with);
     let e = correct_item(&item, &ct, &[5], 1).unwrap_err().to_string();

@@ -42,6 +42,7 @@ fn mc(photons: u64, grid: usize) -> ScatterModel {
         photons,
         grid,
         max_order: 50,
+        detection_cell_mm: 0.0,
     }
 }
 
@@ -136,6 +137,7 @@ fn main() {
                 photons: 5_000,
                 grid: 8,
                 smoothing: 1.0,
+                detection_cell_mm: 0.0,
             },
         );
         let (e, te) = run(&est, &v);

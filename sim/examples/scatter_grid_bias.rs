@@ -30,6 +30,7 @@ fn scatter(hu: &Volume, view: &View, grid: usize, seed: u64) -> Vec<f64> {
         photons: PHOTONS,
         grid,
         max_order: 50,
+        detection_cell_mm: 0.0,
     };
     let p = a.prepare(hu, seed).unwrap();
     let s = p.scatter(view, 0).unwrap().unwrap();

@@ -37,6 +37,7 @@ fn main() {
             photons,
             grid,
             max_order: 50,
+            detection_cell_mm: 0.0,
         };
         let p = a.prepare(&hu, 7).unwrap();
         let t0 = cpu_seconds();

@@ -81,6 +81,7 @@ fn main() {
         photons: 20_000,
         grid: 16,
         max_order: 50,
+        detection_cell_mm: 0.0,
     };
     let spectrum = a.spectrum.spectrum().unwrap();
     let (energies, fluence) = (spectrum.energies_kev(), spectrum.fluence());

@@ -74,6 +74,8 @@ pub enum Knob {
     EnergyBins,
     /// The scatter model's photons (or model).
     Scatter,
+    /// The cells forced detection traces through (the scatter's detection grid).
+    ScatterCells,
     /// The detector's blur.
     Blur,
 }
@@ -105,8 +107,13 @@ pub struct Options {
     pub steps: Vec<f64>,
     /// Energy bin counts (only those below the spectrum's own count are tried).
     pub bins: Vec<usize>,
-    /// Fractions of the scene's Monte Carlo scatter photons.
+    /// Fractions of the reference's Monte Carlo scatter photons.
     pub scatter_fractions: Vec<f64>,
+    /// Detection cells to try (mm; those coarser than the reference's).
+    pub scatter_cells: Vec<f64>,
+    /// Histories of the reference's Monte Carlo (`None`: the scene's own for a Monte Carlo
+    /// scene, [`ESTIMATE_REFERENCE_PHOTONS`] for one that asks for the estimate).
+    pub scatter_reference_photons: Option<u64>,
     /// Renders per timing (median).
     pub repeats: usize,
 }
@@ -117,10 +124,18 @@ impl Default for Options {
             steps: vec![0.25, 0.5, 1.0, 2.0],
             bins: vec![64, 32, 16, 8, 4],
             scatter_fractions: vec![0.25, 0.0625],
+            scatter_cells: vec![8.0, 16.0],
+            scatter_reference_photons: None,
             repeats: 3,
         }
     }
 }
+
+/// Histories of the reference Monte Carlo for a scene that asks for the fast estimate.
+pub const ESTIMATE_REFERENCE_PHOTONS: u64 = 20_000;
+/// Detection cells of that reference, mm: docs/scatter.md measures the bias of 4 mm cells
+/// on a real chest CT at 0.2–0.3 % of the scatter image.
+pub const ESTIMATE_REFERENCE_CELL_MM: f64 = 4.0;
 
 /// The ladder: the reference and every one-knob rung.
 #[derive(Debug, Clone)]
@@ -136,31 +151,20 @@ pub struct Ladder {
     pub reference_image: Vec<f32>,
 }
 
-fn scatter_photons(m: &ScatterModel) -> Option<u64> {
-    match m {
-        ScatterModel::None => None,
-        ScatterModel::Estimate { photons, .. } | ScatterModel::MonteCarlo { photons, .. } => {
-            Some(*photons)
-        }
-    }
-}
-
-fn with_photons(m: &ScatterModel, n: u64) -> ScatterModel {
-    let mut m = m.clone();
-    if let ScatterModel::Estimate { photons, .. } | ScatterModel::MonteCarlo { photons, .. } =
-        &mut m
-    {
-        *photons = n.max(1);
-    }
-    m
-}
-
-/// The scene's scatter model as the reference uses it: as given, or the default Monte
-/// Carlo for a scene that asks for the fast estimate.
-fn reference_scatter(scene: &ScatterModel) -> ScatterModel {
+/// The scene's scatter model as the reference uses it: as given (with `photons` when
+/// given), or for a scene that asks for the fast estimate the Monte Carlo with
+/// [`ESTIMATE_REFERENCE_PHOTONS`] (or `photons`) through cells of
+/// [`ESTIMATE_REFERENCE_CELL_MM`].
+fn reference_scatter(scene: &ScatterModel, photons: Option<u64>) -> ScatterModel {
     match scene {
-        ScatterModel::Estimate { .. } => ScatterModel::monte_carlo_default(),
-        other => other.clone(),
+        ScatterModel::None => ScatterModel::None,
+        ScatterModel::Estimate { .. } => ScatterModel::monte_carlo_default()
+            .with_photons(photons.unwrap_or(ESTIMATE_REFERENCE_PHOTONS))
+            .with_detection_cell_mm(ESTIMATE_REFERENCE_CELL_MM),
+        ScatterModel::MonteCarlo { .. } => {
+            let own = scene.photons().unwrap_or(1);
+            scene.clone().with_photons(photons.unwrap_or(own))
+        }
     }
 }
 
@@ -255,14 +259,17 @@ fn projector_label(p: Projector) -> String {
     }
 }
 
-/// The reference setting for `chain`.
-pub fn reference(chain: Chain) -> Setting {
+/// The reference setting for `chain` (`scatter_photons`: the reference Monte Carlo's
+/// histories, see [`Options::scatter_reference_photons`]).
+pub fn reference(chain: Chain, scatter_photons: Option<u64>) -> Setting {
     Setting {
         projector: Projector::Siddon,
         energy_bins: None,
         scatter: match chain {
             Chain::Ideal { .. } => ScatterModel::None,
-            Chain::Acquisition { acquisition, .. } => reference_scatter(&acquisition.scatter),
+            Chain::Acquisition { acquisition, .. } => {
+                reference_scatter(&acquisition.scatter, scatter_photons)
+            }
         },
         blur: true,
     }
@@ -276,7 +283,13 @@ pub fn ladder(
     options: &Options,
     mut progress: impl FnMut(usize, usize),
 ) -> Result<Ladder> {
-    let base = reference(chain);
+    if options.scatter_reference_photons == Some(0) {
+        return Err(SimError::OutOfRange(
+            "scatter reference photons = 0: give the reference Monte Carlo's histories (≥ 1)"
+                .into(),
+        ));
+    }
+    let base = reference(chain, options.scatter_reference_photons);
     // Rungs of the primary-chain knobs go without scatter.
     let primary = Setting {
         scatter: ScatterModel::None,
@@ -325,7 +338,8 @@ pub fn ladder(
             ));
         }
         let scene = &acquisition.scatter;
-        if let Some(n) = scatter_photons(&base.scatter) {
+        if let Some(n) = base.scatter.photons() {
+            let own_cell = base.scatter.detection_cell_mm();
             for &f in &options.scatter_fractions {
                 if !(f > 0.0 && f < 1.0) {
                     return Err(SimError::OutOfRange(format!(
@@ -337,7 +351,25 @@ pub fn ladder(
                     Knob::Scatter,
                     format!("scatter Monte Carlo, {k} photons"),
                     Setting {
-                        scatter: with_photons(&base.scatter, k),
+                        scatter: base.scatter.clone().with_photons(k),
+                        ..base.clone()
+                    },
+                ));
+            }
+            for &c in &options.scatter_cells {
+                if !(c.is_finite() && c > 0.0) {
+                    return Err(SimError::OutOfRange(format!(
+                        "scatter detection cell {c} mm: give cell sizes > 0"
+                    )));
+                }
+                if own_cell > 0.0 && c <= own_cell {
+                    continue;
+                }
+                plan.push((
+                    Knob::ScatterCells,
+                    format!("scatter forced detection through {c} mm cells"),
+                    Setting {
+                        scatter: base.scatter.clone().with_detection_cell_mm(c),
                         ..base.clone()
                     },
                 ));
@@ -349,8 +381,9 @@ pub fn ladder(
             plan.push((
                 Knob::Scatter,
                 format!(
-                    "scatter estimate, {} photons",
-                    scatter_photons(&estimate).unwrap_or(0)
+                    "scatter estimate, {} photons{}",
+                    estimate.photons().unwrap_or(0),
+                    cells_label(estimate.detection_cell_mm())
                 ),
                 Setting {
                     scatter: estimate,
@@ -408,10 +441,22 @@ pub fn ladder(
 
 fn reference_label(s: &Setting) -> String {
     let mut l = format!("reference: {}", projector_label(s.projector));
-    if let Some(n) = scatter_photons(&s.scatter) {
-        l.push_str(&format!(", scatter Monte Carlo, {n} photons"));
+    if let Some(n) = s.scatter.photons() {
+        l.push_str(&format!(
+            ", scatter Monte Carlo, {n} photons{}",
+            cells_label(s.scatter.detection_cell_mm())
+        ));
     }
     l
+}
+
+/// `, 8 mm cells` (nothing at full resolution).
+fn cells_label(mm: f64) -> String {
+    if mm > 0.0 {
+        format!(", {mm} mm cells")
+    } else {
+        String::new()
+    }
 }
 
 /// A rung must take less than this fraction of its reference's time to be worth its error:
@@ -423,7 +468,13 @@ pub const SPEED_MARGIN: f64 = 0.9;
 /// add in quadrature) and that is at least 10 % faster than its reference
 /// ([`SPEED_MARGIN`]); the reference's setting for a knob with no such rung.
 pub fn combine(ladder: &Ladder, budget: f64) -> Setting {
-    let knobs = [Knob::Projector, Knob::EnergyBins, Knob::Scatter, Knob::Blur];
+    let knobs = [
+        Knob::Projector,
+        Knob::EnergyBins,
+        Knob::Scatter,
+        Knob::ScatterCells,
+        Knob::Blur,
+    ];
     let present: Vec<Knob> = knobs
         .into_iter()
         .filter(|k| ladder.rungs.iter().any(|r| r.knob == *k))
@@ -442,7 +493,20 @@ pub fn combine(ladder: &Ladder, budget: f64) -> Setting {
             match k {
                 Knob::Projector => s.projector = r.setting.projector,
                 Knob::EnergyBins => s.energy_bins = r.setting.energy_bins,
-                Knob::Scatter => s.scatter = r.setting.scatter.clone(),
+                Knob::Scatter => {
+                    // Keep a coarser detection grid chosen by its own knob.
+                    let cell = s.scatter.detection_cell_mm();
+                    s.scatter = r.setting.scatter.clone();
+                    if matches!(s.scatter, ScatterModel::MonteCarlo { .. }) {
+                        s.scatter = s.scatter.clone().with_detection_cell_mm(cell);
+                    }
+                }
+                Knob::ScatterCells => {
+                    let cell = r.setting.scatter.detection_cell_mm();
+                    if matches!(s.scatter, ScatterModel::MonteCarlo { .. }) {
+                        s.scatter = s.scatter.clone().with_detection_cell_mm(cell);
+                    }
+                }
                 Knob::Blur => s.blur = r.setting.blur,
                 Knob::Reference => {}
             }
@@ -462,12 +526,22 @@ pub fn describe(s: &Setting, physics: bool) -> String {
     }
     match &s.scatter {
         ScatterModel::None => {}
-        ScatterModel::Estimate { photons, .. } => {
-            parts.push(format!("scatter estimate {photons} photons"))
-        }
-        ScatterModel::MonteCarlo { photons, .. } => {
-            parts.push(format!("scatter Monte Carlo {photons} photons"))
-        }
+        ScatterModel::Estimate {
+            photons,
+            detection_cell_mm,
+            ..
+        } => parts.push(format!(
+            "scatter estimate {photons} photons{}",
+            cells_label(*detection_cell_mm)
+        )),
+        ScatterModel::MonteCarlo {
+            photons,
+            detection_cell_mm,
+            ..
+        } => parts.push(format!(
+            "scatter Monte Carlo {photons} photons{}",
+            cells_label(*detection_cell_mm)
+        )),
     }
     if !s.blur {
         parts.push("no blur".into());

@@ -221,6 +221,7 @@ fn titanium_slab_in_air_through_the_acquisition() {
             photons: 100,
             grid: 4,
             smoothing: 1.0,
+            detection_cell_mm: 0.0,
         },
         ..acq.clone()
     };

@@ -399,6 +399,7 @@ fn bad_settings_are_named() {
         photons,
         grid,
         max_order,
+        detection_cell_mm: 0.0,
     };
     assert!(err(mc(0, 16, 5)).contains("photons"));
     assert!(err(mc(10, 0, 5)).contains("grid"));
@@ -407,6 +408,7 @@ fn bad_settings_are_named() {
         photons: 10,
         grid: 4,
         smoothing: f64::NAN,
+        detection_cell_mm: 0.0,
     };
     assert!(err(est).contains("smoothing"));
     let bad: Result<ScatterModel, _> = toml::from_str("model = \"monte-karlo\"");

@@ -18,6 +18,7 @@
 //! order, so the bytes do not depend on the thread count.
 
 use super::anti_scatter_grid::{AntiScatterGrid, GridTransmission};
+use super::detection_grid::DetectionGrid;
 use super::estimate::smooth;
 use super::estimator::{Component, Response, ScoreGrid, Tally, score, to_image};
 use super::transport::{E_CUTOFF_KEV, Medium};
@@ -30,11 +31,15 @@ use crate::seed::frame_seed;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
+use std::sync::{Arc, Mutex};
 
 /// Photon histories per batch (one random stream each).
 pub const BATCH: u64 = 256;
 /// Russian roulette threshold, as a fraction of the starting weight.
 const ROULETTE: f64 = 0.05;
+
+/// Detection grids by cell size (the size's bits).
+type DetectionGrids = Vec<(u64, Arc<DetectionGrid>)>;
 
 /// A medium, a beam and a detector response, ready to simulate views.
 #[derive(Debug, Clone)]
@@ -47,6 +52,9 @@ pub struct ScatterEngine {
     mas: f64,
     /// The anti-scatter grid every scored photon crosses, if any.
     anti_scatter: Option<GridTransmission>,
+    /// Detection grids made so far, by cell size (mm, as bits): made once per volume and
+    /// shared by every view that asks for the same size.
+    detection: Arc<Mutex<DetectionGrids>>,
 }
 
 /// Scatter images of one view: expected detector signal, same layout and units as the
@@ -132,6 +140,7 @@ impl ScatterEngine {
             cdf,
             mas,
             anti_scatter: None,
+            detection: Arc::default(),
         })
     }
 
@@ -155,6 +164,21 @@ impl ScatterEngine {
         &self.medium
     }
 
+    /// The detection grid of cells of about `cell_mm` (`None` for 0: full resolution),
+    /// made on first use and kept for later views.
+    pub fn detection_grid(&self, cell_mm: f64) -> Result<Option<Arc<DetectionGrid>>> {
+        if cell_mm == 0.0 {
+            return Ok(None);
+        }
+        let mut made = self.detection.lock().unwrap_or_else(|e| e.into_inner());
+        if let Some((_, g)) = made.iter().find(|(k, _)| *k == cell_mm.to_bits()) {
+            return Ok(Some(g.clone()));
+        }
+        let g = Arc::new(DetectionGrid::new(self.medium.composition(), cell_mm)?);
+        made.push((cell_mm.to_bits(), g.clone()));
+        Ok(Some(g))
+    }
+
     /// Scatter images of `view` as `model` asks (`None` for [`ScatterModel::None`]).
     pub fn run(
         &self,
@@ -163,28 +187,39 @@ impl ScatterEngine {
         seed: u64,
     ) -> Result<Option<ScatterImages>> {
         model.validate()?;
-        match *model {
-            ScatterModel::None => Ok(None),
+        let (photons, grid, max_order, smoothing, cell_mm) = match *model {
+            ScatterModel::None => return Ok(None),
             ScatterModel::Estimate {
                 photons,
                 grid,
                 smoothing,
-            } => self
-                .simulate(view, view, photons, grid, 50, smoothing, seed)
-                .map(Some),
+                detection_cell_mm,
+            } => (photons, grid, 50, smoothing, detection_cell_mm),
             ScatterModel::MonteCarlo {
                 photons,
                 grid,
                 max_order,
-            } => self
-                .simulate(view, view, photons, grid, max_order, 0.0, seed)
-                .map(Some),
-        }
+                detection_cell_mm,
+            } => (photons, grid, max_order, 0.0, detection_cell_mm),
+        };
+        let detection = self.detection_grid(cell_mm)?;
+        self.simulate_through(
+            view,
+            view,
+            photons,
+            grid,
+            max_order,
+            smoothing,
+            detection.as_deref(),
+            seed,
+        )
+        .map(Some)
     }
 
     /// The Monte Carlo: `photons` histories aimed over `aim`'s pixels, scored on a grid of
     /// at most `grid` × `grid` points of `view` (then interpolated to its pixels), at most
     /// `max_order` scatters each; the grid smoothed by σ = `smoothing` cells (0: none).
+    /// Forced detection traces through the full-resolution composition.
     #[allow(clippy::too_many_arguments)]
     pub fn simulate(
         &self,
@@ -194,6 +229,23 @@ impl ScatterEngine {
         grid: usize,
         max_order: u32,
         smoothing: f64,
+        seed: u64,
+    ) -> Result<ScatterImages> {
+        self.simulate_through(aim, view, photons, grid, max_order, smoothing, None, seed)
+    }
+
+    /// [`ScatterEngine::simulate`] with forced detection traced through `detection`
+    /// (`None`: the full-resolution composition).
+    #[allow(clippy::too_many_arguments)]
+    pub fn simulate_through(
+        &self,
+        aim: &View,
+        view: &View,
+        photons: u64,
+        grid: usize,
+        max_order: u32,
+        smoothing: f64,
+        detection: Option<&DetectionGrid>,
         seed: u64,
     ) -> Result<ScatterImages> {
         aim.validate()?;
@@ -251,6 +303,7 @@ impl ScatterEngine {
                         w0,
                         max_order,
                         &sgrid,
+                        detection,
                         &mut tally,
                         &mut rng,
                     );
@@ -315,6 +368,7 @@ impl ScatterEngine {
         w0: f64,
         max_order: u32,
         grid: &ScoreGrid,
+        detection: Option<&DetectionGrid>,
         tally: &mut Tally,
         rng: &mut R,
     ) {
@@ -326,6 +380,7 @@ impl ScatterEngine {
             };
             score(
                 &self.medium,
+                detection,
                 grid,
                 &self.response,
                 self.anti_scatter.as_ref(),

@@ -12,6 +12,7 @@
 //! for a patient separated from the panel.
 
 use super::anti_scatter_grid::{GridTransmission, focus_slope};
+use super::detection_grid::DetectionGrid;
 use super::transport::{Collision, Medium};
 use crate::detector::ExpectedImage;
 use crate::geometry::{View, ViewBeam};
@@ -199,10 +200,12 @@ impl Tally {
 
 /// Scores the expected detector signal of the scatter at collision `c` (photon weight
 /// `weight`, `order` scatters so far, travelling along `dir`) into `tally`, through the
-/// anti-scatter grid `anti` when there is one.
+/// anti-scatter grid `anti` when there is one; the paths to the points traced through
+/// `detection` (`None`: the medium's full-resolution composition).
 #[allow(clippy::too_many_arguments)]
 pub fn score(
     medium: &Medium,
+    detection: Option<&DetectionGrid>,
     grid: &ScoreGrid,
     response: &Response,
     anti: Option<&GridTransmission>,
@@ -228,7 +231,10 @@ pub fn score(
         let w = to / dist;
         let solid = grid.area * w.dot(grid.normal).abs() / d2;
         let mu = dir.dot(w).clamp(-1.0, 1.0);
-        let paths = medium.paths(c.position, q);
+        let paths = match detection {
+            Some(g) => g.paths(c.position, q),
+            None => medium.paths(c.position, q),
+        };
         let (pc, ec) = medium.compton_towards(c, &norms, mu);
         let vc = weight * c.p_compton * pc * solid * medium.transmission(&paths, ec);
         let pr = medium.rayleigh_towards(c, &norms, mu);

@@ -23,6 +23,7 @@
 
 pub mod anti_scatter_grid;
 pub mod cross_sections;
+pub mod detection_grid;
 pub mod dose;
 pub mod energy_imparted;
 pub mod engine;
@@ -61,6 +62,10 @@ pub enum ScatterModel {
         /// Gaussian smoothing of the coarse grid, σ in grid cells (default 1).
         #[serde(default = "default_smoothing")]
         smoothing: f64,
+        /// Forced detection's paths traced through cells of about this size (mm), the
+        /// volume's voxels merged ([`detection_grid`]); 0: the full resolution.
+        #[serde(default = "default_estimate_cell")]
+        detection_cell_mm: f64,
     },
     /// Full Monte Carlo with forced detection.
     #[serde(rename_all = "snake_case")]
@@ -74,6 +79,11 @@ pub enum ScatterModel {
         /// Most scatters followed per history (default 50).
         #[serde(default = "default_max_order")]
         max_order: u32,
+        /// Forced detection's paths traced through cells of about this size (mm), the
+        /// volume's voxels merged ([`detection_grid`]); 0 (the default): the full
+        /// resolution.
+        #[serde(default)]
+        detection_cell_mm: f64,
     },
 }
 
@@ -85,6 +95,9 @@ fn default_estimate_grid() -> usize {
 }
 fn default_smoothing() -> f64 {
     1.0
+}
+fn default_estimate_cell() -> f64 {
+    0.0
 }
 fn default_photons() -> u64 {
     100_000
@@ -100,6 +113,8 @@ fn default_max_order() -> u32 {
 pub const MAX_PHOTONS: u64 = 1_000_000_000;
 /// Most scoring points per side.
 pub const MAX_GRID: usize = 512;
+/// Largest cell of the detection grid, mm.
+pub const MAX_DETECTION_CELL_MM: f64 = 100.0;
 
 impl ScatterModel {
     /// The full Monte Carlo with its default settings (100 000 photons, 16² scoring
@@ -109,6 +124,7 @@ impl ScatterModel {
             photons: default_photons(),
             grid: default_grid(),
             max_order: default_max_order(),
+            detection_cell_mm: 0.0,
         }
     }
 
@@ -118,37 +134,45 @@ impl ScatterModel {
             photons: default_estimate_photons(),
             grid: default_estimate_grid(),
             smoothing: default_smoothing(),
+            detection_cell_mm: default_estimate_cell(),
         }
     }
 
     /// Checks the settings, naming the bad one.
     pub fn validate(&self) -> Result<()> {
         let bad = |m: String| Err(SimError::OutOfRange(format!("[scatter] {m}")));
-        let (photons, grid) = match *self {
+        let (photons, grid, cell) = match *self {
             ScatterModel::None => return Ok(()),
             ScatterModel::Estimate {
                 photons,
                 grid,
                 smoothing,
+                detection_cell_mm,
             } => {
                 if !(smoothing.is_finite() && (0.0..=100.0).contains(&smoothing)) {
                     return bad(format!(
                         "smoothing = {smoothing}; give a σ in grid cells in 0–100"
                     ));
                 }
-                (photons, grid)
+                (photons, grid, detection_cell_mm)
             }
             ScatterModel::MonteCarlo {
                 photons,
                 grid,
                 max_order,
+                detection_cell_mm,
             } => {
                 if max_order == 0 {
                     return bad("max_order = 0; give ≥ 1 (1: single scatter only)".into());
                 }
-                (photons, grid)
+                (photons, grid, detection_cell_mm)
             }
         };
+        if !(cell.is_finite() && (0.0..=MAX_DETECTION_CELL_MM).contains(&cell)) {
+            return bad(format!(
+                "detection_cell_mm = {cell}; give a cell size in 0–{MAX_DETECTION_CELL_MM} mm (0: full resolution)"
+            ));
+        }
         if !(1..=MAX_PHOTONS).contains(&photons) {
             return bad(format!("photons = {photons}; give 1 to {MAX_PHOTONS}"));
         }
@@ -163,5 +187,52 @@ impl ScatterModel {
     /// Whether scatter is modelled at all.
     pub fn is_none(&self) -> bool {
         matches!(self, ScatterModel::None)
+    }
+
+    /// Photon histories per view (`None` without scatter).
+    pub fn photons(&self) -> Option<u64> {
+        match self {
+            ScatterModel::None => None,
+            ScatterModel::Estimate { photons, .. } | ScatterModel::MonteCarlo { photons, .. } => {
+                Some(*photons)
+            }
+        }
+    }
+
+    /// The same model with `n` photon histories (no change without scatter).
+    pub fn with_photons(mut self, n: u64) -> Self {
+        if let ScatterModel::Estimate { photons, .. } | ScatterModel::MonteCarlo { photons, .. } =
+            &mut self
+        {
+            *photons = n;
+        }
+        self
+    }
+
+    /// Forced detection's cell size, mm (0: full resolution, and without scatter).
+    pub fn detection_cell_mm(&self) -> f64 {
+        match self {
+            ScatterModel::None => 0.0,
+            ScatterModel::Estimate {
+                detection_cell_mm, ..
+            }
+            | ScatterModel::MonteCarlo {
+                detection_cell_mm, ..
+            } => *detection_cell_mm,
+        }
+    }
+
+    /// The same model with forced detection through cells of `mm` (0: full resolution).
+    pub fn with_detection_cell_mm(mut self, mm: f64) -> Self {
+        if let ScatterModel::Estimate {
+            detection_cell_mm, ..
+        }
+        | ScatterModel::MonteCarlo {
+            detection_cell_mm, ..
+        } = &mut self
+        {
+            *detection_cell_mm = mm;
+        }
+        self
     }
 }

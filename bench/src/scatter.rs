@@ -1,0 +1,350 @@
+//! `tomograf bench --scatter CT`: the scatter engine's speed against its error on a real CT
+//! (docs/scatter.md, "Scatter at data-set speed").
+//!
+//! One view (the AP view of a 72-view orbit, 256² pixels, preset `kv-flat-panel-120kvp`,
+//! noise off) is scattered under a ladder of settings: the full-resolution Monte Carlo as
+//! the engine had it (the baseline of the speed ratios), the same with forced detection
+//! traced through coarse cells ([`tomograf_sim::scatter::detection_grid`]), and the fast
+//! estimate. Each is compared with a converged full-resolution Monte Carlo (the reference,
+//! `reference_photons` histories; cached in a file when asked, as it takes minutes):
+//! * `total rms` = RMS(a − r)/RMS(r) of primary + scatter, the error `tomograf tradeoff`
+//!   reports (what the image a data set stores is off by);
+//! * `scatter rms` the same of the scatter image alone.
+//!
+//! Both include the reference's own noise. Times are wall seconds of the scatter alone on
+//! all threads (the primary, the same for every row, is given once), median of `rounds`
+//! runs taken in turn (A, B, C, A, B, C), after the per-CT set-up, which is timed on its
+//! own. Then the orbit: every view of the 72 with the chosen settings, from a fresh engine,
+//! the set-up included, and the time per view.
+
+use anyhow::{Context, Result, bail};
+use std::fmt::Write as _;
+use std::path::Path;
+use std::time::Instant;
+use tomograf_datasets::image::{read_npy, write_npy};
+use tomograf_scene::Scene;
+use tomograf_scene::job::resolve;
+use tomograf_scene::physics::acquisition;
+use tomograf_scene::volume::load_hu;
+use tomograf_sim::acquisition::Acquisition;
+use tomograf_sim::scatter::{ScatterEngine, ScatterModel};
+use tomograf_sim::{Projector, View, Volume};
+
+/// What to measure.
+#[derive(Debug, Clone)]
+pub struct ScatterOptions {
+    /// Small sizes only (64² pixels, 4 views, few photons): a smoke test.
+    pub quick: bool,
+    /// Runs of each setting, taken in turn (median).
+    pub rounds: usize,
+    /// Histories of the full-resolution reference (≥ 4·10⁵ for a converged one).
+    pub reference_photons: u64,
+    /// Reads the reference scatter image from here when it was made with the same CT,
+    /// photons and view; writes it here otherwise.
+    pub reference_cache: Option<std::path::PathBuf>,
+}
+
+/// The rungs' seed (every rung draws the same histories, so a rung with detection cells
+/// differs from the same rung at full resolution by the cells' bias alone).
+const SEED: u64 = 0x5ca7;
+/// The reference's seed.
+const REFERENCE_SEED: u64 = 0x7e7e_7e7e;
+
+/// One rung of the ladder.
+struct Rung {
+    label: String,
+    model: ScatterModel,
+}
+
+fn mc(photons: u64, cell: f64) -> ScatterModel {
+    ScatterModel::MonteCarlo {
+        photons,
+        grid: 16,
+        max_order: 50,
+        detection_cell_mm: cell,
+    }
+}
+
+fn estimate(photons: u64, grid: usize, cell: f64) -> ScatterModel {
+    ScatterModel::Estimate {
+        photons,
+        grid,
+        smoothing: 1.0,
+        detection_cell_mm: cell,
+    }
+}
+
+fn label(m: &ScatterModel) -> String {
+    let cell = |c: f64| {
+        if c == 0.0 {
+            "full resolution".to_string()
+        } else {
+            format!("{c} mm cells")
+        }
+    };
+    match m {
+        ScatterModel::MonteCarlo {
+            photons,
+            grid,
+            detection_cell_mm,
+            ..
+        } => format!(
+            "Monte Carlo, {photons} histories, {grid}² points, {}",
+            cell(*detection_cell_mm)
+        ),
+        ScatterModel::Estimate {
+            photons,
+            grid,
+            detection_cell_mm,
+            ..
+        } => format!(
+            "estimate, {photons} histories, {grid}² points, {}",
+            cell(*detection_cell_mm)
+        ),
+        ScatterModel::None => "none".into(),
+    }
+}
+
+/// Channel 0 of the total scatter of `view` under `model`, and the wall seconds it took.
+fn scatter(
+    engine: &ScatterEngine,
+    model: &ScatterModel,
+    view: &View,
+    seed: u64,
+) -> Result<(Vec<f64>, f64)> {
+    let t = Instant::now();
+    let s = engine
+        .run(model, view, seed)?
+        .context("the model scatters nothing")?;
+    let secs = t.elapsed().as_secs_f64();
+    let total = s.total();
+    Ok((total.mean[..total.rows * total.cols].to_vec(), secs))
+}
+
+/// RMS(a − r)/RMS(r).
+fn rms(a: &[f64], r: &[f64]) -> f64 {
+    let d: f64 = a.iter().zip(r).map(|(x, y)| (x - y) * (x - y)).sum();
+    let n: f64 = r.iter().map(|y| y * y).sum();
+    (d / n).sqrt()
+}
+
+/// The scene: the CT, the preset, a 256² panel, 72 views every 5° (quick: 64², 4 views).
+fn scene(ct: &Path, quick: bool) -> Result<Scene> {
+    let (px, arc) = if quick {
+        (64, "0:90:4")
+    } else {
+        (256, "0:5:72")
+    };
+    let text = format!(
+        "[volume]\npath = {:?}\n[acquisition]\npreset = \"kv-flat-panel-120kvp\"\n\
+         [detector]\nrows = {px}\ncols = {px}\npitch_mm = [{p}, {p}]\n[views]\narc = \"{arc}\"\n",
+        ct.display().to_string(),
+        p = 430.0 / px as f64,
+    );
+    Ok(toml::from_str(&text)?)
+}
+
+fn load_reference(cache: &Path, key: &str, n: usize) -> Option<Vec<f64>> {
+    let stored = std::fs::read_to_string(cache.with_extension("txt")).ok()?;
+    if stored.trim() != key {
+        return None;
+    }
+    let (data, _) = read_npy(cache).ok()?;
+    (data.len() == n).then(|| data.into_iter().map(f64::from).collect())
+}
+
+/// The markdown section.
+pub fn section(ct: &Path, o: &ScatterOptions) -> Result<String> {
+    if o.reference_photons == 0 {
+        bail!("--reference-photons 0: give the reference's histories (≥ 400000 to converge)");
+    }
+    let scene = scene(ct, o.quick)?;
+    let (mut acq, seed) = acquisition(&scene)?.context("the scene has no physics")?;
+    acq.detector.quantum_noise = false;
+    acq.detector.readout.electronic_noise_adu = 0.0;
+    let (hu, _) = load_hu(&scene, acq.materials.calibration_kev)?;
+    let job = resolve(&scene, &hu)?;
+    let views = job.views;
+    let view = &views[0];
+    let n = view.rows * view.cols;
+
+    let mut md = String::new();
+    let t = Instant::now();
+    let (prepared, engine) = prepare(&acq, &hu, seed)?;
+    let setup = t.elapsed().as_secs_f64();
+    let t = Instant::now();
+    let primary = prepared.primary(Projector::Siddon, view)?.mean[..n].to_vec();
+    let primary_s = t.elapsed().as_secs_f64();
+
+    let key = format!(
+        "ct={} photons={} rows={} cols={} view=0",
+        ct.display(),
+        o.reference_photons,
+        view.rows,
+        view.cols
+    );
+    let (reference, ref_s) = match o
+        .reference_cache
+        .as_deref()
+        .and_then(|c| load_reference(c, &key, n))
+    {
+        Some(r) => (r, None),
+        None => {
+            // Its own random streams: the rungs' histories are not a part of it.
+            let (r, s) = scatter(&engine, &mc(o.reference_photons, 0.0), view, REFERENCE_SEED)?;
+            if let Some(c) = &o.reference_cache {
+                let f: Vec<f32> = r.iter().map(|&v| v as f32).collect();
+                write_npy(c, &f, &[view.rows, view.cols])?;
+                std::fs::write(c.with_extension("txt"), &key)?;
+            }
+            (r, Some(s))
+        }
+    };
+    let ref_total: Vec<f64> = primary.iter().zip(&reference).map(|(p, s)| p + s).collect();
+    let spr = reference.iter().sum::<f64>() / primary.iter().sum::<f64>();
+
+    let q = |full: u64| if o.quick { (full / 20).max(64) } else { full };
+    let rungs: Vec<Rung> = [
+        mc(q(6_250), 0.0),
+        mc(q(6_250), 4.0),
+        mc(q(6_250), 8.0),
+        mc(q(6_250), 16.0),
+        mc(q(1_500), 8.0),
+        mc(q(1_500), 16.0),
+        estimate(q(5_000), 8, 0.0),
+        estimate(q(5_000), 8, 8.0),
+        estimate(q(2_000), 8, 8.0),
+        estimate(q(2_000), 16, 8.0),
+        estimate(q(1_000), 16, 8.0),
+    ]
+    .into_iter()
+    .map(|model| Rung {
+        label: label(&model),
+        model,
+    })
+    .collect();
+    // Detection grids are made once per CT: make them before timing, and time that alone.
+    let mut grid_s = Vec::new();
+    for cell in [4.0, 8.0, 16.0] {
+        let t = Instant::now();
+        let g = engine.detection_grid(cell)?.context("a cell size > 0")?;
+        grid_s.push((cell, g.dims(), t.elapsed().as_secs_f64()));
+    }
+    let mut times = vec![Vec::new(); rungs.len()];
+    let mut images = vec![Vec::new(); rungs.len()];
+    for _ in 0..o.rounds.max(1) {
+        for (i, r) in rungs.iter().enumerate() {
+            let (img, s) = scatter(&engine, &r.model, view, SEED)?;
+            times[i].push(s);
+            images[i] = img;
+        }
+    }
+    let median = |t: &mut Vec<f64>| {
+        t.sort_by(f64::total_cmp);
+        t[t.len() / 2]
+    };
+    let base = median(&mut times[0].clone());
+
+    writeln!(
+        md,
+        "CT `{}` ({}×{}×{} voxels of {:.2}×{:.2}×{:.2} mm), view 0 (AP) of {} ({}×{} pixels), \
+         preset `kv-flat-panel-120kvp`, noise off, {} threads, {}. Whole-panel scatter-to-primary \
+         ratio {spr:.3}.\n",
+        ct.display(),
+        hu.dims()[0],
+        hu.dims()[1],
+        hu.dims()[2],
+        hu.spacing().x,
+        hu.spacing().y,
+        hu.spacing().z,
+        views.len(),
+        view.rows,
+        view.cols,
+        rayon::current_num_threads(),
+        crate::cpu_model()
+    )?;
+    writeln!(
+        md,
+        "Per-CT set-up (materials, tables, majorants) {setup:.2} s; the primary {primary_s:.3} s; \
+         detection grids {}. Reference: full-resolution Monte Carlo, {} histories, 16² points{}.\n",
+        grid_s
+            .iter()
+            .map(|(c, d, s)| format!("{c} mm → {}×{}×{} cells in {s:.2} s", d[0], d[1], d[2]))
+            .collect::<Vec<_>>()
+            .join(", "),
+        o.reference_photons,
+        match ref_s {
+            Some(s) => format!(" ({s:.0} s)"),
+            None => " (read from the cache)".into(),
+        }
+    )?;
+    writeln!(
+        md,
+        "| setting | scatter s | × vs first row | total rms | scatter rms | cells' bias |\n\
+         |---|---:|---:|---:|---:|---:|"
+    )?;
+    for (i, r) in rungs.iter().enumerate() {
+        let s = median(&mut times[i]);
+        let total: Vec<f64> = primary.iter().zip(&images[i]).map(|(p, s)| p + s).collect();
+        // The same rung at full resolution (same histories): the difference is the cells'.
+        let at_full = r.model.clone().with_detection_cell_mm(0.0);
+        let full = rungs
+            .iter()
+            .position(|f| f.model == at_full && f.model != r.model);
+        writeln!(
+            md,
+            "| {} | {s:.2} | {:.1}× | {:.2} % | {:.2} % | {} |",
+            r.label,
+            base / s,
+            100.0 * rms(&total, &ref_total),
+            100.0 * rms(&images[i], &reference),
+            full.map_or("".into(), |f| format!(
+                "{:.2} %",
+                100.0 * rms(&images[i], &images[f])
+            )),
+        )?;
+    }
+    writeln!(
+        md,
+        "\n`total rms`: of primary + scatter against the reference's (what `tomograf tradeoff` \
+         reports); `scatter rms`: of the scatter image alone; both include the reference's own \
+         noise. `cells' bias`: the scatter image against the same histories traced at full \
+         resolution (no noise in it: the histories are the same)."
+    )?;
+
+    // The orbit, from a fresh engine: set-up and detection grid included.
+    for model in [mc(q(1_500), 8.0), ScatterModel::estimate_default()] {
+        let t = Instant::now();
+        let (_, engine) = prepare(&acq, &hu, seed)?;
+        let mut first = 0.0;
+        for (k, v) in views.iter().enumerate() {
+            let (img, _) = scatter(&engine, &model, v, SEED + k as u64)?;
+            if k == 0 {
+                first = rms(&img, &reference);
+            }
+        }
+        let s = t.elapsed().as_secs_f64();
+        writeln!(
+            md,
+            "\nOrbit of {} views, {}: {s:.1} s with the set-up, **{:.2} s per view** (view 0's \
+             scatter rms {:.2} %).",
+            views.len(),
+            label(&model),
+            s / views.len() as f64,
+            100.0 * first
+        )?;
+    }
+    Ok(md)
+}
+
+fn prepare(
+    acq: &Acquisition,
+    hu: &Volume,
+    seed: u64,
+) -> Result<(tomograf_sim::acquisition::Prepared, ScatterEngine)> {
+    let mut a = acq.clone();
+    a.scatter = mc(1, 0.0);
+    let p = a.prepare(hu, seed)?;
+    let engine = p.scatter_engine().context("scatter is modelled")?.clone();
+    Ok((p, engine))
+}
