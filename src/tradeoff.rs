@@ -30,10 +30,10 @@ pub struct TradeoffArgs {
     pub scatter_fractions: Vec<f64>,
     /// Cell sizes (mm) to try for the scatter's forced detection (scatter scenes only;
     /// those coarser than the reference's own).
-    #[arg(long, value_delimiter = ',', default_values_t = vec![8.0, 16.0])]
+    #[arg(long, value_delimiter = ',', default_values_t = vec![16.0])]
     pub scatter_cells: Vec<f64>,
     /// Histories of the reference's scatter Monte Carlo, which bounds its cost (default:
-    /// the scene's own for a Monte Carlo scene; 20000 through 4 mm cells for a scene that
+    /// the scene's own for a Monte Carlo scene; 10000 through 8 mm cells for a scene that
     /// asks for the estimate).
     #[arg(long)]
     pub scatter_reference_photons: Option<u64>,

@@ -162,3 +162,65 @@ fn bad_scatter_sections_are_named() {
     let e = fails(MC, "[scatter.anti_scatter_grid]\nratio = 8\n");
     assert!(e.contains("lines_per_cm"), "{e}");
 }
+
+/// `tomograf bench --scatter CT --quick`: the speed ladder on a small CT file, with its
+/// reference cached and reused; every row scored, the cells' bias given for the rows
+/// through cells, the orbit timed.
+#[test]
+fn the_scatter_bench_runs_on_a_ct_and_reuses_its_reference() {
+    let dir = tempfile::tempdir().unwrap();
+    let ct = dir.path().join("ct.nii.gz");
+    ok(&tomograf(&[
+        "phantom",
+        "-o",
+        ct.to_str().unwrap(),
+        "--dims",
+        "48,40,24",
+        "--spacing",
+        "7,7,10",
+    ]));
+    let cache = dir.path().join("ref.npy");
+    let page = dir.path().join("speed.md");
+    let run = || {
+        ok(&tomograf(&[
+            "bench",
+            "--scatter",
+            ct.to_str().unwrap(),
+            "--quick",
+            "--reference-photons",
+            "512",
+            "--rounds",
+            "1",
+            "--reference-cache",
+            cache.to_str().unwrap(),
+            "--out",
+            page.to_str().unwrap(),
+        ]));
+        std::fs::read_to_string(&page).unwrap()
+    };
+    let first = run();
+    assert!(first.contains("512 histories, 16² points ("), "{first}");
+    let rows: Vec<&str> = first
+        .lines()
+        .filter(|l| l.starts_with("| Monte Carlo") || l.starts_with("| estimate"))
+        .collect();
+    assert_eq!(rows.len(), 11, "{first}");
+    for r in &rows {
+        let cells: Vec<&str> = r.split('|').map(str::trim).collect();
+        // setting | s | × | line-integral | scatter | bias
+        for c in &cells[2..6] {
+            let v: f64 = c.trim_end_matches(['%', '×', ' ']).parse().unwrap();
+            assert!(v.is_finite() && v >= 0.0, "{r}");
+        }
+    }
+    // The bias is given where the same rung at full resolution is on the ladder: the
+    // Monte Carlo through 4, 8 and 16 mm cells and the old estimate through 8 mm.
+    let with_bias = rows
+        .iter()
+        .filter(|r| !r.split('|').map(str::trim).nth(6).unwrap_or("").is_empty())
+        .count();
+    assert_eq!(with_bias, 4, "{first}");
+    assert_eq!(first.matches("Orbit of 4 views").count(), 2, "{first}");
+    let second = run();
+    assert!(second.contains("(read from the cache)"), "{second}");
+}

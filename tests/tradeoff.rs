@@ -153,7 +153,7 @@ fn scatter_rungs_are_measured_against_the_full_reference() {
     let (r2000, _) = row(&csv, "scatter Monte Carlo, 2000 photons");
     let (r500, _) = row(&csv, "scatter Monte Carlo, 500 photons");
     assert!(!csv.contains("1000 photons"), "{csv}");
-    let (est, _) = row(&csv, "scatter estimate, 5000 photons");
+    let (est, _) = row(&csv, "scatter estimate, 2000 photons, 8 mm cells");
     // Fewer histories, more Monte Carlo noise against the same 4000-history reference.
     assert!(r500 > r2000 && r2000 > 0.0, "500: {r500}, 2000: {r2000}");
     assert!(est > 0.0);
@@ -182,9 +182,9 @@ fn the_scatter_reference_is_bounded_and_detection_cells_are_a_knob() {
         ],
     );
     // An estimate scene's reference: the Monte Carlo with the photons asked for, through
-    // 4 mm cells; cells no coarser than the reference's are not tried.
+    // 8 mm cells; cells no coarser than the reference's are not tried.
     assert!(
-        csv.contains("scatter Monte Carlo, 3000 photons, 4 mm cells"),
+        csv.contains("scatter Monte Carlo, 3000 photons, 8 mm cells"),
         "{csv}"
     );
     assert!(!csv.contains("through 2 mm cells"), "{csv}");
