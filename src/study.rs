@@ -34,7 +34,7 @@ pub struct ShiftArgs {
     #[command(flatten)]
     pub common: CommonArgs,
     /// Test sets to include (default: all): lidc, full-chest, table, pacemaker,
-    /// paper-in-house, kvp-80, low-mas, and user-ct with --test-ct.
+    /// paper-in-house, kvp-80, low-mas, starved, and user-ct with --test-ct.
     #[arg(long, value_delimiter = ',')]
     pub shifts: Vec<String>,
 }
@@ -51,7 +51,9 @@ pub struct CommonArgs {
     /// Seed of the phantoms, the detector noise, training and inference.
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
-    /// Run one stage only: data, train, evaluate or report (default: all, in order).
+    /// Run one stage only: data, train, evaluate or report (default: all, in order); or
+    /// `effects`: measure what each test set does to the projections (the report's first
+    /// table; seconds, no data set made) and print it.
     #[arg(long, default_value = "all")]
     pub stage: String,
     /// Take part I/N (0-based) of the stage's work, for running across machines: data
@@ -86,6 +88,7 @@ enum Stage {
     Train,
     Evaluate,
     Report,
+    Effects,
 }
 
 pub fn run(command: StudyCommand) -> Result<()> {
@@ -147,7 +150,10 @@ pub fn run(command: StudyCommand) -> Result<()> {
         "train" => Stage::Train,
         "evaluate" => Stage::Evaluate,
         "report" => Stage::Report,
-        other => bail!("unknown --stage '{other}': use all, data, train, evaluate or report"),
+        "effects" => Stage::Effects,
+        other => {
+            bail!("unknown --stage '{other}': use all, data, train, evaluate, report or effects")
+        }
     };
     let shard = common
         .shard
@@ -167,7 +173,7 @@ pub fn run(command: StudyCommand) -> Result<()> {
     if common.partial && stage != Stage::Report {
         bail!("--partial is for --stage report (an interim report while shards still run)");
     }
-    if shard.1 > 1 && matches!(stage, Stage::All | Stage::Report) {
+    if shard.1 > 1 && matches!(stage, Stage::All | Stage::Report | Stage::Effects) {
         bail!(
             "--shard splits one stage: give --stage data, train or evaluate (each after the \
              previous one has finished on every shard), then --stage report once"
@@ -200,6 +206,10 @@ pub fn run(command: StudyCommand) -> Result<()> {
     }
     if all || stage == Stage::Evaluate {
         study.evaluate(shard, &bar)?;
+    }
+    if stage == Stage::Effects {
+        print!("{}", study.effects()?);
+        eprintln!("effects: {}/effects.json", study.dir.display());
     }
     if all || stage == Stage::Report {
         study.report(common.partial)?;

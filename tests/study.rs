@@ -5,7 +5,7 @@
 
 mod common;
 
-use common::{ok, tomograf};
+use common::{ok, read_npy, tomograf};
 use std::path::Path;
 
 fn stderr(out: &std::process::Output) -> String {
@@ -50,9 +50,10 @@ fn check_report(dir: &Path, plots: &[&str], columns: &[&str]) {
     for method in ["| FDK |", "| SART-TV |"] {
         assert_eq!(md.matches(method).count(), 3 * 4, "{method} rows");
     }
+    // The metric tables, the data-set table and the effects table.
     assert_eq!(
         html.matches("<table>").count(),
-        md.matches("\n| views |").count() + 1
+        md.matches("\n| views |").count() + 2
     );
     // Every image the report shows exists.
     for link in md.split("](").skip(1) {
@@ -63,6 +64,86 @@ fn check_report(dir: &Path, plots: &[&str], columns: &[&str]) {
     // Every metric is a number: 16 rows per test set and method set, none NaN.
     let csv = std::fs::read_to_string(dir.join("results.csv")).unwrap();
     assert!(!csv.contains("NaN") && !csv.contains("inf"), "{csv}");
+}
+
+/// The AP and lateral views (the last two) of test items 0 and 1 of a realism level.
+fn ap_lateral(study: &Path, level: &str) -> Vec<f64> {
+    let mut out = Vec::new();
+    for item in ["00000", "00001"] {
+        let (shape, data) =
+            read_npy(&study.join(format!("data/test/{level}/{item}/projections.npy")));
+        let view = (shape[1] * shape[2]) as usize;
+        out.extend(data[data.len() - 2 * view..].iter().map(|x| f64::from(*x)));
+    }
+    out
+}
+
+/// The report's first table (`effects.json`): what each level does to the projections,
+/// recomputed from the data sets the data stage wrote (the effects render the same
+/// views), and each physics where it belongs.
+fn check_effects(study: &Path) {
+    let md = std::fs::read_to_string(study.join("report.md")).unwrap();
+    assert!(
+        md.contains("## What each set does to the projections"),
+        "{md}"
+    );
+    let e: Vec<serde_json::Value> =
+        serde_json::from_slice(&std::fs::read(study.join("effects.json")).unwrap()).unwrap();
+    let by = |name: &str| e.iter().find(|x| x["set"] == name).unwrap().clone();
+    let rms = |a: &[f64], b: &[f64]| {
+        (a.iter().zip(b).map(|(x, y)| (x - y).powi(2)).sum::<f64>() / a.len() as f64).sqrt()
+    };
+    let ideal = ap_lateral(study, "ideal-drr");
+    let scale = rms(&ideal, &vec![0.0; ideal.len()]);
+    for (level, reference) in [
+        ("polychromatic", "ideal-drr"),
+        ("noise-blur", "polychromatic"),
+        ("scatter", "noise-blur"),
+    ] {
+        let x = by(level);
+        assert_eq!(x["reference"], reference, "{x}");
+        let from_data =
+            100.0 * rms(&ap_lateral(study, level), &ap_lateral(study, reference)) / scale;
+        let measured = x["vs_reference_pct"].as_f64().unwrap();
+        assert!(
+            (measured - from_data).abs() < 1e-3 * from_data,
+            "{level}: {measured} vs {from_data}"
+        );
+        let vs_ideal = 100.0 * rms(&ap_lateral(study, level), &ideal) / scale;
+        assert!(
+            (x["vs_ideal_pct"].as_f64().unwrap() - vs_ideal).abs() < 1e-3 * vs_ideal,
+            "{x}"
+        );
+    }
+    // The ideal DRR is its own reference; only the noisy levels have noise, only the
+    // scatter level a scatter-to-primary ratio, only the flat panel a blur.
+    let ideal_row = by("ideal-drr");
+    assert_eq!(ideal_row["vs_ideal_pct"], 0.0, "{ideal_row}");
+    let noise = |l: &str| {
+        by(l)["noise_pct"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|v| v.as_f64().unwrap())
+            .collect::<Vec<_>>()
+    };
+    assert_eq!(noise("polychromatic"), [0.0, 0.0]);
+    let n = noise("noise-blur");
+    assert!(
+        n[0] > 0.0 && n[1] > n[0],
+        "the lateral view is the noisier: {n:?}"
+    );
+    assert!(by("polychromatic")["spr"].is_null() && by("noise-blur")["spr"].is_null());
+    let spr = by("scatter")["spr"].clone();
+    assert!(
+        spr.as_array()
+            .unwrap()
+            .iter()
+            .all(|v| v.as_f64().unwrap() > 0.05),
+        "{spr}"
+    );
+    assert!(by("polychromatic")["mtf50_per_mm"].is_null());
+    assert!(by("noise-blur")["quanta_p1_lateral"].as_f64().unwrap() > 0.0);
 }
 
 #[test]
@@ -97,6 +178,7 @@ fn realism_gap_end_to_end_resume_and_same_seed() {
     // prior) + 4 × 4 × (FDK, SART-TV).
     let all = rows_for(&a.join("results.csv"), &levels);
     assert_eq!(all.len(), 4 * 4 * 4 * 5 + 4 * 4 * 2);
+    check_effects(&a);
     // The `scatter-corrected` column: the scatter test data with every method's views
     // corrected for scatter from the mean training volume. It holds every cell, and FDK
     // from 10 views (which follows its views most closely) is nearer the truth on it than
@@ -261,6 +343,7 @@ fn domain_shift_end_to_end_and_in_shards() {
         "paper-in-house",
         "kvp-80",
         "low-mas",
+        "starved",
     ];
     check_report(
         &c,
@@ -277,8 +360,44 @@ fn domain_shift_end_to_end_and_in_shards() {
     );
     assert_eq!(
         rows_for(&c.join("results.csv"), &shifts).len(),
-        7 * 4 * 5 + 7 * 4 * 2
+        8 * 4 * 5 + 8 * 4 * 2
     );
+
+    // What each set does to the projections: the exposure sets are compared with `lidc`
+    // (the same patients, the same panel), noisier the lower the exposure; other patients
+    // and a widened crop (the table) have no reference. `--stage effects` measures it
+    // again, to the same bytes, and prints the table.
+    let effects = std::fs::read(c.join("effects.json")).unwrap();
+    let e: Vec<serde_json::Value> = serde_json::from_slice(&effects).unwrap();
+    let by = |name: &str| e.iter().find(|x| x["set"] == name).unwrap().clone();
+    for (set, reference) in [
+        ("lidc", None),
+        ("full-chest", None),
+        ("table", None),
+        ("pacemaker", Some("lidc")),
+        ("kvp-80", Some("lidc")),
+        ("low-mas", Some("lidc")),
+        ("starved", Some("lidc")),
+    ] {
+        assert_eq!(by(set)["reference"].as_str(), reference, "{set}");
+    }
+    let lateral_noise = |set: &str| by(set)["noise_pct"][1].as_f64().unwrap();
+    assert!(
+        lateral_noise("lidc") < lateral_noise("low-mas")
+            && lateral_noise("low-mas") < lateral_noise("starved"),
+        "{e:?}"
+    );
+    let out = tomograf(&[
+        "study",
+        "domain-shift",
+        "-o",
+        c.to_str().unwrap(),
+        "--stage",
+        "effects",
+    ]);
+    ok(&out);
+    assert!(String::from_utf8_lossy(&out.stdout).contains("| `starved` | `lidc` |"));
+    assert_eq!(std::fs::read(c.join("effects.json")).unwrap(), effects);
 
     // --kvp on a preset keeps its filtration and exposure.
     let item = std::fs::read_to_string(c.join("data/test/kvp-80/00000/item.json")).unwrap();

@@ -221,28 +221,78 @@ fn font() -> Result<()> {
     Ok(())
 }
 
-/// A line plot of named series (colours, in order, [`COLOUR_NAMES`]; a legend names the
-/// series with non-empty names); writes a 640×400 PNG. Non-finite points are left out.
+/// A line plot of named series (colours, in order, [`COLOUR_NAMES`]; a legend right of the
+/// plot names the series with non-empty names); writes a PNG 400 px high. Non-finite points
+/// are left out.
 pub fn plot_lines(path: &Path, axes: &Axes, series: &[(&str, Vec<(f64, f64)>)]) -> Result<()> {
-    draw(path, axes, series, false)
+    draw(path, axes, &no_bars(series), XAxis::Numbers, Style::Lines)
 }
 
 /// As [`plot_lines`], with a dot at every point (for series of a few measured values).
 pub fn plot_points(path: &Path, axes: &Axes, series: &[(&str, Vec<(f64, f64)>)]) -> Result<()> {
-    draw(path, axes, series, true)
+    draw(path, axes, &no_bars(series), XAxis::Numbers, Style::LinesAndPoints)
 }
 
-fn draw(path: &Path, axes: &Axes, series: &[(&str, Vec<(f64, f64)>)], markers: bool) -> Result<()> {
+/// One series with error bars: its name and points (x, y, the bar's half-height; 0 draws
+/// no bar).
+pub type BarSeries<'a> = (&'a str, Vec<(f64, f64, f64)>);
+
+/// Measured values over an ordered numeric x (e.g. view counts): points joined by lines,
+/// each with its error bar.
+pub fn plot_with_bars(path: &Path, axes: &Axes, series: &[BarSeries]) -> Result<()> {
+    draw(path, axes, series, XAxis::Numbers, Style::LinesAndPoints)
+}
+
+/// Measured values over named categories (x of a point = the category's index): the x axis
+/// labelled with the names, the series side by side within each category, points with error
+/// bars and no line from one category to the next.
+pub fn plot_categories(
+    path: &Path,
+    axes: &Axes,
+    categories: &[String],
+    series: &[BarSeries],
+) -> Result<()> {
+    draw(path, axes, series, XAxis::Categories(categories), Style::Points)
+}
+
+fn no_bars<'a>(series: &[(&'a str, Vec<(f64, f64)>)]) -> Vec<BarSeries<'a>> {
+    series
+        .iter()
+        .map(|(n, s)| (*n, s.iter().map(|&(x, y)| (x, y, 0.0)).collect()))
+        .collect()
+}
+
+#[derive(Clone, Copy)]
+enum XAxis<'a> {
+    Numbers,
+    Categories(&'a [String]),
+}
+
+#[derive(Clone, Copy, PartialEq)]
+enum Style {
+    Lines,
+    LinesAndPoints,
+    Points,
+}
+
+fn draw(path: &Path, axes: &Axes, series: &[BarSeries], x_axis: XAxis, style: Style) -> Result<()> {
     font()?;
-    let pts = series.iter().flat_map(|(_, s)| s.iter());
+    let finite = |&(x, y, e): &(f64, f64, f64)| x.is_finite() && y.is_finite() && e.is_finite();
     let (mut x0, mut x1, mut y0, mut y1) = (f64::MAX, f64::MIN, f64::MAX, f64::MIN);
-    for &(x, y) in pts {
-        if x.is_finite() && y.is_finite() {
-            x0 = x0.min(x);
-            x1 = x1.max(x);
-            y0 = y0.min(y);
-            y1 = y1.max(y);
-        }
+    for p in series.iter().flat_map(|(_, s)| s.iter()).filter(|p| finite(p)) {
+        x0 = x0.min(p.0);
+        x1 = x1.max(p.0);
+        y0 = y0.min(p.1 - p.2);
+        y1 = y1.max(p.1 + p.2);
+    }
+    // Categories: each on its own tick, with room for the series side by side.
+    let groups = series.len().max(1) as f64;
+    let offset = |k: usize| match x_axis {
+        XAxis::Numbers => 0.0,
+        XAxis::Categories(_) => (k as f64 - (groups - 1.0) / 2.0) * 0.6 / groups,
+    };
+    if let XAxis::Categories(c) = x_axis {
+        (x0, x1) = (-0.5, c.len().max(1) as f64 - 0.5);
     }
     if x0 >= x1 {
         x1 = x0 + 1.0;
@@ -250,62 +300,93 @@ fn draw(path: &Path, axes: &Axes, series: &[(&str, Vec<(f64, f64)>)], markers: b
     if y0 >= y1 {
         y1 = y0 + 1.0;
     }
-    // A margin of 5 % so lines on the range's edges stay visible.
+    // A margin of 5 % so points on the range's edges stay visible.
     let pad = 0.05 * (y1 - y0);
     let (y0, y1) = (y0 - pad, y1 + pad);
     let plot_err = |e: &dyn std::fmt::Display| anyhow::anyhow!("plot {}: {e}", path.display());
-    let root = BitMapBackend::new(path, (640, 400)).into_drawing_area();
+    let named: Vec<(usize, &str)> = series
+        .iter()
+        .enumerate()
+        .filter(|(_, (n, _))| !n.is_empty())
+        .map(|(k, (n, _))| (k, *n))
+        .collect();
+    // The legend in a column of its own, right of the plot, never over the data.
+    let legend_width = if named.is_empty() {
+        0
+    } else {
+        40 + 7 * named.iter().map(|(_, n)| n.chars().count()).max().unwrap_or(0) as u32
+    };
+    let root = BitMapBackend::new(path, (640 + legend_width, 400)).into_drawing_area();
     root.fill(&WHITE).map_err(|e| plot_err(&e))?;
-    let mut chart = ChartBuilder::on(&root)
+    let (plot_area, legend_area) = root.split_horizontally(640);
+    let mut chart = ChartBuilder::on(&plot_area)
         .margin(10)
         .caption(axes.title, ("sans-serif", 18))
         .x_label_area_size(36)
         .y_label_area_size(56)
         .build_cartesian_2d(x0..x1, y0..y1)
         .map_err(|e| plot_err(&e))?;
-    chart
-        .configure_mesh()
-        .x_desc(axes.x)
+    let category = |x: &f64| match x_axis {
+        XAxis::Categories(c) => {
+            let i = x.round();
+            if (x - i).abs() < 1e-6 && i >= 0.0 {
+                c.get(i as usize).cloned().unwrap_or_default()
+            } else {
+                String::new()
+            }
+        }
+        XAxis::Numbers => format!("{x}"),
+    };
+    let mut mesh = chart.configure_mesh();
+    mesh.x_desc(axes.x)
         .y_desc(axes.y)
         .label_style(("sans-serif", 12))
         .axis_desc_style(("sans-serif", 14))
-        .light_line_style(WHITE.mix(0.0))
-        .draw()
-        .map_err(|e| plot_err(&e))?;
-    let mut legend = false;
-    for (n, (name, s)) in series.iter().enumerate() {
-        let colour = COLOURS[n % COLOURS.len()];
-        let finite: Vec<(f64, f64)> = s
+        .light_line_style(WHITE.mix(0.0));
+    if let XAxis::Categories(c) = x_axis {
+        mesh.x_labels(c.len() * 2 + 1).x_label_formatter(&category);
+    }
+    mesh.draw().map_err(|e| plot_err(&e))?;
+    for (k, (_, s)) in series.iter().enumerate() {
+        let colour = COLOURS[k % COLOURS.len()];
+        let dx = offset(k);
+        let pts: Vec<(f64, f64, f64)> = s
             .iter()
-            .copied()
-            .filter(|(x, y)| x.is_finite() && y.is_finite())
+            .filter(|p| finite(p))
+            .map(|&(x, y, e)| (x + dx, y, e))
             .collect();
-        let drawn = chart
-            .draw_series(LineSeries::new(
-                finite.iter().copied(),
-                colour.stroke_width(2),
-            ))
-            .map_err(|e| plot_err(&e))?;
-        if !name.is_empty() {
-            legend = true;
-            drawn.label(*name).legend(move |(x, y)| {
-                PathElement::new(vec![(x, y), (x + 16, y)], colour.stroke_width(2))
-            });
-        }
-        if markers {
+        if style != Style::Points {
             chart
-                .draw_series(finite.iter().map(|&p| Circle::new(p, 4, colour.filled())))
+                .draw_series(LineSeries::new(
+                    pts.iter().map(|&(x, y, _)| (x, y)),
+                    colour.stroke_width(2),
+                ))
                 .map_err(|e| plot_err(&e))?;
         }
-    }
-    if legend {
+        if style != Style::Lines {
+            chart
+                .draw_series(pts.iter().map(|&(x, y, _)| Circle::new((x, y), 4, colour.filled())))
+                .map_err(|e| plot_err(&e))?;
+        }
         chart
-            .configure_series_labels()
-            .background_style(WHITE.mix(0.8))
-            .border_style(BLACK)
-            .label_font(("sans-serif", 12))
-            .position(SeriesLabelPosition::UpperRight)
-            .draw()
+            .draw_series(pts.iter().filter(|p| p.2 > 0.0).map(|&(x, y, e)| {
+                ErrorBar::new_vertical(x, y - e, y, y + e, colour.stroke_width(1), 8)
+            }))
+            .map_err(|e| plot_err(&e))?;
+    }
+    for (row, (k, name)) in named.iter().enumerate() {
+        let colour = COLOURS[k % COLOURS.len()];
+        let y = 40 + 20 * row as i32;
+        legend_area
+            .draw(&PathElement::new(vec![(6, y), (26, y)], colour.stroke_width(2)))
+            .map_err(|e| plot_err(&e))?;
+        if style != Style::Lines {
+            legend_area
+                .draw(&Circle::new((16, y), 4, colour.filled()))
+                .map_err(|e| plot_err(&e))?;
+        }
+        legend_area
+            .draw_text(name, &("sans-serif", 12).into_text_style(&legend_area), (32, y - 7))
             .map_err(|e| plot_err(&e))?;
     }
     root.present().map_err(|e| plot_err(&e))?;

@@ -325,6 +325,89 @@ pub fn outliers(dir: &Path, reference: &Population) -> Result<Vec<(String, Vec<S
         .collect())
 }
 
+/// What an item is projected from: its CT, cropped, in the patient frame (HU, mm), and the
+/// views it is seen from. [`make_item`] renders and writes it; the studies' data-effect
+/// table (`tomograf_eval`) renders the same views with other physics.
+pub struct ItemScene {
+    /// The black-border-cropped CT at full resolution, HU.
+    pub hu: tomograf_sim::Volume,
+    /// The cone beam and the `size²` detector fitted to the volume.
+    pub geometry: Geometry,
+    /// The poses: every 360/`views` degrees, then AP, then lateral.
+    pub poses: Vec<Pose>,
+    /// The views of `poses`, in their order.
+    pub views: Vec<View>,
+    sha: String,
+    reorientation: serde_json::Value,
+    outside_body: String,
+    augmentation: Option<Augmentation>,
+}
+
+impl ItemScene {
+    /// Item `index` of a set from `source`: loaded or generated, into the patient frame,
+    /// reduced to the body, augmented and cropped as `settings` say; its views fitted.
+    pub fn new(settings: &ItemSettings, index: usize, source: &ItemSource) -> Result<Self> {
+        settings.validate()?;
+        // The CT in HU, and what identifies it.
+        let (hu, sha) = match source {
+            ItemSource::File { path } => (load_volume_file(path, false)?, sha256_of(path)?),
+            ItemSource::Phantom { spec } => {
+                let sha = format!(
+                    "{:x}",
+                    Sha256::digest(serde_json::to_string(spec)?.as_bytes())
+                );
+                (anatomy::generate(spec)?, sha)
+            }
+        };
+        let (hu, reorientation, outside_body) = match source {
+            ItemSource::File { path } => patient_of(hu, path, settings)?,
+            // Generated in the frame, holding what its spec asks for (a table only if asked).
+            ItemSource::Phantom { .. } => (hu, serde_json::Value::Null, String::new()),
+        };
+        let augmentation = settings
+            .augment
+            .as_ref()
+            .map(|(ranges, seed)| Augmentation::draw(item_seed(*seed, index), ranges));
+        let hu = match &augmentation {
+            Some(a) => a.apply(&hu)?,
+            None => hu,
+        };
+        let hu = crop_black_border(&hu, settings.crop_hu)?;
+        let mut poses = angles::arc(0.0, 360.0 / settings.views as f64, settings.views, 0.0)?;
+        poses.extend([Pose::AP, Pose::LATERAL]);
+        let size = settings.size;
+        let mut geometry = Geometry {
+            beam: Beam::Cone {
+                sad_mm: settings.sad_mm,
+                sid_mm: settings.sid_mm,
+            },
+            detector: Detector::new(size, size, 1.0),
+            isocentre: hu.centre(),
+        };
+        let pitch = geometry.fit_pitch(&poses, &hu)?;
+        geometry.detector.pitch_u_mm = pitch;
+        geometry.detector.pitch_v_mm = pitch;
+        let views = geometry.views(&poses)?;
+        Ok(Self {
+            hu,
+            geometry,
+            poses,
+            views,
+            sha,
+            reorientation,
+            outside_body,
+            augmentation,
+        })
+    }
+
+    /// The ideal DRR of `view`: line integrals of μ at `energy_kev` (exact Siddon).
+    pub fn ideal_drr(&self, energy_kev: f64, views: &[View]) -> Result<Vec<Vec<f32>>> {
+        let mu = Attenuation::hounsfield_at_kev(energy_kev)?.to_mu(self.hu.clone())?;
+        let renderer = Renderer::new(&mu, Projector::Siddon)?.for_views(views);
+        views.iter().map(|v| Ok(renderer.render(v)?.data)).collect()
+    }
+}
+
 /// Makes item `index` of a set from `source` into `dir` (created if missing).
 pub fn make_item(
     settings: &ItemSettings,
@@ -332,57 +415,24 @@ pub fn make_item(
     source: &ItemSource,
     dir: &Path,
 ) -> Result<()> {
-    settings.validate()?;
-    // The CT in HU, and what identifies it.
-    let (hu, sha) = match source {
-        ItemSource::File { path } => (load_volume_file(path, false)?, sha256_of(path)?),
-        ItemSource::Phantom { spec } => {
-            let sha = format!(
-                "{:x}",
-                Sha256::digest(serde_json::to_string(spec)?.as_bytes())
-            );
-            (anatomy::generate(spec)?, sha)
-        }
-    };
-    let (hu, reorientation, outside_body) = match source {
-        ItemSource::File { path } => patient_of(hu, path, settings)?,
-        // Generated in the frame, holding what its spec asks for (a table only if asked).
-        ItemSource::Phantom { .. } => (hu, serde_json::Value::Null, String::new()),
-    };
-    let augmentation = settings
-        .augment
-        .as_ref()
-        .map(|(ranges, seed)| Augmentation::draw(item_seed(*seed, index), ranges));
-    let hu = match &augmentation {
-        Some(a) => a.apply(&hu)?,
-        None => hu,
-    };
-    let cropped = crop_black_border(&hu, settings.crop_hu)?;
+    let ItemScene {
+        hu: cropped,
+        geometry,
+        poses,
+        views,
+        sha,
+        reorientation,
+        outside_body,
+        augmentation,
+    } = ItemScene::new(settings, index, source)?;
+    let size = settings.size;
 
     // Projections from the cropped full-resolution volume.
     let acquisition = &settings.acquisition;
-    let mu = match acquisition {
-        None => Attenuation::hounsfield_at_kev(settings.energy_kev)?.to_mu(cropped.clone())?,
-        Some(_) => cropped.clone(), // classified into tissues by the acquisition, in HU
-    };
-    let mut poses = angles::arc(0.0, 360.0 / settings.views as f64, settings.views, 0.0)?;
-    poses.extend([Pose::AP, Pose::LATERAL]);
-    let size = settings.size;
-    let mut geometry = Geometry {
-        beam: Beam::Cone {
-            sad_mm: settings.sad_mm,
-            sid_mm: settings.sid_mm,
-        },
-        detector: Detector::new(size, size, 1.0),
-        isocentre: mu.centre(),
-    };
-    let pitch = geometry.fit_pitch(&poses, &mu)?;
-    geometry.detector.pitch_u_mm = pitch;
-    geometry.detector.pitch_v_mm = pitch;
-    let views: Vec<View> = geometry.views(&poses)?;
     let mut stack = Vec::with_capacity(views.len() * size * size);
     let quantity = match acquisition {
         None => {
+            let mu = Attenuation::hounsfield_at_kev(settings.energy_kev)?.to_mu(cropped.clone())?;
             let renderer = Renderer::new(&mu, Projector::Siddon)?.for_views(&views);
             for v in &views {
                 stack.extend(renderer.render(v)?.data);
@@ -390,8 +440,9 @@ pub fn make_item(
             "line integral ∫mu ds (mu at the effective energy)".to_string()
         }
         Some((acq, seed)) => {
+            // Classified into tissues by the acquisition, in HU.
             let prepared = acq
-                .prepare(&mu, item_seed(*seed, index))?
+                .prepare(&cropped, item_seed(*seed, index))?
                 .for_views(Projector::Siddon, &views)?;
             for (i, v) in views.iter().enumerate() {
                 stack.extend(prepared.acquire(Projector::Siddon, v, i)?.remove(0).data);

@@ -214,9 +214,12 @@ pub fn shifts() -> Vec<DataSpec> {
         ),
         with(
             "low-mas",
-            "0.1 mAs instead of 1 mAs: 10× fewer photons, more noise",
-            &|s| s.physics.mas = Some(0.1),
+            "0.001 mAs instead of 1 mAs: 1000× fewer photons, more noise",
+            &|s| s.physics.mas = Some(0.005),
         ),
+        with("starved", "0.0001 mAs instead of 1 mAs", &|s| {
+            s.physics.mas = Some(0.001)
+        }),
     ]
 }
 

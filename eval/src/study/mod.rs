@@ -11,6 +11,7 @@
 //! work across machines: see docs/studies.md.
 
 mod coverage;
+pub mod effects;
 pub mod levels;
 mod render;
 mod report;
@@ -339,6 +340,14 @@ impl Study {
     /// be complete).
     pub fn report(&self, partial: bool) -> Result<()> {
         report::write(self, partial)
+    }
+
+    /// Measures what each test set does to the projections (`effects.json`, written anew)
+    /// and returns the report's table of it as markdown.
+    pub fn effects(&self) -> Result<String> {
+        let _ = std::fs::remove_file(self.dir.join("effects.json"));
+        let e = effects::load_or_measure(self)?;
+        Ok(report::effects_markdown(&e))
     }
 }
 

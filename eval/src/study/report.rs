@@ -4,10 +4,13 @@
 //! evaluations' example slices, residual maps and line profiles.
 
 use super::coverage::Coverage;
+use super::effects::{self, Effect, NEGLIGIBLE_PCT};
 use super::render::{Block, render};
 use super::{Kind, Study, VIEWS, relative};
 use crate::evaluation::{NETWORK_ONLY, Row, Scores, merge};
-use crate::figures::{Axes, COLOUR_NAMES, plot_histograms, plot_points};
+use crate::figures::{
+    Axes, BarSeries, COLOUR_NAMES, plot_categories, plot_histograms, plot_with_bars,
+};
 use anyhow::{Context, Result};
 use std::fmt::Write as _;
 use std::path::Path;
@@ -129,6 +132,7 @@ pub fn write(study: &Study, partial: bool) -> Result<()> {
     std::fs::create_dir_all(&figures)?;
     let mut blocks = intro(study);
     blocks.extend(coverage.paragraph(study));
+    blocks.extend(effects_table(&effects::load_or_measure(study)?));
     blocks.extend(tables(study, &stats));
     blocks.extend(plots(study, &stats)?);
     if let Some(id) = first_item {
@@ -262,6 +266,81 @@ fn intro(study: &Study) -> Vec<Block> {
     b
 }
 
+/// [`effects_table`] as markdown.
+pub(super) fn effects_markdown(effects: &[Effect]) -> String {
+    render(
+        &effects_table(effects)[1..],
+        "What each set does to the projections",
+    )
+    .0
+}
+
+/// The table of what each test set does to the projections ([`effects`]).
+fn effects_table(effects: &[Effect]) -> Vec<Block> {
+    let pair = |x: [f64; 2], digits: usize| format!("{:.digits$} / {:.digits$}", x[0], x[1]);
+    let rows = effects
+        .iter()
+        .map(|e| {
+            vec![
+                format!("`{}`", e.set),
+                e.reference
+                    .as_ref()
+                    .map_or("—".into(), |r| format!("`{r}`")),
+                format!("{:.2}", e.vs_ideal_pct),
+                e.vs_reference_pct.map_or("—".into(), |x| format!("{x:.2}")),
+                pair(e.noise_pct, 3),
+                e.spr.map_or("—".into(), |s| pair(s, 3)),
+                e.quanta_p1_lateral
+                    .map_or("—".into(), |q| format!("{q:.0}")),
+                format!("{:.2}", e.starved_pct),
+                e.mtf50_per_mm.map_or("—".into(), |m| {
+                    format!("{m:.3} / {:.3}", e.nyquist_per_mm)
+                }),
+                if e.reference.is_none() {
+                    "—".into()
+                } else if e.negligible() {
+                    format!("**< {NEGLIGIBLE_PCT} %: too small to show**")
+                } else {
+                    "changes the data".into()
+                },
+            ]
+        })
+        .collect();
+    vec![
+        Block::Heading("What each set does to the projections".into()),
+        Block::Para(format!(
+            "Before any network: the AP and lateral views of the first {} test item(s) of \
+             each set at the study's detector size, against the ideal DRR of the same CT (line \
+             integrals of μ at 60 keV). Changes and noise are RMS over the pixels, in % of the \
+             ideal DRR's RMS line integral; noise from two noise realisations, (a − b)/√2 \
+             (the scatter estimate's own Monte Carlo noise included); the scatter-to-primary \
+             ratio is the panel's mean; quanta are the lateral view's noise-equivalent quanta \
+             per pixel (1st percentile); starved pixels had their −log floored for lack of \
+             signal; MTF50 is the light spread's and pixel aperture's, against the panel's \
+             Nyquist frequency. A set that moves the line integrals by less than \
+             {NEGLIGIBLE_PCT} % from its reference cannot show its effect at this scale.",
+            effects.first().map_or(0, |e| e.items)
+        )),
+        Block::Table(
+            [
+                "set",
+                "reference",
+                "Δ vs ideal DRR (%)",
+                "Δ vs reference (%)",
+                "noise SD AP / lateral (%)",
+                "scatter/primary AP / lateral",
+                "quanta/pixel, lateral (p1)",
+                "starved pixels (%)",
+                "MTF50 / Nyquist (cycles/mm)",
+                "verdict",
+            ]
+            .map(String::from)
+            .to_vec(),
+            rows,
+        ),
+    ]
+}
+
 /// Row labels of the metric tables: the models (and, with one training set, its mean
 /// volume), then the classical baselines.
 fn row_keys(study: &Study) -> Vec<(Option<String>, String, String)> {
@@ -355,7 +434,8 @@ fn tables(study: &Study, stats: &[Stat]) -> Vec<Block> {
     b
 }
 
-type Series = Vec<(String, Vec<(f64, f64)>)>;
+/// Named series of (x, mean, SD over the test items).
+type Series = Vec<(String, Vec<(f64, f64, f64)>)>;
 
 fn colours(series: &Series) -> String {
     series
@@ -366,13 +446,25 @@ fn colours(series: &Series) -> String {
         .join(", ")
 }
 
-fn draw(study: &Study, file: &str, axes: &Axes, caption: String, series: Series) -> Result<Block> {
+/// A plot of `series` over the view counts (`categories` `None`) or over the named test
+/// sets, with ± 1 SD bars.
+fn draw(
+    study: &Study,
+    file: &str,
+    axes: &Axes,
+    caption: String,
+    series: Series,
+    categories: Option<&[String]>,
+) -> Result<Block> {
     let path = study.dir.join("figures").join(file);
-    let named: Vec<(&str, Vec<(f64, f64)>)> = series
+    let named: Vec<BarSeries> = series
         .iter()
         .map(|(n, p)| (n.as_str(), p.clone()))
         .collect();
-    plot_points(&path, axes, &named)?;
+    match categories {
+        Some(c) => plot_categories(&path, axes, c, &named)?,
+        None => plot_with_bars(&path, axes, &named)?,
+    }
     let (lo, hi) = series
         .iter()
         .flat_map(|(_, p)| p.iter().map(|q| q.1))
@@ -383,7 +475,8 @@ fn draw(study: &Study, file: &str, axes: &Axes, caption: String, series: Series)
     Ok(Block::Image(
         relative(&study.dir, &path),
         format!(
-            "{caption} Colours: {}. The y axis spans {lo:.3} to {hi:.3} (plus 5 % margins).",
+            "{caption} Bars: ± 1 SD over the test items. Colours: {}. The means span {lo:.3} \
+             to {hi:.3}.",
             colours(&series)
         ),
     ))
@@ -393,28 +486,21 @@ fn plots(study: &Study, stats: &[Stat]) -> Result<Vec<Block>> {
     let s = &study.settings;
     let mut b = vec![Block::Heading("Plots".into())];
     let point = |train: Option<&str>, test: &str, v: usize, method: &str, m: Metric| {
-        find(stats, train, test, v, method).map(|st| st.mean_std(m).0)
+        find(stats, train, test, v, method).map(|st| st.mean_std(m))
     };
     let vs_views = |train: Option<&str>, test: &str, method: &str, m: Metric| {
         VIEWS
             .iter()
-            .filter_map(|&v| point(train, test, v, method, m).map(|y| (v as f64, y)))
+            .filter_map(|&v| point(train, test, v, method, m).map(|(y, e)| (v as f64, y, e)))
             .collect::<Vec<_>>()
     };
-    let across = |f: &dyn Fn(&str) -> Option<f64>| {
+    let across = |f: &dyn Fn(&str) -> Option<(f64, f64)>| {
         s.test_sets
             .iter()
             .enumerate()
-            .filter_map(|(i, t)| f(t).map(|y| (i as f64, y)))
+            .filter_map(|(i, t)| f(t).map(|(y, e)| (i as f64, y, e)))
             .collect::<Vec<_>>()
     };
-    let index = s
-        .test_sets
-        .iter()
-        .enumerate()
-        .map(|(i, t)| format!("{i} = {t}"))
-        .collect::<Vec<_>>()
-        .join(", ");
     let last = s.test_sets.last().context("no test sets")?;
     for m in Metric::ALL {
         let mut series: Series = Vec::new();
@@ -460,6 +546,7 @@ fn plots(study: &Study, stats: &[Stat]) -> Result<Vec<Block>> {
             &axes,
             caption,
             series,
+            None,
         )?);
 
         // The metric across the test sets.
@@ -487,7 +574,7 @@ fn plots(study: &Study, stats: &[Stat]) -> Result<Vec<Block>> {
                 (
                     format!("{}_vs_level.png", m.file()),
                     format!(
-                        "{} from 1 view vs the realism level tested on (x axis: {index}).",
+                        "{} from 1 view vs the realism level tested on.",
                         m.name()
                     ),
                 )
@@ -508,18 +595,18 @@ fn plots(study: &Study, stats: &[Stat]) -> Result<Vec<Block>> {
                 }
                 (
                     format!("{}_vs_shift.png", m.file()),
-                    format!("{} vs test set (x axis: {index}).", m.name()),
+                    format!("{} vs test set.", m.name()),
                 )
             }
         };
         let (title, x) = match s.kind {
             Kind::RealismGap => (
                 format!("{}, 1 view, vs realism level", m.name()),
-                "level tested on (see caption)",
+                "level tested on",
             ),
             Kind::DomainShift => (
                 format!("{} vs test set", m.name()),
-                "test set (see caption)",
+                "test set",
             ),
         };
         let axes = Axes {
@@ -527,7 +614,14 @@ fn plots(study: &Study, stats: &[Stat]) -> Result<Vec<Block>> {
             x,
             y: m.name(),
         };
-        b.push(draw(study, &file, &axes, caption, series)?);
+        b.push(draw(
+            study,
+            &file,
+            &axes,
+            caption,
+            series,
+            Some(&s.test_sets),
+        )?);
     }
 
     // SSIM histograms over the test items, 1 view (the paper's Fig. 4).
