@@ -89,7 +89,7 @@ pub fn slices_and_profile(
     let mut titles = vec!["truth".to_string()];
     titles.extend(names.iter().map(|n| n.to_string()));
     titles.push(format!(
-        "|{} − truth| × 4",
+        "|{} − truth|",
         names.first().copied().unwrap_or("")
     ));
     draw_slices(
@@ -130,7 +130,9 @@ pub struct Axes<'a> {
 }
 
 /// A grid of slice tiles (`cols[c][r]`, `n × n`, values in [0, 1] = the HU window) with a
-/// title, column titles, row labels and a grey-scale bar in HU; tiles drawn 3× enlarged.
+/// title, column titles, row labels and a grey-scale bar in HU; tiles drawn 3× enlarged. The
+/// last column is a residual (|error| × 4 in window units): drawn in a colour scale of its
+/// own (black → red → yellow → white), with its own bar in HU of error.
 fn draw_slices(
     path: &Path,
     title: &str,
@@ -144,7 +146,7 @@ fn draw_slices(
     let zoom = (192 / n.max(1)).max(1);
     let tile = n * zoom;
     let (gap, left, top, bar) = (8usize, 80usize, 56usize, 90usize);
-    let w = left + cols.len() * (tile + gap) + bar;
+    let w = left + cols.len() * (tile + gap) + 2 * bar;
     let h = top + 3 * (tile + gap) + 10;
     let root = BitMapBackend::new(path, (w as u32, h as u32)).into_drawing_area();
     root.fill(&WHITE).map_err(|e| plot_err(&e))?;
@@ -155,7 +157,15 @@ fn draw_slices(
         let g = (v.clamp(0.0, 1.0) * 255.0).round() as u8;
         RGBColor(g, g, g)
     };
+    // The residual's scale: black → red → yellow → white.
+    let heat = |v: f32| {
+        let v = v.clamp(0.0, 1.0) * 3.0;
+        let ramp = |x: f32| (x.clamp(0.0, 1.0) * 255.0).round() as u8;
+        RGBColor(ramp(v), ramp(v - 1.0), ramp(v - 2.0))
+    };
+    let last = cols.len().saturating_sub(1);
     for (c, col) in cols.iter().enumerate() {
+        let colour = |v: f32| if c == last { heat(v) } else { grey(v) };
         let x0 = left + c * (tile + gap);
         let mut t = titles.get(c).cloned().unwrap_or_default();
         if t.chars().count() > 26 {
@@ -168,7 +178,7 @@ fn draw_slices(
             for y in 0..tile {
                 for x in 0..tile {
                     let v = slice[(y / zoom) * n + x / zoom];
-                    root.draw_pixel(((x0 + x) as i32, (y0 + y) as i32), &grey(v))
+                    root.draw_pixel(((x0 + x) as i32, (y0 + y) as i32), &colour(v))
                         .map_err(|e| plot_err(&e))?;
                 }
             }
@@ -179,26 +189,33 @@ fn draw_slices(
         root.draw_text(name, &text(14), (8, y as i32))
             .map_err(|e| plot_err(&e))?;
     }
-    // The grey scale: the HU window from bottom to top (the residual column reads × 4).
-    let bx = (left + cols.len() * (tile + gap) + 10) as i32;
-    let (by0, by1) = (top as i32, (top + 3 * tile + 2 * gap) as i32);
-    for y in by0..by1 {
-        let v = 1.0 - (y - by0) as f32 / (by1 - by0 - 1).max(1) as f32;
-        for x in bx..bx + 16 {
-            root.draw_pixel((x, y), &grey(v))
+    // The scales, bottom to top: the HU window in grey; the residual's |error| in HU (a
+    // quarter of the window's width at the top: the column shows |error| × 4).
+    let (lo, hi) = window_hu;
+    let scales: [(&str, &dyn Fn(f32) -> RGBColor, f32, f32); 2] = [
+        ("HU", &grey, lo, hi),
+        ("|error| HU", &heat, 0.0, (hi - lo) / 4.0),
+    ];
+    for (s, (name, colour, from, to)) in scales.iter().enumerate() {
+        let bx = (left + cols.len() * (tile + gap) + 10 + s * bar) as i32;
+        let (by0, by1) = (top as i32, (top + 3 * tile + 2 * gap) as i32);
+        for y in by0..by1 {
+            let v = 1.0 - (y - by0) as f32 / (by1 - by0 - 1).max(1) as f32;
+            for x in bx..bx + 16 {
+                root.draw_pixel((x, y), &colour(v))
+                    .map_err(|e| plot_err(&e))?;
+            }
+        }
+        for k in 0..=4 {
+            let f = k as f32 / 4.0;
+            let y = by1 - 1 - ((by1 - by0 - 1) as f32 * f) as i32;
+            let label = format!("{:.0}", from + f * (to - from));
+            root.draw_text(&label, &text(12), (bx + 20, y - 6))
                 .map_err(|e| plot_err(&e))?;
         }
-    }
-    let (lo, hi) = window_hu;
-    for k in 0..=4 {
-        let f = k as f32 / 4.0;
-        let y = by1 - 1 - ((by1 - by0 - 1) as f32 * f) as i32;
-        let label = format!("{:.0}", lo + f * (hi - lo));
-        root.draw_text(&label, &text(12), (bx + 20, y - 6))
+        root.draw_text(name, &text(13), (bx, by0 - 20))
             .map_err(|e| plot_err(&e))?;
     }
-    root.draw_text("HU", &text(13), (bx, by0 - 20))
-        .map_err(|e| plot_err(&e))?;
     root.present().map_err(|e| plot_err(&e))?;
     Ok(())
 }
@@ -230,7 +247,13 @@ pub fn plot_lines(path: &Path, axes: &Axes, series: &[(&str, Vec<(f64, f64)>)]) 
 
 /// As [`plot_lines`], with a dot at every point (for series of a few measured values).
 pub fn plot_points(path: &Path, axes: &Axes, series: &[(&str, Vec<(f64, f64)>)]) -> Result<()> {
-    draw(path, axes, &no_bars(series), XAxis::Numbers, Style::LinesAndPoints)
+    draw(
+        path,
+        axes,
+        &no_bars(series),
+        XAxis::Numbers,
+        Style::LinesAndPoints,
+    )
 }
 
 /// One series with error bars: its name and points (x, y, the bar's half-height; 0 draws
@@ -252,7 +275,13 @@ pub fn plot_categories(
     categories: &[String],
     series: &[BarSeries],
 ) -> Result<()> {
-    draw(path, axes, series, XAxis::Categories(categories), Style::Points)
+    draw(
+        path,
+        axes,
+        series,
+        XAxis::Categories(categories),
+        Style::Points,
+    )
 }
 
 fn no_bars<'a>(series: &[(&'a str, Vec<(f64, f64)>)]) -> Vec<BarSeries<'a>> {
@@ -279,7 +308,11 @@ fn draw(path: &Path, axes: &Axes, series: &[BarSeries], x_axis: XAxis, style: St
     font()?;
     let finite = |&(x, y, e): &(f64, f64, f64)| x.is_finite() && y.is_finite() && e.is_finite();
     let (mut x0, mut x1, mut y0, mut y1) = (f64::MAX, f64::MIN, f64::MAX, f64::MIN);
-    for p in series.iter().flat_map(|(_, s)| s.iter()).filter(|p| finite(p)) {
+    for p in series
+        .iter()
+        .flat_map(|(_, s)| s.iter())
+        .filter(|p| finite(p))
+    {
         x0 = x0.min(p.0);
         x1 = x1.max(p.0);
         y0 = y0.min(p.1 - p.2);
@@ -314,7 +347,11 @@ fn draw(path: &Path, axes: &Axes, series: &[BarSeries], x_axis: XAxis, style: St
     let legend_width = if named.is_empty() {
         0
     } else {
-        40 + 7 * named.iter().map(|(_, n)| n.chars().count()).max().unwrap_or(0) as u32
+        40 + 7 * named
+            .iter()
+            .map(|(_, n)| n.chars().count())
+            .max()
+            .unwrap_or(0) as u32
     };
     let root = BitMapBackend::new(path, (640 + legend_width, 400)).into_drawing_area();
     root.fill(&WHITE).map_err(|e| plot_err(&e))?;
@@ -365,7 +402,10 @@ fn draw(path: &Path, axes: &Axes, series: &[BarSeries], x_axis: XAxis, style: St
         }
         if style != Style::Lines {
             chart
-                .draw_series(pts.iter().map(|&(x, y, _)| Circle::new((x, y), 4, colour.filled())))
+                .draw_series(
+                    pts.iter()
+                        .map(|&(x, y, _)| Circle::new((x, y), 4, colour.filled())),
+                )
                 .map_err(|e| plot_err(&e))?;
         }
         chart
@@ -378,7 +418,10 @@ fn draw(path: &Path, axes: &Axes, series: &[BarSeries], x_axis: XAxis, style: St
         let colour = COLOURS[k % COLOURS.len()];
         let y = 40 + 20 * row as i32;
         legend_area
-            .draw(&PathElement::new(vec![(6, y), (26, y)], colour.stroke_width(2)))
+            .draw(&PathElement::new(
+                vec![(6, y), (26, y)],
+                colour.stroke_width(2),
+            ))
             .map_err(|e| plot_err(&e))?;
         if style != Style::Lines {
             legend_area
@@ -386,7 +429,11 @@ fn draw(path: &Path, axes: &Axes, series: &[BarSeries], x_axis: XAxis, style: St
                 .map_err(|e| plot_err(&e))?;
         }
         legend_area
-            .draw_text(name, &("sans-serif", 12).into_text_style(&legend_area), (32, y - 7))
+            .draw_text(
+                name,
+                &("sans-serif", 12).into_text_style(&legend_area),
+                (32, y - 7),
+            )
             .map_err(|e| plot_err(&e))?;
     }
     root.present().map_err(|e| plot_err(&e))?;

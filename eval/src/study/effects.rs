@@ -94,7 +94,7 @@ struct Views {
 
 /// The reference of each test set: realism gap, the level before; domain shift, the first
 /// set (`lidc`) when the population is the same.
-fn reference<'a>(study: &'a Study, k: usize) -> Option<&'a DataSpec> {
+fn reference(study: &Study, k: usize) -> Option<&DataSpec> {
     let sets: Vec<&DataSpec> = study.test.iter().filter(|s| s.data_of.is_none()).collect();
     let me = sets[k];
     // The same patients (a table or a pacemaker is added to them; another profile is

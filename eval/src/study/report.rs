@@ -573,10 +573,7 @@ fn plots(study: &Study, stats: &[Stat]) -> Result<Vec<Block>> {
                 }
                 (
                     format!("{}_vs_level.png", m.file()),
-                    format!(
-                        "{} from 1 view vs the realism level tested on.",
-                        m.name()
-                    ),
+                    format!("{} from 1 view vs the realism level tested on.", m.name()),
                 )
             }
             Kind::DomainShift => {
@@ -604,10 +601,7 @@ fn plots(study: &Study, stats: &[Stat]) -> Result<Vec<Block>> {
                 format!("{}, 1 view, vs realism level", m.name()),
                 "level tested on",
             ),
-            Kind::DomainShift => (
-                format!("{} vs test set", m.name()),
-                "test set",
-            ),
+            Kind::DomainShift => (format!("{} vs test set", m.name()), "test set"),
         };
         let axes = Axes {
             title: &title,
