@@ -50,10 +50,16 @@ fn check_report(dir: &Path, plots: &[&str], columns: &[&str]) {
     for method in ["| FDK |", "| SART-TV |"] {
         assert_eq!(md.matches(method).count(), 3 * 4, "{method} rows");
     }
-    // The metric tables, the data-set table and the effects table.
+    // Every table in both (the metric tables, the data sets, the effects, the paired
+    // differences).
     assert_eq!(
         html.matches("<table>").count(),
-        md.matches("\n| views |").count() + 2
+        md.matches("\n|---").count()
+    );
+    assert!(md.matches("\n| views |").count() >= 3, "{md}");
+    assert!(
+        md.contains("## Paired differences") && md.contains("differences below are resolved"),
+        "{md}"
     );
     // Every image the report shows exists.
     for link in md.split("](").skip(1) {

@@ -192,7 +192,9 @@ fn draw_slices(
     // The scales, bottom to top: the HU window in grey; the residual's |error| in HU (a
     // quarter of the window's width at the top: the column shows |error| × 4).
     let (lo, hi) = window_hu;
-    let scales: [(&str, &dyn Fn(f32) -> RGBColor, f32, f32); 2] = [
+    // (name, colour of a value in [0, 1], the values at 0 and 1).
+    type Scale<'a> = (&'a str, &'a dyn Fn(f32) -> RGBColor, f32, f32);
+    let scales: [Scale; 2] = [
         ("HU", &grey, lo, hi),
         ("|error| HU", &heat, 0.0, (hi - lo) / 4.0),
     ];

@@ -13,6 +13,7 @@
 mod coverage;
 pub mod effects;
 pub mod levels;
+mod paired;
 mod render;
 mod report;
 
