@@ -150,6 +150,8 @@ pub fn job(args: &DatasetArgs) -> Result<DatasetJob> {
         .map(|path| ItemSource::File { path })
         .collect();
     let profile = Profile::parse(&args.profile)?;
+    tomograf_scene::dataset::check_phantom_count(args.seed, args.phantoms)
+        .map_err(|e| anyhow::anyhow!("--phantoms / --seed: {e}"))?;
     sources.extend(
         (0..args.phantoms).map(|n| {
             ItemSource::phantom(args.seed + n as u64, profile, args.table, args.pacemaker)

@@ -18,10 +18,24 @@ mod train;
 mod validate;
 
 use anyhow::Result;
-use clap::{Parser, Subcommand};
+use clap::{CommandFactory, FromArgMatches, Parser, Subcommand};
 
 #[global_allocator]
 static GLOBAL: allocator::Allocator = allocator::Allocator;
+
+/// Every flag that takes a value accepts a negative number as that value, in every
+/// subcommand, so that `--energy-kev -60` reaches the flag's own range check and its error
+/// names the flag (clap would otherwise read `-60` as an unknown flag `-6`).
+fn negative_numbers(cmd: clap::Command) -> clap::Command {
+    cmd.mut_args(|a| {
+        if a.get_action().takes_values() {
+            a.allow_negative_numbers(true)
+        } else {
+            a
+        }
+    })
+    .mut_subcommands(negative_numbers)
+}
 
 #[derive(Debug, Parser)]
 #[command(name = "tomograf", version, about, long_about = None)]
@@ -74,7 +88,10 @@ fn main() {
     unsafe {
         libc::signal(libc::SIGPIPE, libc::SIG_DFL);
     }
-    let cli = Cli::parse();
+    let cli = match Cli::from_arg_matches(&negative_numbers(Cli::command()).get_matches()) {
+        Ok(cli) => cli,
+        Err(e) => e.exit(),
+    };
     if let Err(e) = run(cli) {
         // The error and its causes, skipping a cause whose text a message already holds.
         let mut text = e.to_string();

@@ -150,7 +150,7 @@ pub fn phantoms(dir: &Path, phantoms: usize, size: usize, views: usize) -> Resul
         (size, views),
         "train",
         None,
-    )
+    )?
     .run(|_, _| {})?;
     Ok(data::load_dataset(dir, None)?)
 }

@@ -58,6 +58,7 @@ pub fn demo(d: &Demo, progress: &dyn Progress) -> Result<String> {
             "train",
             None,
         )
+        .context("--train-phantoms")?
         .make(progress)?;
     }
     let pacemaker = d.profile == Profile::FullChest;
@@ -86,6 +87,7 @@ pub fn demo(d: &Demo, progress: &dyn Progress) -> Result<String> {
         "test",
         acquisition,
     )
+    .context("--phantoms")?
     .make(progress)?;
     progress.note("3/3 reconstructing and scoring");
     evaluate(&Evaluation {

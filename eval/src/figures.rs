@@ -338,6 +338,11 @@ fn draw(path: &Path, axes: &Axes, series: &[BarSeries], x_axis: XAxis, style: St
     // A margin of 5 % so points on the range's edges stay visible.
     let pad = 0.05 * (y1 - y0);
     let (y0, y1) = (y0 - pad, y1 + pad);
+    anyhow::ensure!(
+        (y1 - y0).is_finite() && (x1 - x0).is_finite(),
+        "plot {}: the values span more than a number holds (y {y0:e} to {y1:e})",
+        path.display()
+    );
     let plot_err = |e: &dyn std::fmt::Display| anyhow::anyhow!("plot {}: {e}", path.display());
     let named: Vec<(usize, &str)> = series
         .iter()
@@ -475,16 +480,31 @@ pub fn plot_histograms(
     plot_lines(path, axes, &steps)
 }
 
+/// The largest deviation [`plot_deviations`] draws, % (larger ones at the edge).
+pub const DEVIATION_LIMIT: f64 = 100.0;
+
 /// Deviations with error bars: for each row `(x, y, half-width of our error bar, codes'
 /// lowest, codes' highest)` (all in %), our value as a dot with its bar and the codes'
 /// range as a grey bar beside it, with the 0 and ±2 % lines; writes a 800×420 PNG.
 pub fn plot_deviations(path: &Path, axes: &Axes, rows: &[(f64, f64, f64, f64, f64)]) -> Result<()> {
     font()?;
     let plot_err = |e: &dyn std::fmt::Display| anyhow::anyhow!("plot {}: {e}", path.display());
+    // Deviations beyond ±100 % (a run of very few histories) are drawn at the edge: the
+    // range stays finite and readable (plotters' tick search does not end on an infinite
+    // or astronomically wide range).
+    let clip = |v: f64| if v.is_finite() { v.clamp(-DEVIATION_LIMIT, DEVIATION_LIMIT) } else { 0.0 };
+    let rows: Vec<(f64, f64, f64, f64, f64)> = rows
+        .iter()
+        .filter(|r| r.0.is_finite())
+        .map(|&(x, y, e, lo, hi)| {
+            let e = if e.is_finite() { e.min(2.0 * DEVIATION_LIMIT) } else { 0.0 };
+            (x, clip(y), e, clip(lo), clip(hi))
+        })
+        .collect();
     let (mut y0, mut y1) = (-2.5f64, 2.5f64);
-    for &(_, y, e, lo, hi) in rows {
-        y0 = y0.min(y - e).min(lo);
-        y1 = y1.max(y + e).max(hi);
+    for &(_, y, e, lo, hi) in &rows {
+        y0 = y0.min(y - e).min(lo).max(-DEVIATION_LIMIT);
+        y1 = y1.max(y + e).max(hi).min(DEVIATION_LIMIT);
     }
     let pad = 0.05 * (y1 - y0);
     let n = rows.len() as f64;

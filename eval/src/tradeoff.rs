@@ -48,6 +48,25 @@ pub fn tradeoff(scene: &Scene, t: &Tradeoff, progress: &dyn Progress) -> Result<
     if !scene.mesh.is_empty() {
         bail!("tradeoff measures voxel scenes: the scene's [[mesh]] objects are not supported yet");
     }
+    if t.repeats == 0 {
+        bail!("--repeats 0: give at least 1 render per timing");
+    }
+    if let Some(b) = t.bins.iter().find(|&&b| b == 0) {
+        bail!("--bins {b}: an energy-bin count must be at least 1");
+    }
+    if let Some(f) = t
+        .scatter_fractions
+        .iter()
+        .find(|f| !(f.is_finite() && **f > 0.0 && **f <= 1.0))
+    {
+        bail!("--scatter-fractions {f}: each fraction of the reference's photons must lie in (0, 1]");
+    }
+    if let Some(x) = t.steps.iter().find(|x| !(x.is_finite() && **x > 0.0)) {
+        bail!("--steps {x}: a trilinear step must be > 0 voxels");
+    }
+    if let Some(c) = t.scatter_cells.iter().find(|c| !(c.is_finite() && **c > 0.0)) {
+        bail!("--scatter-cells {c}: a cell size must be > 0 mm");
+    }
     let acquisition = acquisition(scene)?;
     let options = Options {
         steps: t.steps.clone(),
@@ -55,7 +74,7 @@ pub fn tradeoff(scene: &Scene, t: &Tradeoff, progress: &dyn Progress) -> Result<
         scatter_fractions: t.scatter_fractions.clone(),
         scatter_cells: t.scatter_cells.clone(),
         scatter_reference_photons: t.scatter_reference_photons,
-        repeats: t.repeats.max(1),
+        repeats: t.repeats,
     };
     let (vol, job) = match &acquisition {
         None => {

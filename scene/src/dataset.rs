@@ -96,6 +96,18 @@ impl ItemSettings {
         if self.size < 2 || self.views == 0 {
             bail!("the size must be at least 2 and the views at least 1");
         }
+        // What one item holds at once: its views + AP + lateral as f32 images, and the CT
+        // resampled to the grid, normalised and written (three f32 copies).
+        let (size, views) = (self.size as u128, self.views as u128);
+        tomograf_sim::memory::check(
+            (views + 2) * size * size * 4 + 3 * size * size * size * 4,
+            &format!(
+                "an item of {} views of {}² pixels and a {}³ CT",
+                self.views + 2,
+                self.size,
+                self.size
+            ),
+        )?;
         if let Some((acq, _)) = &self.acquisition
             && acq.detector.channels() != 1
         {
@@ -216,6 +228,27 @@ pub struct DatasetSummary {
     pub listed: usize,
 }
 
+/// The most phantoms one data set holds (a million 64³ items is a terabyte).
+pub const MAX_PHANTOMS: usize = 1_000_000;
+
+/// Refuses more than [`MAX_PHANTOMS`] phantoms, or seeds `seed … seed + count − 1` that pass
+/// 2⁶⁴ − 1 (they would wrap round and repeat patients).
+pub fn check_phantom_count(seed: u64, count: usize) -> Result<()> {
+    if count > MAX_PHANTOMS {
+        bail!(
+            "{count} phantoms: at most {MAX_PHANTOMS} per data set (make a larger one as \
+             several folders, each with its own seed)"
+        );
+    }
+    if seed.checked_add(count.saturating_sub(1) as u64).is_none() {
+        bail!(
+            "seed {seed} with {count} phantoms: the phantoms' seeds would pass 2^64 − 1 and \
+             repeat; give a smaller seed"
+        );
+    }
+    Ok(())
+}
+
 impl DatasetJob {
     /// `count` procedural phantoms of `profile` with seeds `seed, seed + 1, …` (no table,
     /// a pacemaker if asked), `size`³ voxels with `views` views (+ AP and lateral), the
@@ -228,8 +261,9 @@ impl DatasetJob {
         (size, views): (usize, usize),
         split: &str,
         acquisition: Option<(Acquisition, u64)>,
-    ) -> Self {
-        Self {
+    ) -> Result<Self> {
+        check_phantom_count(seed, count)?;
+        Ok(Self {
             sources: (0..count)
                 .map(|n| ItemSource::phantom(seed + n as u64, profile, false, pacemaker))
                 .collect(),
@@ -242,7 +276,7 @@ impl DatasetJob {
             },
             output,
             shard: (0, 1),
-        }
+        })
     }
 
     /// The indices this run is responsible for.
