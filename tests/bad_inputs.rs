@@ -292,6 +292,18 @@ fn every_bad_input_ends_in_a_clear_error() {
         (vec!["reconstruct", &item, "--checkpoint", &other_preset, "-o", &out("rec.nii")].map_into(), "generator.bpk"),
         (vec!["reconstruct", &item, "--checkpoint", &out("no-checkpoint"), "-o", &out("rec.nii")].map_into(), "no-checkpoint"),
         (vec!["reconstruct-classical", &out("no-proj"), "--dims", "8,8,8", "-o", &out("r.nii")].map_into(), "no-proj"),
+        // Issue 51: counts and sizes that would overflow, abort or never end.
+        (vec!["dataset", "-o", &out("ds-big"), "--phantoms", "18446744073709551615"].map_into(), "at most 1000000 per data set"),
+        (vec!["dataset", "-o", &out("ds-seed"), "--phantoms", "3", "--seed", "18446744073709551615"].map_into(), "would pass 2^64 − 1"),
+        (vec!["dataset", "-o", &out("ds-views"), "--phantoms", "1", "--size", "256", "--views", "200000"].map_into(), "an item of 200002 views"),
+        (vec!["demo", "--phantoms", "1000000000000000", "-o", &out("demo-big")].map_into(), "--phantoms"),
+        (vec!["demo", "--train-phantoms", "1000000000000000", "-o", &out("demo-big2")].map_into(), "--train-phantoms"),
+        (vec!["dataset", "-o", &out("ds-kev"), "--phantoms", "1", "--size", "8", "--views", "2", "--energy-kev", "-60"].map_into(), "-60 keV"),
+        (vec!["project", "--scene", &scene("blur-huge", &format!("{small_scene}[acquisition]\npreset = \"kv-flat-panel-120kvp\"\n[detector.response.blur]\nsigma_mm = 1e9\n")), "-o", &o].map_into(), "blur sigma is 1000000000 mm"),
+        (vec!["project", "--scene", &scene("frames-huge", &format!("{small_scene}[acquisition]\npreset = \"kv-flat-panel-120kvp\"\n[detector.response.calibration]\nflat_frames = 1000000000\n")), "-o", &o].map_into(), "flat_frames = 1000000000"),
+        (vec!["tradeoff", "--phantom-dims", "16,16,8", "--rows", "8", "--cols", "8", "--repeats", "0", "--report", &out("t0")].map_into(), "--repeats 0"),
+        (vec!["tradeoff", "--phantom-dims", "16,16,8", "--rows", "8", "--cols", "8", "--kvp", "100", "--bins", "8,0", "--report", &out("t1")].map_into(), "--bins 0"),
+        (vec!["tradeoff", "--phantom-dims", "16,16,8", "--rows", "8", "--cols", "8", "--scatter-fractions", "5,-1", "--report", &out("t2")].map_into(), "--scatter-fractions 5"),
     ];
     assert!(rows.len() >= 40, "{} rows", rows.len());
     let mut failures = Vec::new();

@@ -71,12 +71,25 @@ impl Blur {
         self.sigma_mm == 0.0 && self.tail_fraction == 0.0
     }
 
-    /// Checks σ ≥ 0, t ∈ [0, 1], L > 0 where t > 0, all finite.
+    /// The widest PSF accepted, mm (σ and L): scintillators spread light over tenths of a
+    /// millimetre; a wider kernel is a mistake, and its size (±5σ in pixels) would grow
+    /// without bound.
+    pub const MAX_MM: f64 = 100.0;
+
+    /// Checks 0 ≤ σ ≤ [`Self::MAX_MM`], t ∈ [0, 1], 0 < L ≤ [`Self::MAX_MM`] where t > 0.
     pub fn validate(&self) -> Result<()> {
-        if !(self.sigma_mm.is_finite() && self.sigma_mm >= 0.0) {
+        if !(self.sigma_mm.is_finite() && (0.0..=Self::MAX_MM).contains(&self.sigma_mm)) {
             return Err(bad(format!(
-                "blur sigma is {} mm; it must be finite and ≥ 0",
-                self.sigma_mm
+                "blur sigma is {} mm; it must lie in 0–{} mm",
+                self.sigma_mm,
+                Self::MAX_MM
+            )));
+        }
+        if self.tail_length_mm > Self::MAX_MM {
+            return Err(bad(format!(
+                "blur tail length is {} mm; at most {} mm",
+                self.tail_length_mm,
+                Self::MAX_MM
             )));
         }
         if !(self.tail_fraction.is_finite() && (0.0..=1.0).contains(&self.tail_fraction)) {

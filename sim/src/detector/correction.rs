@@ -31,6 +31,25 @@ pub struct Calibration {
     pub dark_frames: u32,
 }
 
+impl Calibration {
+    /// The most frames a flat or dark field averages (each is a whole noisy image; a
+    /// thousand already leave a calibration noise far below any frame's).
+    pub const MAX_FRAMES: u32 = 10_000;
+
+    /// Checks the frame counts against [`Self::MAX_FRAMES`].
+    pub fn validate(&self) -> Result<()> {
+        for (name, n) in [("flat_frames", self.flat_frames), ("dark_frames", self.dark_frames)] {
+            if n > Self::MAX_FRAMES {
+                return Err(SimError::OutOfRange(format!(
+                    "[detector.calibration] {name} = {n}; at most {} frames are averaged",
+                    Self::MAX_FRAMES
+                )));
+            }
+        }
+        Ok(())
+    }
+}
+
 /// What the detector chain returns.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]

@@ -379,6 +379,7 @@ impl DetectorModel {
             s.validate()?;
         }
         self.blur.validate()?;
+        self.calibration.validate()?;
         self.readout.validate()
     }
 
