@@ -93,6 +93,9 @@ pub fn run(args: DatasetArgs) -> Result<()> {
         .unwrap_or_else(|| PathBuf::from(crate::demo::SHIPPED_CHECKPOINT));
     // Read (and checked) before any work: a corrupt population.json is named up front.
     let reference = Population::read(&like)?;
+    for w in job.settings.warnings() {
+        eprintln!("{w}");
+    }
     run_job(&job)?;
     warn_outliers(&job.output, &like, reference.as_ref())
 }

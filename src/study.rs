@@ -79,6 +79,11 @@ pub struct CommonArgs {
     /// sharded evaluation; it names the cells that average fewer phantoms than the scale).
     #[arg(long)]
     pub partial: bool,
+    /// With --stage report: report the scores of these study folders pooled — the same
+    /// study (kind, scale, sets) run with other --seed values, e.g. three training seeds —
+    /// into the -o folder; comma-separated or repeated.
+    #[arg(long, value_delimiter = ',')]
+    pub pool: Vec<PathBuf>,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -170,6 +175,9 @@ pub fn run(command: StudyCommand) -> Result<()> {
     if common.split.is_some() && stage != Stage::Data {
         bail!("--split is for --stage data (make only the train or only the test sets)");
     }
+    if !common.pool.is_empty() && stage != Stage::Report {
+        bail!("--pool is for --stage report (a report over runs with other seeds)");
+    }
     if common.partial && stage != Stage::Report {
         bail!("--partial is for --stage report (an interim report while shards still run)");
     }
@@ -194,6 +202,7 @@ pub fn run(command: StudyCommand) -> Result<()> {
         train,
         test,
         backend: common.backend.clone(),
+        pool: common.pool.clone(),
     };
     study.check_settings()?;
     let bar = Bar::default();

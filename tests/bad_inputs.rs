@@ -301,6 +301,8 @@ fn every_bad_input_ends_in_a_clear_error() {
         (vec!["dataset", "-o", &out("ds-kev"), "--phantoms", "1", "--size", "8", "--views", "2", "--energy-kev", "-60"].map_into(), "-60 keV"),
         (vec!["project", "--scene", &scene("blur-huge", &format!("{small_scene}[acquisition]\npreset = \"kv-flat-panel-120kvp\"\n[detector.response.blur]\nsigma_mm = 1e9\n")), "-o", &o].map_into(), "blur sigma is 1000000000 mm"),
         (vec!["project", "--scene", &scene("frames-huge", &format!("{small_scene}[acquisition]\npreset = \"kv-flat-panel-120kvp\"\n[detector.response.calibration]\nflat_frames = 1000000000\n")), "-o", &o].map_into(), "flat_frames = 1000000000"),
+        (vec!["reconstruct-classical", &proj_s, "--dims", "8,8,8", "-o", &format!("{}/", out("recdir"))].map_into(), "that is a folder"),
+        (vec!["reconstruct-classical", &proj_s, "--dims", "8,8,8", "-o", &s(d)].map_into(), "that is a folder"),
         (vec!["tradeoff", "--phantom-dims", "16,16,8", "--rows", "8", "--cols", "8", "--repeats", "0", "--report", &out("t0")].map_into(), "--repeats 0"),
         (vec!["tradeoff", "--phantom-dims", "16,16,8", "--rows", "8", "--cols", "8", "--kvp", "100", "--bins", "8,0", "--report", &out("t1")].map_into(), "--bins 0"),
         (vec!["tradeoff", "--phantom-dims", "16,16,8", "--rows", "8", "--cols", "8", "--scatter-fractions", "5,-1", "--report", &out("t2")].map_into(), "--scatter-fractions 5"),
@@ -387,6 +389,31 @@ fn suspicious_geometry_is_named() {
             Some(w) => assert!(err.contains(w), "{extra:?}: {err}"),
             None => assert!(!err.contains("warning"), "{extra:?}: {err}"),
         }
+    }
+    // `dataset` says so too (it said nothing).
+    for (sid, warned) in [("1000", true), ("1500", false)] {
+        let out = common::tomograf(&[
+            "dataset",
+            "-o",
+            &s(&dir.path().join(format!("ds{sid}"))),
+            "--phantoms",
+            "1",
+            "--size",
+            "8",
+            "--views",
+            "2",
+            "--sad",
+            "1000",
+            "--sid",
+            sid,
+        ]);
+        common::ok(&out);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(
+            err.contains("the detector cuts through every CT"),
+            warned,
+            "{err}"
+        );
     }
 }
 

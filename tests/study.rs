@@ -47,8 +47,13 @@ fn check_report(dir: &Path, plots: &[&str], columns: &[&str]) {
     for c in columns {
         assert!(md.contains(&format!("`{c}`")), "no column {c}");
     }
-    for method in ["| FDK |", "| SART-TV |"] {
-        assert_eq!(md.matches(method).count(), 3 * 4, "{method} rows");
+    // Rows of the metric tables (| views | method | …) per classical method.
+    for method in ["FDK", "SART-TV"] {
+        let rows = md
+            .lines()
+            .filter(|l| l.split('|').nth(2).map(str::trim) == Some(method))
+            .count();
+        assert_eq!(rows, 3 * 4, "{method} rows");
     }
     // Every table in both (the metric tables, the data sets, the effects, the paired
     // differences).
@@ -503,6 +508,111 @@ fn domain_shift_end_to_end_and_in_shards() {
     assert_eq!(
         rows_for(&d.join("results.csv"), &subset),
         rows_for(&c.join("results.csv"), &subset)
+    );
+}
+
+/// `--stage report --pool`: runs of one study with other seeds reported together — every
+/// cell over the items of all of them, the means those of the pooled items — and only runs
+/// of the same study with distinct seeds are taken.
+#[test]
+fn reports_pool_runs_with_other_seeds() {
+    let tmp = tempfile::tempdir().unwrap();
+    let run = |seed: &str| {
+        let d = tmp.path().join(format!("seed{seed}"));
+        ok(&tomograf(&[
+            "study",
+            "domain-shift",
+            "-o",
+            d.to_str().unwrap(),
+            "--shifts",
+            "lidc",
+            "--seed",
+            seed,
+        ]));
+        d
+    };
+    let (a, b) = (run("1"), run("2"));
+    let pooled = tmp.path().join("pooled");
+    let pool = format!("{},{}", a.display(), b.display());
+    ok(&tomograf(&[
+        "study",
+        "domain-shift",
+        "-o",
+        pooled.to_str().unwrap(),
+        "--shifts",
+        "lidc",
+        "--stage",
+        "report",
+        "--pool",
+        &pool,
+    ]));
+    let md = std::fs::read_to_string(pooled.join("report.md")).unwrap();
+    assert!(md.contains("**Pooled over 2 runs**"), "{md}");
+    let row = |dir: &Path| -> Vec<String> {
+        std::fs::read_to_string(dir.join("results.csv"))
+            .unwrap()
+            .lines()
+            .find(|l| l.starts_with(",lidc,1,FDK,"))
+            .unwrap()
+            .split(',')
+            .map(str::to_string)
+            .collect()
+    };
+    let (ra, rb, rp) = (row(&a), row(&b), row(&pooled));
+    assert_eq!(rp[4], "4", "{rp:?}");
+    let psnr = |r: &[String]| r[5].parse::<f64>().unwrap();
+    assert!(
+        ((psnr(&ra) + psnr(&rb)) / 2.0 - psnr(&rp)).abs() < 1e-3,
+        "{ra:?} {rb:?} {rp:?}"
+    );
+    // Not the same study, or the same seed twice: refused.
+    let other = tmp.path().join("other");
+    fails_with(
+        &[
+            "study",
+            "domain-shift",
+            "-o",
+            other.to_str().unwrap(),
+            "--shifts",
+            "lidc,table",
+            "--stage",
+            "report",
+            "--pool",
+            &pool,
+        ],
+        "is another study",
+    );
+    let twice = format!("{},{}", a.display(), a.display());
+    let other = tmp.path().join("other2");
+    fails_with(
+        &[
+            "study",
+            "domain-shift",
+            "-o",
+            other.to_str().unwrap(),
+            "--shifts",
+            "lidc",
+            "--stage",
+            "report",
+            "--pool",
+            &twice,
+        ],
+        "both hold seed 1",
+    );
+    fails_with(
+        &[
+            "study",
+            "domain-shift",
+            "-o",
+            other.to_str().unwrap(),
+            "--shifts",
+            "lidc",
+            "--stage",
+            "evaluate",
+            "--pool",
+            &pool,
+        ],
+        "--pool is for --stage report",
     );
 }
 

@@ -78,6 +78,18 @@ pub struct Classical {
 /// Reconstructs and writes `c.output` (iterative methods: stage "iteration" of
 /// `progress`, the relative residual as its message).
 pub fn reconstruct_classical(c: &Classical, progress: &dyn Progress) -> Result<()> {
+    // The output is checked before the work, not after it.
+    let text = c.output.to_string_lossy();
+    if c.output.is_dir() || text.ends_with('/') {
+        bail!(
+            "-o {text}: that is a folder; give the NIfTI file to write, e.g. {}",
+            c.output.join("recon.nii.gz").display()
+        );
+    }
+    if let Some(dir) = c.output.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir)
+            .with_context(|| format!("cannot create the output folder {}", dir.display()))?;
+    }
     let input = read_projections(&c.input)?;
     let pick: Vec<usize> = if c.views.is_empty() {
         (0..input.views.len()).collect()
@@ -147,10 +159,6 @@ pub fn reconstruct_classical(c: &Classical, progress: &dyn Progress) -> Result<(
     } else {
         recon::mu_to_hu_at_kev(&volume, c.energy_kev)?
     };
-    if let Some(dir) = c.output.parent().filter(|d| !d.as_os_str().is_empty()) {
-        std::fs::create_dir_all(dir)
-            .with_context(|| format!("cannot create the output folder {}", dir.display()))?;
-    }
     nifti::write_nifti(&c.output, &out)?;
     progress.note(&format!(
         "wrote {} ({} from {} views, {})",

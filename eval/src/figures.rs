@@ -492,12 +492,22 @@ pub fn plot_deviations(path: &Path, axes: &Axes, rows: &[(f64, f64, f64, f64, f6
     // Deviations beyond ±100 % (a run of very few histories) are drawn at the edge: the
     // range stays finite and readable (plotters' tick search does not end on an infinite
     // or astronomically wide range).
-    let clip = |v: f64| if v.is_finite() { v.clamp(-DEVIATION_LIMIT, DEVIATION_LIMIT) } else { 0.0 };
+    let clip = |v: f64| {
+        if v.is_finite() {
+            v.clamp(-DEVIATION_LIMIT, DEVIATION_LIMIT)
+        } else {
+            0.0
+        }
+    };
     let rows: Vec<(f64, f64, f64, f64, f64)> = rows
         .iter()
         .filter(|r| r.0.is_finite())
         .map(|&(x, y, e, lo, hi)| {
-            let e = if e.is_finite() { e.min(2.0 * DEVIATION_LIMIT) } else { 0.0 };
+            let e = if e.is_finite() {
+                e.min(2.0 * DEVIATION_LIMIT)
+            } else {
+                0.0
+            };
             (x, clip(y), e, clip(lo), clip(hi))
         })
         .collect();

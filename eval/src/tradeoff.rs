@@ -59,12 +59,18 @@ pub fn tradeoff(scene: &Scene, t: &Tradeoff, progress: &dyn Progress) -> Result<
         .iter()
         .find(|f| !(f.is_finite() && **f > 0.0 && **f <= 1.0))
     {
-        bail!("--scatter-fractions {f}: each fraction of the reference's photons must lie in (0, 1]");
+        bail!(
+            "--scatter-fractions {f}: each fraction of the reference's photons must lie in (0, 1]"
+        );
     }
     if let Some(x) = t.steps.iter().find(|x| !(x.is_finite() && **x > 0.0)) {
         bail!("--steps {x}: a trilinear step must be > 0 voxels");
     }
-    if let Some(c) = t.scatter_cells.iter().find(|c| !(c.is_finite() && **c > 0.0)) {
+    if let Some(c) = t
+        .scatter_cells
+        .iter()
+        .find(|c| !(c.is_finite() && **c > 0.0))
+    {
         bail!("--scatter-cells {c}: a cell size must be > 0 mm");
     }
     let acquisition = acquisition(scene)?;

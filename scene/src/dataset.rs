@@ -117,6 +117,24 @@ impl ItemSettings {
     }
 }
 
+impl ItemSettings {
+    /// Settings that are legal but almost certainly not meant, as warnings: a detector at or
+    /// before the isocentre's distance cuts through every item's CT (its rays end inside
+    /// it, so the line integrals are truncated), as `tomograf project` warns too.
+    pub fn warnings(&self) -> Vec<String> {
+        let mut w = Vec::new();
+        if self.sid_mm <= self.sad_mm {
+            w.push(format!(
+                "warning: the source-detector distance {} mm is not beyond the source-isocentre \
+                 distance {} mm: the detector cuts through every CT and the line integrals are \
+                 truncated; raise --sid",
+                self.sid_mm, self.sad_mm
+            ));
+        }
+        w
+    }
+}
+
 /// Where an item comes from.
 #[derive(Debug, Clone, Serialize)]
 #[serde(tag = "kind", rename_all = "kebab-case")]

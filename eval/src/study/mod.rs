@@ -98,6 +98,9 @@ pub struct Study {
     pub train: Vec<DataSpec>,
     pub test: Vec<DataSpec>,
     pub backend: Option<String>,
+    /// Studies whose scores the report pools (`--pool`): the same study run with other
+    /// seeds, each in its own folder. Empty: this folder's own scores.
+    pub pool: Vec<PathBuf>,
 }
 
 /// View counts every study evaluates (the paper's).
@@ -152,8 +155,46 @@ impl Study {
     /// The evaluation folder of a model (`Some(train set)`) or of the classical baselines
     /// on a test set.
     pub fn eval_dir(&self, test: &str, train: Option<&str>) -> PathBuf {
-        let cell = train.map_or("classical".to_string(), |t| format!("model-{t}"));
-        self.dir.join("eval").join(test).join(cell)
+        eval_dir_in(&self.dir, test, train)
+    }
+
+    /// The pooled studies (`--pool`): each one's folder and seed, after checking that it is
+    /// this study but for the seed, that no seed repeats and that each is complete enough
+    /// to report. Empty without `--pool`.
+    pub fn pooled(&self) -> Result<Vec<(PathBuf, u64)>> {
+        let mut out: Vec<(PathBuf, u64)> = Vec::new();
+        for dir in &self.pool {
+            let path = dir.join("study.json");
+            let bytes = std::fs::read(&path)
+                .with_context(|| format!("--pool: {} is not a study folder", dir.display()))?;
+            let other: Settings = serde_json::from_slice(&bytes)
+                .with_context(|| format!("--pool: {} is not a study's settings", path.display()))?;
+            let same = Settings {
+                seed: self.settings.seed,
+                ..other.clone()
+            };
+            if same != self.settings {
+                bail!(
+                    "--pool: {} is another study ({:?}, scale {}, sets {:?} → {:?}); pool runs of \
+                     the same study that differ only in --seed",
+                    dir.display(),
+                    other.kind,
+                    other.scale.name,
+                    other.train_sets,
+                    other.test_sets
+                );
+            }
+            if let Some((d, _)) = out.iter().find(|(_, s)| *s == other.seed) {
+                bail!(
+                    "--pool: {} and {} both hold seed {}: pool runs with different seeds",
+                    d.display(),
+                    dir.display(),
+                    other.seed
+                );
+            }
+            out.push((dir.clone(), other.seed));
+        }
+        Ok(out)
     }
 
     fn dataset_job(
@@ -350,6 +391,12 @@ impl Study {
         let e = effects::load_or_measure(self)?;
         Ok(report::effects_markdown(&e))
     }
+}
+
+/// The evaluation folder of a cell in the study folder `dir`.
+pub fn eval_dir_in(dir: &Path, test: &str, train: Option<&str>) -> PathBuf {
+    let cell = train.map_or("classical".to_string(), |t| format!("model-{t}"));
+    dir.join("eval").join(test).join(cell)
 }
 
 /// Whether `path` is inside the study folder `dir` (for relative links in the report).

@@ -7,7 +7,7 @@ use super::coverage::Coverage;
 use super::effects::{self, Effect, NEGLIGIBLE_PCT};
 use super::paired::Paired;
 use super::render::{Block, render};
-use super::{Kind, Study, VIEWS, relative};
+use super::{Kind, Study, VIEWS, eval_dir_in, relative};
 use crate::evaluation::{NETWORK_ONLY, Row, Scores, merge};
 use crate::figures::{
     Axes, BarSeries, COLOUR_NAMES, plot_categories, plot_histograms, plot_with_bars,
@@ -15,6 +15,7 @@ use crate::figures::{
 use anyhow::{Context, Result};
 use std::fmt::Write as _;
 use std::path::Path;
+use std::path::PathBuf;
 use tomograf_datasets::atomic::write_atomic;
 use tomograf_model::metrics::mean_std;
 
@@ -115,16 +116,29 @@ fn stats_of(rows: &[Row], train: Option<&str>, test: &str, out: &mut Vec<Stat>) 
 /// evaluation must be complete.
 pub fn write(study: &Study, partial: bool) -> Result<()> {
     let s = &study.settings;
+    // The folders whose scores are reported: this one, or the pooled runs (their items
+    // named `s<seed>/<item>`).
+    let pooled = study.pooled()?;
+    let sources: Vec<(PathBuf, Option<u64>)> = if pooled.is_empty() {
+        vec![(study.dir.clone(), None)]
+    } else {
+        pooled
+            .iter()
+            .map(|(d, seed)| (d.clone(), Some(*seed)))
+            .collect()
+    };
     // (test set, train set or None for the classical cell, its rows).
     let mut cells = Vec::new();
     for test in &s.test_sets {
         let trains = std::iter::once(None).chain(s.train_sets.iter().map(|t| Some(t.as_str())));
         for train in trains {
-            let dir = study.eval_dir(test, train);
-            let rows = if partial && !dir.join("job.json").exists() {
-                Vec::new()
-            } else {
-                merge(&dir, partial)
+            let mut rows = Vec::new();
+            for (root, seed) in &sources {
+                let dir = eval_dir_in(root, test, train);
+                if partial && !dir.join("job.json").exists() {
+                    continue;
+                }
+                let mut got = merge(&dir, partial)
                     .with_context(|| {
                         format!(
                             "{}: run the evaluate stage (on every shard) first, or report on \
@@ -132,8 +146,14 @@ pub fn write(study: &Study, partial: bool) -> Result<()> {
                             dir.display()
                         )
                     })?
-                    .1
-            };
+                    .1;
+                if let Some(seed) = seed {
+                    for r in &mut got {
+                        r.item = format!("s{seed}/{}", r.item);
+                    }
+                }
+                rows.extend(got);
+            }
             cells.push((test.clone(), train, rows));
         }
     }
@@ -152,7 +172,7 @@ pub fn write(study: &Study, partial: bool) -> Result<()> {
     blocks.extend(tables(study, &stats));
     blocks.extend(paired_tables(study, &stats));
     blocks.extend(plots(study, &stats)?);
-    if let Some(id) = first_item {
+    if let Some(id) = first_item.filter(|_| pooled.is_empty()) {
         blocks.extend(examples(study, &id));
     }
     let (md, html) = render(&blocks, title(s.kind));
@@ -246,6 +266,18 @@ fn intro(study: &Study) -> Vec<Block> {
             .collect::<String>(),
         n = sc.size,
     ))];
+    if !study.pool.is_empty() {
+        let dirs: Vec<String> = study.pool.iter().map(|p| p.display().to_string()).collect();
+        b.push(Block::Para(format!(
+            "**Pooled over {} runs** of this study that differ only in the seed (their \
+             training phantoms, noise, model training and test phantoms): {}. Every cell \
+             pools their test items (named `s<seed>/<item>`), so the spreads and the paired \
+             intervals below cover the training seeds as well as the test items. The example \
+             slices are in each run's own report.",
+            dirs.len(),
+            dirs.join(", ")
+        )));
+    }
     if sc.name == "tiny" {
         b.push(Block::Para(
             "**Tiny scale**: a smoke test of the pipeline (16³ volumes, a model trained for \
@@ -369,8 +401,15 @@ fn paired_tables(study: &Study, stats: &[Stat]) -> Vec<Block> {
         "Differences paired over the test items (the same items in both), mean ± the \
          half-width of its 95 % t-interval; **bold**: the interval excludes zero (resolved). \
          {resolved} of the {shown} differences below are resolved; the others cannot be told \
-         from the spread between items. One training run per model: the intervals cover the \
-         test items, not the training seed."
+         from the spread between items. {}",
+        if study.pool.is_empty() {
+            "One training run per model: the intervals cover the test items, not the training \
+             seed (pool runs with other seeds with `--stage report --pool`)."
+        } else {
+            "Pooled over training seeds: the pairs of every seed are taken as one sample, so \
+             the seeds' variation enters the spread (an effect shared by all items of one seed \
+             would make the interval somewhat too narrow)."
+        }
     )));
     b.push(Block::Table(
         [

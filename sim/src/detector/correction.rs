@@ -38,7 +38,10 @@ impl Calibration {
 
     /// Checks the frame counts against [`Self::MAX_FRAMES`].
     pub fn validate(&self) -> Result<()> {
-        for (name, n) in [("flat_frames", self.flat_frames), ("dark_frames", self.dark_frames)] {
+        for (name, n) in [
+            ("flat_frames", self.flat_frames),
+            ("dark_frames", self.dark_frames),
+        ] {
             if n > Self::MAX_FRAMES {
                 return Err(SimError::OutOfRange(format!(
                     "[detector.calibration] {name} = {n}; at most {} frames are averaged",
