@@ -216,6 +216,10 @@ fn every_bad_input_ends_in_a_clear_error() {
     let small_scene = "[volume]\nphantom_dims = [16, 16, 8]\nphantom_spacing_mm = [20.0, 20.0, 40.0]\n[detector]\nrows = 16\ncols = 16\n";
 
     let proj_s = s(&proj);
+    let cut_proj = p("proj-cut");
+    copy_dir(&proj, &cut_proj);
+    let b = std::fs::read(cut_proj.join("drr.npy")).unwrap();
+    std::fs::write(cut_proj.join("drr.npy"), &b[..b.len() - 100]).unwrap();
     let o = out("o");
     // (arguments, words the error must contain)
     let rows: Vec<(Vec<String>, &str)> = vec![
@@ -303,6 +307,10 @@ fn every_bad_input_ends_in_a_clear_error() {
         (vec!["project", "--scene", &scene("frames-huge", &format!("{small_scene}[acquisition]\npreset = \"kv-flat-panel-120kvp\"\n[detector.response.calibration]\nflat_frames = 1000000000\n")), "-o", &o].map_into(), "flat_frames = 1000000000"),
         (vec!["reconstruct-classical", &proj_s, "--dims", "8,8,8", "-o", &format!("{}/", out("recdir"))].map_into(), "that is a folder"),
         (vec!["reconstruct-classical", &proj_s, "--dims", "8,8,8", "-o", &s(d)].map_into(), "that is a folder"),
+        (vec!["reconstruct-classical", &proj_s, "--method", "fdk", "--views", "3,3,3", "--dims", "8,8,8", "-o", &out("dup.nii")].map_into(), "view 3 is listed more than once"),
+        (vec!["reconstruct-classical", &proj_s, "--dims", "8,8,8", "--spacing", "1e300", "-o", &out("sp.nii")].map_into(), "--spacing 1e300"),
+        (vec!["project", "--phantom-dims", "16,16,8", "--rows", "8", "--cols", "8", "--quantity", "intensity", "--i0", "1e39", "-o", &o].map_into(), "images are float32"),
+        (vec!["reconstruct-classical", &s(&cut_proj), "--dims", "8,8,8", "-o", &out("cut.nii")].map_into(), "the file ends before them"),
         (vec!["tradeoff", "--phantom-dims", "16,16,8", "--rows", "8", "--cols", "8", "--repeats", "0", "--report", &out("t0")].map_into(), "--repeats 0"),
         (vec!["tradeoff", "--phantom-dims", "16,16,8", "--rows", "8", "--cols", "8", "--kvp", "100", "--bins", "8,0", "--report", &out("t1")].map_into(), "--bins 0"),
         (vec!["tradeoff", "--phantom-dims", "16,16,8", "--rows", "8", "--cols", "8", "--scatter-fractions", "5,-1", "--report", &out("t2")].map_into(), "--scatter-fractions 5"),

@@ -134,8 +134,21 @@ pub fn read_npy(path: &Path) -> Result<(Vec<f32>, Vec<usize>)> {
         .iter()
         .map(|&n| usize::try_from(n).map_err(|e| bad(&e)))
         .collect::<Result<_>>()?;
-    let values: Vec<f32> = npy.into_vec().map_err(|e| bad(&e))?;
     let count = shape.iter().try_fold(1usize, |acc, &n| acc.checked_mul(n));
+    let values: Vec<f32> = npy.into_vec().map_err(|e| {
+        if e.kind() == std::io::ErrorKind::UnexpectedEof {
+            DatasetError::truncated(
+                path,
+                format!(
+                    "its header promises shape {shape:?} ({} float32 values) but the file ends \
+                     before them",
+                    count.map_or("too many".to_string(), |c| c.to_string())
+                ),
+            )
+        } else {
+            bad(&e)
+        }
+    })?;
     if count != Some(values.len()) {
         return Err(DatasetError::truncated(
             path,

@@ -77,6 +77,10 @@ pub struct Classical {
 
 /// Reconstructs and writes `c.output` (iterative methods: stage "iteration" of
 /// `progress`, the relative residual as its message).
+/// The largest voxel a reconstruction grid may have, mm (10 m: beyond any scanner, and far
+/// inside what a NIfTI header and f32 coordinates hold).
+pub const MAX_SPACING_MM: f64 = 10_000.0;
+
 pub fn reconstruct_classical(c: &Classical, progress: &dyn Progress) -> Result<()> {
     // The output is checked before the work, not after it.
     let text = c.output.to_string_lossy();
@@ -102,11 +106,26 @@ pub fn reconstruct_classical(c: &Classical, progress: &dyn Progress) -> Result<(
             input.views.len()
         );
     }
+    if let Some(i) = pick
+        .iter()
+        .enumerate()
+        .find_map(|(k, i)| pick[..k].contains(i).then_some(i))
+    {
+        bail!("--views: view {i} is listed more than once; each view counts once");
+    }
     let images: Vec<Projection> = pick.iter().map(|&i| input.images[i].clone()).collect();
     let views: Vec<View> = pick.iter().map(|&i| input.views[i]).collect();
     let template = match (&c.grid, input.grid) {
         (Grid::Like(p), _) => nifti::read_nifti(p)?.map(|_| 0.0)?,
         (&Grid::Centred { dims, spacing_mm }, _) => {
+            if !(spacing_mm.is_finite() && spacing_mm > 0.0 && spacing_mm <= MAX_SPACING_MM) {
+                let shown = if spacing_mm.abs() < 1e6 {
+                    spacing_mm.to_string()
+                } else {
+                    format!("{spacing_mm:e}")
+                };
+                bail!("--spacing {shown}: give a voxel size in (0, {MAX_SPACING_MM}] mm");
+            }
             let count = tomograf_sim::volume::checked_voxel_count(dims)
                 .context("--dims: the output grid")?;
             let centre = input.geometry.map_or(DVec3::ZERO, |g| g.isocentre);

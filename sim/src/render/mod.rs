@@ -112,11 +112,13 @@ impl Quantity {
 
     /// Checks parameters (I0 finite and > 0).
     pub fn validate(&self) -> Result<()> {
+        // Images are f32: an open-beam value beyond f32's range would be +Inf.
         if let Self::Intensity { i0 } = *self
-            && !(i0.is_finite() && i0 > 0.0)
+            && !(i0.is_finite() && i0 > 0.0 && i0 <= f64::from(f32::MAX))
         {
             return Err(SimError::OutOfRange(format!(
-                "I0 = {i0}; it must be finite and > 0"
+                "I0 = {i0}; it must be finite, > 0 and at most {:e} (images are float32)",
+                f32::MAX
             )));
         }
         Ok(())
