@@ -10,7 +10,8 @@ pub use tomograf_eval::training::{Training, train};
 #[derive(Debug, Args)]
 pub struct TrainArgs {
     /// Data set folder made by `tomograf dataset` (manifest.jsonl and item folders).
-    pub data: PathBuf,
+    #[arg(required_unless_present = "replot")]
+    pub data: Option<PathBuf>,
     /// Run folder: checkpoint/, metrics.csv, loss.png.
     #[arg(short, long)]
     pub output: PathBuf,
@@ -34,12 +35,27 @@ pub struct TrainArgs {
     /// Backend: flex (CPU, default), ndarray, cuda, wgpu (as compiled in).
     #[arg(long)]
     pub backend: Option<String>,
+    /// Do not train: redraw the loss plot of this metrics.csv (a run's, or the shipped
+    /// model's `model/checkpoints/demo-metrics.csv`) into `-o`/loss.png.
+    #[arg(long)]
+    pub replot: Option<PathBuf>,
 }
 
 pub fn run(args: TrainArgs) -> Result<()> {
+    if let Some(csv) = &args.replot {
+        std::fs::create_dir_all(&args.output)?;
+        let png = args.output.join("loss.png");
+        tomograf_eval::training::replot_losses(csv, &png)?;
+        eprintln!("wrote {}", png.display());
+        return Ok(());
+    }
+    let data = args
+        .data
+        .as_deref()
+        .expect("clap requires data without --replot");
     train(
         &Training {
-            data: &args.data,
+            data,
             output: &args.output,
             config: &args.config,
             iterations: args.iterations,

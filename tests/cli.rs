@@ -348,3 +348,33 @@ fn reconstruct_classical_reads_the_projection_sidecar() {
         "{e}"
     );
 }
+
+/// `train --replot`: the shipped model's losses drawn without training; a file that is not
+/// a run's metrics is named.
+#[test]
+fn train_replots_the_shipped_models_losses() {
+    let dir = tempfile::tempdir().unwrap();
+    let csv = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/model/checkpoints/demo-metrics.csv"
+    );
+    ok(&tomograf(&[
+        "train",
+        "--replot",
+        csv,
+        "-o",
+        dir.path().to_str().unwrap(),
+    ]));
+    let png = std::fs::read(dir.path().join("loss.png")).unwrap();
+    assert_eq!(&png[1..4], b"PNG");
+    let readme = concat!(env!("CARGO_MANIFEST_DIR"), "/README.md");
+    let out = tomograf(&[
+        "train",
+        "--replot",
+        readme,
+        "-o",
+        dir.path().to_str().unwrap(),
+    ]);
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("is not a training run's metrics.csv"));
+}

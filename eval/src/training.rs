@@ -200,6 +200,19 @@ fn save(
         }
         Ok(())
     })?;
+    plot_losses(rows, &out.join("loss.png"))?;
+    checkpoint::save(trainer, scale, ck)?;
+    // What the training CTs look like, for `reconstruct` and `evaluate` to compare inputs
+    // with (docs/datasets.md, "Real CTs"); absent for items that do not record it.
+    if let Some(p) = population {
+        p.write(ck)?;
+    }
+    Ok(())
+}
+
+/// Draws the losses of `rows` (lines of a run's `metrics.csv`, without its header) against
+/// the iteration into `path` (PNG).
+pub fn plot_losses(rows: &[String], path: &Path) -> Result<()> {
     let series = |col: usize| -> Vec<(f64, f64)> {
         rows.iter()
             .filter_map(|r| {
@@ -209,25 +222,33 @@ fn save(
             .collect()
     };
     crate::figures::plot_lines(
-        &out.join("loss.png"),
+        path,
         &crate::figures::Axes {
             title: "Training losses",
             x: "iteration",
-            y: "loss",
+            y: "loss (dimensionless, per term)",
         },
         &[
-            ("loss_g", series(3)),
+            ("loss_g (total)", series(3)),
             ("loss_volume", series(4)),
             ("loss_projection", series(5)),
             ("l1_volume", series(11)),
             ("l1_patch", series(12)),
         ],
-    )?;
-    checkpoint::save(trainer, scale, ck)?;
-    // What the training CTs look like, for `reconstruct` and `evaluate` to compare inputs
-    // with (docs/datasets.md, "Real CTs"); absent for items that do not record it.
-    if let Some(p) = population {
-        p.write(ck)?;
+    )
+}
+
+/// [`plot_losses`] of the metrics file `csv` (a run's `metrics.csv`), checking its header.
+pub fn replot_losses(csv: &Path, path: &Path) -> Result<()> {
+    let text =
+        std::fs::read_to_string(csv).with_context(|| format!("cannot read {}", csv.display()))?;
+    let mut lines = text.lines();
+    if lines.next() != Some(HEADER) {
+        anyhow::bail!(
+            "{} is not a training run's metrics.csv (its first line is not `{HEADER}`)",
+            csv.display()
+        );
     }
-    Ok(())
+    let rows: Vec<String> = lines.map(str::to_string).collect();
+    plot_losses(&rows, path)
 }
