@@ -185,6 +185,12 @@ fn every_bad_input_ends_in_a_clear_error() {
         j["proj_scale"] = serde_json::json!(0.0);
         std::fs::write(c.join("state.json"), j.to_string()).unwrap();
     });
+    let huge_scale = broken("ck-huge-scale", &|c| {
+        let t = std::fs::read_to_string(c.join("state.json")).unwrap();
+        let mut j: serde_json::Value = serde_json::from_str(&t).unwrap();
+        j["proj_scale"] = serde_json::json!(1e308);
+        std::fs::write(c.join("state.json"), j.to_string()).unwrap();
+    });
     let nan_mean = broken("ck-nan-mean", &|c| {
         npy(
             &c.join("mean_volume.npy"),
@@ -290,6 +296,7 @@ fn every_bad_input_ends_in_a_clear_error() {
         (vec!["reconstruct", &item, "--checkpoint", &s(&demo), "--iterations", "0", "-o", &out("rec.nii")].map_into(), "at least 1"),
         (vec!["reconstruct", &item, "--checkpoint", &empty_bpk, "-o", &out("rec.nii")].map_into(), "empty, truncated or corrupt"),
         (vec!["reconstruct", &item, "--checkpoint", &zero_scale, "-o", &out("rec.nii")].map_into(), "proj_scale = 0"),
+        (vec!["reconstruct", &item, "--checkpoint", &huge_scale, "-o", &out("rec.nii")].map_into(), "must be finite and in (0, 1e6]"),
         (vec!["reconstruct", &item, "--checkpoint", &nan_mean, "-o", &out("rec.nii")].map_into(), "mean_volume.npy"),
         (vec!["reconstruct", &item, "--checkpoint", &cut_mean, "-o", &out("rec.nii")].map_into(), "truncated or corrupt NPY"),
         (vec!["reconstruct", &item, "--checkpoint", &no_mean, "-o", &out("rec.nii")].map_into(), "missing"),
@@ -311,6 +318,7 @@ fn every_bad_input_ends_in_a_clear_error() {
         (vec!["reconstruct-classical", &proj_s, "--dims", "8,8,8", "--spacing", "1e300", "-o", &out("sp.nii")].map_into(), "--spacing 1e300"),
         (vec!["project", "--phantom-dims", "16,16,8", "--rows", "8", "--cols", "8", "--quantity", "intensity", "--i0", "1e39", "-o", &o].map_into(), "images are float32"),
         (vec!["reconstruct-classical", &s(&cut_proj), "--dims", "8,8,8", "-o", &out("cut.nii")].map_into(), "the file ends before them"),
+        (vec!["project", "--scene", &scene("mu-huge", &format!("{small_scene}[[mesh]]\nname = \"s\"\nkind = \"sphere\"\nradius_mm = 50\nmu_per_mm = 1e38\n")), "-o", &out("mu-huge")].map_into(), "overflows float32"),
         (vec!["tradeoff", "--phantom-dims", "16,16,8", "--rows", "8", "--cols", "8", "--repeats", "0", "--report", &out("t0")].map_into(), "--repeats 0"),
         (vec!["tradeoff", "--phantom-dims", "16,16,8", "--rows", "8", "--cols", "8", "--kvp", "100", "--bins", "8,0", "--report", &out("t1")].map_into(), "--bins 0"),
         (vec!["tradeoff", "--phantom-dims", "16,16,8", "--rows", "8", "--cols", "8", "--scatter-fractions", "5,-1", "--report", &out("t2")].map_into(), "--scatter-fractions 5"),
@@ -398,6 +406,26 @@ fn suspicious_geometry_is_named() {
             None => assert!(!err.contains("warning"), "{extra:?}: {err}"),
         }
     }
+    // An image that holds one value everywhere says nothing: named (it was silent).
+    let out = common::tomograf(&[
+        "project",
+        "--phantom-dims",
+        "16,16,8",
+        "--rows",
+        "8",
+        "--cols",
+        "8",
+        "--empty-below",
+        "1e30",
+        "-o",
+        &o,
+    ]);
+    common::ok(&out);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("every pixel of every view is 0: nothing in the beam"),
+        "{err}"
+    );
     // `dataset` says so too (it said nothing).
     for (sid, warned) in [("1000", true), ("1500", false)] {
         let out = common::tomograf(&[

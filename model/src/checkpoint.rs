@@ -236,11 +236,13 @@ fn read_meta(dir: &Path) -> Result<(TrainConfig, State)> {
     let sp = dir.join("state.json");
     let bytes = std::fs::read(&sp).map_err(|e| err(&sp, e))?;
     let state: State = serde_json::from_slice(&bytes).map_err(|e| err(&sp, e))?;
-    if !(state.proj_scale.is_finite() && state.proj_scale > 0.0) {
+    // Training sets it to bring the line integrals to about 1 (9.2 for the shipped model);
+    // anything beyond 10⁶ makes every projection loss meaningless.
+    if !(state.proj_scale.is_finite() && state.proj_scale > 0.0 && state.proj_scale <= 1e6) {
         return Err(err(
             &sp,
             format!(
-                "proj_scale = {}; it must be finite and > 0 (the checkpoint is corrupt)",
+                "proj_scale = {}; it must be finite and in (0, 1e6] (the checkpoint is corrupt)",
                 state.proj_scale
             ),
         ));

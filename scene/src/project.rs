@@ -7,7 +7,7 @@ use crate::outputs::scatter::ScatterWriters;
 use crate::outputs::{self, Outputs};
 use crate::progress::Progress;
 use crate::scene::Scene;
-use anyhow::Result;
+use anyhow::{Result, bail};
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
 use tomograf_datasets::sidecar::{self, PixelQuantity};
@@ -52,6 +52,20 @@ impl std::fmt::Display for Summary {
 
 /// Renders every view of `scene` and writes its outputs (stage "view" of `progress`;
 /// geometry probably not meant and clipped pixels go to [`Progress::warn`]).
+/// A warning when every pixel of every view holds one value: nothing in the beam attenuates
+/// (an all-air volume, a threshold above every voxel, a volume far from the beam), so the
+/// images say nothing.
+fn constant_images(channels: &[Vec<Projection>]) -> Option<String> {
+    let mut values = channels.iter().flatten().flat_map(|p| p.data.iter());
+    let first = *values.next()?;
+    values.all(|v| *v == first).then(|| {
+        format!(
+            "warning: every pixel of every view is {first}: nothing in the beam attenuates \
+             (an all-air volume, --empty-below above every voxel, or a volume out of the beam)"
+        )
+    })
+}
+
 pub fn project(scene: &Scene, progress: &dyn Progress) -> Result<Summary> {
     let outputs = Outputs::from_scene(scene)?;
     let prepared = crate::prepare(scene)?;
@@ -89,12 +103,23 @@ pub fn project(scene: &Scene, progress: &dyn Progress) -> Result<Summary> {
             channels = vec![Vec::with_capacity(job.views.len()); images.len()];
         }
         for ((img, out), stack) in images.into_iter().zip(&channel_outputs).zip(&mut channels) {
+            // Nothing non-finite is written (f32 overflow of a huge I0, μ or exposure).
+            if let Some(v) = img.data.iter().find(|v| !v.is_finite()) {
+                bail!(
+                    "view {i}: a pixel is {v}: the image overflows float32 — lower the \
+                     exposure, I0 or the attenuation that produced it; nothing was written \
+                     for this view"
+                );
+            }
             out.write_view(i, &img)?;
             stack.push(img);
         }
         progress.inc();
     }
     progress.finish();
+    if let Some(w) = constant_images(&channels) {
+        progress.warn(&w);
+    }
     let mut sidecar = outputs::sidecar(&prepared.source, job);
     if let Some((acq, seed)) = acquisition {
         sidecar.quantity = PixelQuantity::Described("detector signal (see acquisition)".into());
