@@ -452,12 +452,18 @@ impl ItemScene {
         })
     }
 
-    /// The ideal DRR of `view`: line integrals of μ at `energy_kev` (exact Siddon).
+    /// The ideal DRR of `views`: line integrals of μ at `energy_kev` (exact Siddon).
     pub fn ideal_drr(&self, energy_kev: f64, views: &[View]) -> Result<Vec<Vec<f32>>> {
-        let mu = Attenuation::hounsfield_at_kev(energy_kev)?.to_mu(self.hu.clone())?;
-        let renderer = Renderer::new(&mu, Projector::Siddon)?.for_views(views);
-        views.iter().map(|v| Ok(renderer.render(v)?.data)).collect()
+        ideal_drr(&self.hu, energy_kev, views)
     }
+}
+
+/// The ideal DRR of `views` through the CT `hu` (HU): line integrals of μ at `energy_kev`,
+/// exact Siddon — how every ideal-DRR item is rendered.
+fn ideal_drr(hu: &tomograf_sim::Volume, energy_kev: f64, views: &[View]) -> Result<Vec<Vec<f32>>> {
+    let mu = Attenuation::hounsfield_at_kev(energy_kev)?.to_mu(hu.clone())?;
+    let renderer = Renderer::new(&mu, Projector::Siddon)?.for_views(views);
+    views.iter().map(|v| Ok(renderer.render(v)?.data)).collect()
 }
 
 /// Makes item `index` of a set from `source` into `dir` (created if missing).
@@ -484,10 +490,8 @@ pub fn make_item(
     let mut stack = Vec::with_capacity(views.len() * size * size);
     let quantity = match acquisition {
         None => {
-            let mu = Attenuation::hounsfield_at_kev(settings.energy_kev)?.to_mu(cropped.clone())?;
-            let renderer = Renderer::new(&mu, Projector::Siddon)?.for_views(&views);
-            for v in &views {
-                stack.extend(renderer.render(v)?.data);
+            for image in ideal_drr(&cropped, settings.energy_kev, &views)? {
+                stack.extend(image);
             }
             "line integral ∫mu ds (mu at the effective energy)".to_string()
         }

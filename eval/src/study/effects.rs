@@ -30,7 +30,7 @@ use super::Study;
 use super::levels::DataSpec;
 use anyhow::{Context, Result};
 use serde::{Deserialize, Serialize};
-use tomograf_scene::dataset::ItemScene;
+use tomograf_scene::dataset::{DatasetJob, ItemScene};
 use tomograf_scene::physics::item_seed;
 use tomograf_sim::acquisition::add_into;
 use tomograf_sim::detector::Blur;
@@ -106,15 +106,10 @@ fn reference(study: &Study, k: usize) -> Option<&DataSpec> {
     }
 }
 
-/// Item `index` of `spec`: its AP and lateral views, realisations `a` (the item's own
+/// Item `index` of a set's data-set job: its AP and lateral views, realisations `a` (the item's own
 /// noise stream) and `b` (another; the same as `a` without noise), the ideal DRR, and the
 /// geometry (the panel's pitch, mm, and where it looks).
-fn item_views(
-    study: &Study,
-    spec: &DataSpec,
-    index: usize,
-) -> Result<([Views; 2], [Vec<f32>; 2], Geometry)> {
-    let job = study.dataset_job("test", spec, (0, 1))?;
+fn item_views(job: &DatasetJob, index: usize) -> Result<([Views; 2], [Vec<f32>; 2], Geometry)> {
     let settings = &job.settings;
     let scene = ItemScene::new(settings, index, &job.sources[index])?;
     let n = scene.views.len();
@@ -231,8 +226,9 @@ pub fn measure(study: &Study) -> Result<Vec<Effect>> {
         let (mut a, mut b, mut ideal) = (Vec::new(), Vec::new(), Vec::new());
         let (mut spr, mut quanta, mut starved) = (None, Vec::new(), 0);
         let (mut sprs, mut geometries) = (Vec::new(), Vec::new());
+        let job = study.dataset_job("test", spec, (0, 1))?;
         for index in 0..items {
-            let ([first, second], drr, geometry) = item_views(study, spec, index)
+            let ([first, second], drr, geometry) = item_views(&job, index)
                 .with_context(|| format!("set '{}', item {index}", spec.name))?;
             geometries.push(geometry);
             ideal.extend(drr);
@@ -272,7 +268,7 @@ pub fn measure(study: &Study) -> Result<Vec<Effect>> {
             .map(|g| g.detector.pitch_u_mm)
             .sum::<f64>()
             / geometries.len().max(1) as f64;
-        let (acq_blur, has_noise) = match spec.physics.acquisition()? {
+        let (acq_blur, has_noise) = match &job.settings.acquisition {
             Some((acq, _)) => (
                 (!acq.detector.blur.is_identity()).then_some(acq.detector.blur),
                 acq.detector.quantum_noise,

@@ -325,6 +325,12 @@ const BASELINES: [(&str, bool); 5] = [
     ("SART-TV", false),
 ];
 
+/// `a` − `b` in PSNR and SSIM, paired over their common items.
+fn paired_psnr_ssim(a: &Stat, b: &Stat) -> (Option<Paired>, Option<Paired>) {
+    let d = |m| Paired::of(&a.per_item(m), &b.per_item(m));
+    (d(Metric::Psnr), d(Metric::Ssim))
+}
+
 /// Paired differences over the test items, with 95 % t-intervals: TomoGRAF against the best
 /// baseline of each cell and, in the realism gap, each model against the first.
 fn paired_tables(study: &Study, stats: &[Stat]) -> Vec<Block> {
@@ -353,8 +359,7 @@ fn paired_tables(study: &Study, stats: &[Stat]) -> Vec<Block> {
                             .total_cmp(&b.mean_std(Metric::Psnr).0)
                     });
                 let Some(best) = best else { continue };
-                let d = |m| Paired::of(&ours.per_item(m), &best.per_item(m));
-                let (psnr, ssim) = (d(Metric::Psnr), d(Metric::Ssim));
+                let (psnr, ssim) = paired_psnr_ssim(ours, best);
                 count(&psnr);
                 count(&ssim);
                 best_rows.push(vec![
@@ -382,8 +387,7 @@ fn paired_tables(study: &Study, stats: &[Stat]) -> Vec<Block> {
                     let Some(other) = find(stats, Some(t), test, v, "TomoGRAF") else {
                         continue;
                     };
-                    let d = |m| Paired::of(&other.per_item(m), &base.per_item(m));
-                    let (psnr, ssim) = (d(Metric::Psnr), d(Metric::Ssim));
+                    let (psnr, ssim) = paired_psnr_ssim(other, base);
                     count(&psnr);
                     count(&ssim);
                     level_rows.push(vec![
