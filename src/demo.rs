@@ -52,13 +52,18 @@ pub struct DemoArgs {
     /// Backend: flex (CPU, default), ndarray, cuda, wgpu (as compiled in).
     #[arg(long)]
     pub backend: Option<String>,
+    /// The baselines' settings (a `tomograf tune-baselines` baselines.toml). Default: the
+    /// checkpoint's own baselines.toml when it has one (the shipped checkpoint's were
+    /// chosen on validation phantoms), else the baselines' defaults.
+    #[arg(long)]
+    pub baselines: Option<PathBuf>,
 }
 
 pub fn run(args: DemoArgs) -> Result<()> {
     let md = demo(
         &Demo {
             output: args.output,
-            checkpoint: args.checkpoint,
+            checkpoint: args.checkpoint.clone(),
             phantoms: args.phantoms,
             views: args.views,
             iterations: (args.iterations > 0).then_some(args.iterations),
@@ -66,6 +71,10 @@ pub fn run(args: DemoArgs) -> Result<()> {
             train_phantoms: args.train_phantoms,
             preset: args.preset,
             backend: args.backend,
+            baselines: args.baselines.or_else(|| {
+                let own = args.checkpoint.join(tomograf_eval::tuning::FILE);
+                own.exists().then_some(own)
+            }),
         },
         &Bar::default(),
     )?;

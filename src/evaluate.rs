@@ -7,13 +7,15 @@ use anyhow::Result;
 use clap::Args;
 use std::path::PathBuf;
 use tomograf_eval::evaluation::{DEFAULT_PCA_NOISE, Evaluation, evaluate, merge, parse_shard};
+use tomograf_eval::tuning::{BaselineSettings, FILE, Tuning};
 use tomograf_model::scatter_correction::ScatterCorrection;
 
 #[derive(Debug, Args)]
 pub struct EvaluateArgs {
     /// Test data set folder (made by `tomograf dataset`, with --views a multiple of 10).
     pub data: PathBuf,
-    /// Checkpoint folder written by `tomograf train` (without it: FDK and SART-TV only).
+    /// Checkpoint folder written by `tomograf train` (without it: the baselines alone —
+    /// FDK and SART-TV, and with --train-data the mean volume, SART-TV from it and PCA-MAP).
     #[arg(long)]
     pub checkpoint: Option<PathBuf>,
     /// Output folder: results.md, results.csv, items/, figures, reconstructions.
@@ -46,13 +48,18 @@ pub struct EvaluateArgs {
     pub no_baselines: bool,
     /// The model's training data set (a `tomograf dataset` folder with CTs): also score the
     /// linear statistical prior built from its volumes (PCA-MAP: mean + principal
-    /// components, coefficients fitted to the views).
+    /// components, coefficients fitted to the views); without --checkpoint, also their mean
+    /// volume and SART-TV started from it.
     #[arg(long)]
     pub train_data: Option<PathBuf>,
     /// The PCA-MAP prior's assumed projection noise, as a fraction of the largest training
     /// line integral.
-    #[arg(long, default_value_t = DEFAULT_PCA_NOISE)]
+    #[arg(long, default_value_t = DEFAULT_PCA_NOISE, conflicts_with = "baselines")]
     pub pca_noise: f64,
+    /// The baselines' settings per view count, chosen on a validation set by `tomograf
+    /// tune-baselines` (its baselines.toml); without it, their defaults.
+    #[arg(long)]
+    pub baselines: Option<PathBuf>,
     /// Correct every method's views for scatter before reconstruction (test sets recorded
     /// with scatter): `prior` estimates it through the item's own acquisition from the mean
     /// training volume (needs --checkpoint or --train-data); `oracle` from the ground-truth
@@ -82,6 +89,11 @@ pub fn run(args: EvaluateArgs) -> Result<()> {
         return Ok(());
     }
     let bar = Bar::default();
+    let baselines = args
+        .baselines
+        .as_deref()
+        .map(BaselineSettings::read)
+        .transpose()?;
     let e = Evaluation {
         data: &args.data,
         checkpoint: args.checkpoint.as_deref(),
@@ -95,6 +107,7 @@ pub fn run(args: EvaluateArgs) -> Result<()> {
         backend: args.backend.as_deref(),
         shard,
         pca_noise: args.pca_noise,
+        baselines: baselines.as_ref(),
         classical: !args.no_baselines,
         scatter_correction: args.scatter_correction,
         scatter_prior_data: args.scatter_prior_data.as_deref(),
@@ -114,5 +127,53 @@ pub fn run(args: EvaluateArgs) -> Result<()> {
         let (md, _) = merge(&args.output, false)?;
         println!("{md}");
     }
+    Ok(())
+}
+
+#[derive(Debug, Args)]
+pub struct TuneArgs {
+    /// Validation data set folder (made by `tomograf dataset`, seeds disjoint from the
+    /// training and test sets; --views a multiple of 10 for the 5- and 10-view sets).
+    pub data: PathBuf,
+    /// The training set whose CTs give the mean volume (SART-TV from the mean) and the
+    /// PCA-MAP prior.
+    #[arg(long)]
+    pub train_data: PathBuf,
+    /// Output folder: baselines.toml (the chosen settings), search.md and search.csv (every
+    /// setting's scores), items/ (resumable).
+    #[arg(short, long)]
+    pub output: PathBuf,
+    /// View counts to tune for (each gets its own settings).
+    #[arg(long, value_delimiter = ',', default_value = "1,2,5,10")]
+    pub views: Vec<usize>,
+    /// Use only the items of this split.
+    #[arg(long)]
+    pub split: Option<String>,
+    /// At most this many items.
+    #[arg(long)]
+    pub items: Option<usize>,
+    /// Tune for views corrected for scatter (as `evaluate --scatter-correction`; `prior`
+    /// from the training set's mean volume).
+    #[arg(long, default_value = "none")]
+    pub scatter_correction: ScatterCorrection,
+}
+
+pub fn tune(args: TuneArgs) -> Result<()> {
+    let bar = Bar::default();
+    let (_, md) = tomograf_eval::tuning::tune(&Tuning {
+        data: &args.data,
+        split: args.split.as_deref(),
+        items: args.items,
+        train_data: &args.train_data,
+        views: &args.views,
+        scatter_correction: args.scatter_correction,
+        output: &args.output,
+        progress: &bar,
+    })?;
+    println!("{md}");
+    eprintln!(
+        "the chosen settings: {}; use them with `tomograf evaluate … --baselines {0}`",
+        args.output.join(FILE).display()
+    );
     Ok(())
 }

@@ -67,6 +67,9 @@ enum Command {
     Reconstruct(reconstruct::ReconstructArgs),
     /// Score reconstructions against ground truth (PSNR, 3D SSIM, RMSE in HU) with baselines.
     Evaluate(evaluate::EvaluateArgs),
+    /// Choose the baselines' settings (SART-TV sweeps and TV step, PCA-MAP noise and
+    /// components, FDK window) on a validation set; writes baselines.toml for `evaluate`.
+    TuneBaselines(evaluate::TuneArgs),
     /// Phantoms → projections → 1-view reconstruction with the shipped checkpoint → metrics.
     Demo(demo::DemoArgs),
     /// The studies: realism gap (ideal DRR → real detector) and domain shift, with a report.
@@ -133,6 +136,7 @@ fn run(cli: Cli) -> Result<()> {
         Command::Train(args) => train::run(args),
         Command::Reconstruct(args) => reconstruct::run(args),
         Command::Evaluate(args) => evaluate::run(args),
+        Command::TuneBaselines(args) => evaluate::tune(args),
         Command::Demo(args) => demo::run(args),
         Command::Study(c) => study::run(c),
         Command::Validate(c) => validate::run(c),

@@ -157,6 +157,61 @@ fn check_effects(study: &Path) {
     assert!(by("noise-blur")["quanta_p1_lateral"].as_f64().unwrap() > 0.0);
 }
 
+/// The baselines of every test set were tuned on validation phantoms of their own (seeds
+/// disjoint from the test set's), the evaluation used what the tuning chose, and the report
+/// lists it.
+fn check_tuning(study: &Path, sets: &[&str], seed: u64) {
+    let md = std::fs::read_to_string(study.join("report.md")).unwrap();
+    assert!(
+        md.contains("## The baselines' settings, chosen on validation"),
+        "{md}"
+    );
+    for set in sets {
+        let tune = study.join("tune").join(set);
+        let text = std::fs::read_to_string(tune.join("baselines.toml")).unwrap();
+        let tuned: toml::Table = toml::from_str(&text).unwrap();
+        assert!(tune.join("search.md").is_file());
+        let job: serde_json::Value = serde_json::from_slice(
+            &std::fs::read(study.join("eval").join(set).join("classical/job.json")).unwrap(),
+        )
+        .unwrap();
+        for views in ["1", "2", "5", "10"] {
+            let t = &tuned["views"][views]["sart_tv"];
+            let j = &job["baselines"]["views"][views]["sart_tv"];
+            assert_eq!(
+                j["sweeps"].as_i64(),
+                t["sweeps"].as_integer(),
+                "{set}, {views} view(s): {job}"
+            );
+            assert_eq!(j["tv_step"].as_f64(), t["tv_step"].as_float());
+            assert!(
+                md.contains(&format!("| `{set}` | {views} | ")),
+                "{set}, {views}: {md}"
+            );
+        }
+        // Validation phantoms: the study's seed × 100 000 + 70 000 …; test: + 50 000 ….
+        let data = tuned["tuned_on"].as_str().unwrap();
+        assert!(data.contains("data/val/"), "{data}");
+        let manifest = |split: &str, name: &str| {
+            std::fs::read_to_string(
+                study
+                    .join("data")
+                    .join(split)
+                    .join(name)
+                    .join("manifest.jsonl"),
+            )
+            .unwrap()
+        };
+        let name = set.trim_end_matches("-corrected");
+        let val = manifest("val", name);
+        assert!(
+            val.contains(&format!("\"seed\":{}", seed * 100_000 + 70_000)),
+            "{val}"
+        );
+        assert!(!manifest("test", name).contains(&format!("\"seed\":{}", seed * 100_000 + 70_000)));
+    }
+}
+
 #[test]
 fn realism_gap_end_to_end_resume_and_same_seed() {
     let tmp = tempfile::tempdir().unwrap();
@@ -190,6 +245,22 @@ fn realism_gap_end_to_end_resume_and_same_seed() {
     let all = rows_for(&a.join("results.csv"), &levels);
     assert_eq!(all.len(), 4 * 4 * 4 * 5 + 4 * 4 * 2);
     check_effects(&a);
+    check_tuning(
+        &a,
+        &[
+            "ideal-drr",
+            "polychromatic",
+            "noise-blur",
+            "scatter",
+            "scatter-corrected",
+        ],
+        3,
+    );
+    // The corrected set's baselines were tuned on corrected views: its search scored other
+    // numbers than the uncorrected set's, on the same validation phantoms.
+    let search =
+        |set: &str| std::fs::read_to_string(a.join("tune").join(set).join("search.csv")).unwrap();
+    assert_ne!(search("scatter"), search("scatter-corrected"));
     // The `scatter-corrected` column: the scatter test data with every method's views
     // corrected for scatter from the mean training volume. It holds every cell, and FDK
     // from 10 views (which follows its views most closely) is nearer the truth on it than

@@ -93,7 +93,7 @@ pub fn section(quick: bool, repeats: usize) -> Result<String> {
     let refs = vec![ap_reference(item)?];
     let grid = item.ct.as_ref().context("bench item has no CT")?;
     let (mut ia, mut ib, mut iters) = (Vec::new(), Vec::new(), 0);
-    let sart = SartTv::FROM_ZERO;
+    let sart = SartTv::from_zero();
     for _ in 0..repeats.clamp(1, 3) {
         let generator = checkpoint::load_generator(&ck, &device)?;
         let infer = generator.config.infer.clone();

@@ -11,6 +11,7 @@ use pyo3::types::PyDict;
 use std::path::PathBuf;
 use tomograf_eval::evaluation::{DEFAULT_PCA_NOISE, Evaluation, evaluate as run_evaluation, merge};
 use tomograf_eval::protocol::{ItemReconstruction, hu, paper_poses, reconstruct_item};
+use tomograf_eval::tuning::BaselineSettings;
 use tomograf_model::config::{InferOverrides, Tune};
 use tomograf_model::scatter_correction::ScatterCorrection;
 use tomograf_sim::geometry::angles::parse_pose;
@@ -106,7 +107,8 @@ pub fn reconstruct<'py>(
 /// PCA-MAP (with ``train_data``), FDK and SART-TV (``classical``) — on a test data set
 /// (``views`` multiple of 10 when it was made), per item and view count, as `tomograf
 /// evaluate` does: results, per-item CSVs, figures and the first item's reconstruction go
-/// to ``output``; items already scored there are skipped (resumable).
+/// to ``output``; items already scored there are skipped (resumable). ``baselines``: a
+/// ``baselines.toml`` of `tomograf tune-baselines` (settings chosen on validation).
 ///
 /// Returns a dict: ``markdown`` (the results table `tomograf evaluate` prints),
 /// ``notes`` (the other lines it prints) and ``rows``, one dict per item, view count and
@@ -117,7 +119,7 @@ pub fn reconstruct<'py>(
 #[pyo3(signature = (data, output, *, checkpoint=None, views=vec![1, 2, 5, 10],
     train_data=None, split=None, items=None, classical=true, iterations=None,
     psnr_threshold=None, refine=None, tune=None, seed=0, backend=None,
-    scatter_correction="none", pca_noise=DEFAULT_PCA_NOISE, progress=None))]
+    scatter_correction="none", pca_noise=DEFAULT_PCA_NOISE, baselines=None, progress=None))]
 #[allow(clippy::too_many_arguments)]
 pub fn evaluate<'py>(
     py: Python<'py>,
@@ -137,9 +139,15 @@ pub fn evaluate<'py>(
     backend: Option<String>,
     scatter_correction: &str,
     pca_noise: f64,
+    baselines: Option<PathBuf>,
     progress: Option<Py<PyAny>>,
 ) -> PyResult<Bound<'py, PyDict>> {
     let infer = overrides(tune, iterations, psnr_threshold, refine)?;
+    let baselines = baselines
+        .as_deref()
+        .map(BaselineSettings::read)
+        .transpose()
+        .map_err(|e| errors::value(format!("{e:#}")))?;
     let scatter_correction = correction(scatter_correction)?;
     let reporter = PyProgress::new(progress);
     let done = py.detach(|| -> anyhow::Result<_> {
@@ -156,6 +164,7 @@ pub fn evaluate<'py>(
             backend: backend.as_deref(),
             shard: (0, 1),
             pca_noise,
+            baselines: baselines.as_ref(),
             classical,
             scatter_correction,
             scatter_prior_data: None,

@@ -4,6 +4,7 @@
 //! and SART-TV (from zero and from the mean), with PNG figures.
 
 use crate::evaluation::{DEFAULT_PCA_NOISE, Evaluation, evaluate, merge};
+use crate::tuning::BaselineSettings;
 use anyhow::{Context, Result};
 use std::path::PathBuf;
 use tomograf_datasets::anatomy::Profile;
@@ -33,10 +34,23 @@ pub struct Demo {
     pub preset: String,
     /// Backend name (`None`: the default).
     pub backend: Option<String>,
+    /// The baselines' settings tuned on validation (`baselines.toml` of `tomograf
+    /// tune-baselines`; `None`: their defaults).
+    pub baselines: Option<PathBuf>,
 }
 
 /// Runs the demo; returns the results table (also written to `output/results.md`).
 pub fn demo(d: &Demo, progress: &dyn Progress) -> Result<String> {
+    let baselines = d
+        .baselines
+        .as_deref()
+        .map(BaselineSettings::read)
+        .transpose()?;
+    if let Some(b) = &baselines {
+        for &count in &d.views {
+            b.for_views(count)?;
+        }
+    }
     let mean = tomograf_model::checkpoint::load_mean(&d.checkpoint)
         .with_context(|| format!("checkpoint {}", d.checkpoint.display()))?
         .context("the checkpoint has no mean_volume.npy")?;
@@ -106,6 +120,7 @@ pub fn demo(d: &Demo, progress: &dyn Progress) -> Result<String> {
         backend: d.backend.as_deref(),
         shard: (0, 1),
         pca_noise: DEFAULT_PCA_NOISE,
+        baselines: baselines.as_ref(),
         classical: true,
         scatter_correction: Default::default(),
         scatter_prior_data: None,

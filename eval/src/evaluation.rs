@@ -11,6 +11,7 @@
 
 use crate::figures::slices_and_profile;
 use crate::protocol::{correct_scatter, paper_poses, references, run_one, write_hu};
+use crate::tuning::{BaselineSettings, ViewSettings};
 use anyhow::{Context, Result, bail};
 use serde::{Deserialize, Serialize};
 use std::fmt::Write as _;
@@ -21,7 +22,7 @@ use tomograf_model::baseline::{Baseline, Fdk, MeanVolume, SartTv};
 use tomograf_model::config::{InferOverrides, Tune};
 use tomograf_model::data::Item;
 use tomograf_model::metrics::mean_std;
-use tomograf_model::pca::PcaMap;
+use tomograf_model::pca::{PcaMap, PcaSettings};
 use tomograf_model::scatter_correction::ScatterCorrection;
 use tomograf_model::{backend, checkpoint, data};
 use tomograf_scene::Progress;
@@ -73,6 +74,14 @@ pub struct Job {
     /// The views' scatter correction (absent: none, and in folders written before it).
     #[serde(default, skip_serializing_if = "is_none")]
     pub scatter_correction: ScatterCorrection,
+    /// The baselines' tuned settings (absent: their defaults, and in folders written before
+    /// them).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub baselines: Option<BaselineSettings>,
+    /// Without a checkpoint: the mean volume and SART-TV from it scored from the training
+    /// set's CTs (absent: not, and in folders written before they were).
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub data_mean: bool,
 }
 
 fn is_none(c: &ScatterCorrection) -> bool {
@@ -112,8 +121,10 @@ pub struct Evaluation<'a> {
     pub seed: u64,
     pub backend: Option<&'a str>,
     pub shard: (usize, usize),
-    /// The PCA-MAP prior's noise (with `train_data`).
+    /// The PCA-MAP prior's noise (with `train_data`; `baselines`' per view count when given).
     pub pca_noise: f64,
+    /// The baselines' settings per view count, tuned on validation (`None`: defaults).
+    pub baselines: Option<&'a BaselineSettings>,
     /// Also score FDK and SART-TV.
     pub classical: bool,
     /// Correct the views for scatter first (every method sees the corrected views).
@@ -152,7 +163,14 @@ pub fn evaluate(e: &Evaluation) -> Result<usize> {
         refine_iterations: e.infer.refine_iterations,
         pca: e.train_data.map(|p| (p.to_path_buf(), e.pca_noise)),
         scatter_correction: e.scatter_correction,
+        baselines: e.baselines.cloned(),
+        data_mean: e.checkpoint.is_none() && e.train_data.is_some(),
     };
+    if let Some(b) = e.baselines {
+        for &count in e.views {
+            b.for_views(count)?;
+        }
+    }
     if !job.model && !job.classical {
         bail!("nothing to evaluate: give a checkpoint or score the classical baselines");
     }
@@ -173,7 +191,9 @@ pub fn evaluate(e: &Evaluation) -> Result<usize> {
         }
         None => None,
     };
-    let pca = match e.train_data {
+    // The PCA-MAP prior of the training set's CTs, and without a checkpoint their mean (the
+    // mean volume and SART-TV from it are then scored from it: the baselines alone).
+    let (pca, data_mean) = match e.train_data {
         Some(dir) => {
             let train = data::load_dataset(dir, None)
                 .with_context(|| format!("the PCA prior's training set {}", dir.display()))?;
@@ -185,31 +205,16 @@ pub fn evaluate(e: &Evaluation) -> Result<usize> {
             };
             e.progress
                 .note(&format!("PCA prior from {} training volumes", cts.len()));
-            Some(PcaMap::from_volumes(&cts, e.pca_noise, scale)?)
+            let pca = PcaMap::from_volumes(&cts, e.pca_noise, scale)?;
+            let mean = model.is_none().then(|| pca.mean.clone());
+            (Some(pca), mean)
         }
-        None => None,
+        None => (None, None),
     };
-    let classical: Vec<Box<dyn Baseline>> = if e.classical {
-        vec![Box::new(Fdk), Box::new(SartTv::FROM_ZERO)]
-    } else {
-        Vec::new()
-    };
-    // Every baseline, in the tables' order: those built from the model's training
-    // population (mean volume, SART-TV from it, PCA-MAP), then the classical ones.
-    let sart_mean = model
+    let population_mean = model
         .as_ref()
-        .map(|(_, _, mean, _)| SartTv::from_mean(MeanVolume::clone(mean)));
-    let mut baselines: Vec<&dyn Baseline> = Vec::new();
-    if let Some((_, _, mean, _)) = &model {
-        baselines.push(mean);
-    }
-    if let Some(s) = &sart_mean {
-        baselines.push(s);
-    }
-    if let Some(p) = &pca {
-        baselines.push(p);
-    }
-    baselines.extend(classical.iter().map(|b| b.as_ref()));
+        .map(|(_, _, mean, _)| mean)
+        .or(data_mean.as_ref());
     // The scatter correction's prior: the mean training volume, the checkpoint's or that of
     // a training set's CTs.
     let train_mean = match (&model, e.scatter_prior_data.or(e.train_data)) {
@@ -225,7 +230,8 @@ pub fn evaluate(e: &Evaluation) -> Result<usize> {
     let prior_mean = model
         .as_ref()
         .map(|(_, _, mean, _)| mean)
-        .or(train_mean.as_ref());
+        .or(train_mean.as_ref())
+        .or(data_mean.as_ref());
     if e.scatter_correction == ScatterCorrection::Prior && prior_mean.is_none() {
         bail!(
             "--scatter-correction prior estimates scatter from the mean training volume: give \
@@ -246,6 +252,43 @@ pub fn evaluate(e: &Evaluation) -> Result<usize> {
             let poses = paper_poses(count)?;
             let refs = references(item, &poses)?;
             let grid = item.ct.as_ref().context("item has no ground-truth CT")?;
+            let settings = match e.baselines {
+                Some(b) => b.for_views(count)?,
+                None => ViewSettings {
+                    pca_map: PcaSettings {
+                        noise: e.pca_noise,
+                        components: None,
+                    },
+                    ..ViewSettings::default()
+                },
+            };
+            // Every baseline, in the tables' order: those built from the model's training
+            // population (mean volume, SART-TV from it, PCA-MAP), then the classical ones.
+            let sart_mean = population_mean.map(|mean| {
+                SartTv::from_mean(MeanVolume::clone(mean)).with(settings.sart_tv_from_mean)
+            });
+            let pca = pca.as_ref().map(|p| p.fitted_with(settings.pca_map));
+            let classical: Vec<Box<dyn Baseline>> = if e.classical {
+                vec![
+                    Box::new(Fdk {
+                        window: settings.fdk_window,
+                    }),
+                    Box::new(SartTv::from_zero().with(settings.sart_tv)),
+                ]
+            } else {
+                Vec::new()
+            };
+            let mut baselines: Vec<&dyn Baseline> = Vec::new();
+            if let Some(mean) = population_mean {
+                baselines.push(mean);
+            }
+            if let Some(s) = &sart_mean {
+                baselines.push(s);
+            }
+            if let Some(p) = &pca {
+                baselines.push(p);
+            }
+            baselines.extend(classical.iter().map(|b| b.as_ref()));
             let mut volumes: Vec<Volume> = Vec::new();
             if let Some((ck, infer, _, _)) = &model {
                 e.progress.note(&format!(

@@ -6,6 +6,7 @@
 //!   sharded, one CSV per item), and merging the items into `results.md` / `results.csv`;
 //! * [`study`]: the realism-gap and domain-shift studies (data, training, evaluation,
 //!   report), resumable and sharded by stage;
+//! * [`tuning`]: the baselines' settings chosen on a validation set (`baselines.toml`);
 //! * [`tg195`]: the AAPM TG-195 validation report (runs sim's cases, tables, figures);
 //! * [`training`]: the training driver (checkpoints, resume, metrics, loss plot);
 //! * [`figures`]: the plots of evaluations, studies, training and validation (PNG, with
@@ -23,3 +24,4 @@ pub mod study;
 pub mod tg195;
 pub mod tradeoff;
 pub mod training;
+pub mod tuning;

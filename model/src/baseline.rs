@@ -5,7 +5,8 @@ use crate::error::{ModelError, Result, ensure};
 pub use crate::prior::MeanVolume;
 use crate::reconstruct::Reference;
 use crate::render::DensityScale;
-use tomograf_sim::recon::{FdkOptions, SartOptions, fdk, sart_tv_from};
+use serde::{Deserialize, Serialize};
+use tomograf_sim::recon::{FdkOptions, SartOptions, TvOptions, Window, fdk, sart_tv_from};
 use tomograf_sim::{Beam, Detector, Geometry, Pose, Projection, View, ViewBeam, Volume};
 
 /// A reconstruction method to compare with.
@@ -110,10 +111,14 @@ fn projections(refs: &[Reference]) -> Vec<Projection> {
         .collect()
 }
 
-/// Feldkamp–Davis–Kress (`tomograf_sim::recon::fdk`, Ram-Lak, automatic angular
-/// weighting) from the reference views, on the ground-truth grid.
+/// Feldkamp–Davis–Kress (`tomograf_sim::recon::fdk`, automatic angular weighting) from
+/// the reference views, on the ground-truth grid; the ramp filter's window is a setting
+/// (default Ram-Lak).
 #[derive(Debug, Clone, Copy, Default)]
-pub struct Fdk;
+pub struct Fdk {
+    /// The ramp filter's apodisation window.
+    pub window: Window,
+}
 
 impl Baseline for Fdk {
     fn name(&self) -> &str {
@@ -128,28 +133,92 @@ impl Baseline for Fdk {
     ) -> Result<Volume> {
         let g = setup_of(refs, grid)?;
         let poses: Vec<Pose> = refs.iter().map(|r| r.pose).collect();
-        let mu = fdk(&projections(refs), &g, &poses, &FdkOptions::default(), grid)?;
+        let options = FdkOptions {
+            window: self.window,
+            ..FdkOptions::default()
+        };
+        let mu = fdk(&projections(refs), &g, &poses, &options, grid)?;
         density_of(&mu, scale)
     }
 }
 
-/// SART with TV regularisation (`tomograf_sim::recon::sart_tv_from`, its defaults: 20
-/// iterations, ASD-POCS TV steps, non-negative) from the reference views, started from
-/// zero, or from the mean training volume when `start` holds it (a fair classical
-/// baseline for a learned prior: the same population knowledge, then data consistency).
+/// The settings of SART-TV that a user would tune: how many sweeps, and how strongly TV
+/// smooths between them. The rest is `tomograf_sim::recon::SartOptions`' defaults
+/// (relaxation 1, non-negative, `min(views, 10)` ordered subsets, 10 TV steps a sweep).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SartTvSettings {
+    /// Full sweeps over the views (≥ 1).
+    pub sweeps: usize,
+    /// ASD-POCS TV step, relative to the preceding data update (Sidky & Pan's α; 0: plain
+    /// SART, no TV).
+    pub tv_step: f64,
+}
+
+impl Default for SartTvSettings {
+    /// 20 sweeps, TV step 0.2: `SartOptions::default()`.
+    fn default() -> Self {
+        Self {
+            sweeps: SartOptions::default().iterations,
+            tv_step: TvOptions::default().step,
+        }
+    }
+}
+
+impl SartTvSettings {
+    /// The sweeps' options for `views` reference views; errors naming a bad setting.
+    pub fn options(&self, views: usize) -> Result<SartOptions> {
+        ensure!(
+            (1..=10_000).contains(&self.sweeps),
+            "SART-TV sweeps {} must be 1…10000",
+            self.sweeps
+        );
+        ensure!(
+            self.tv_step.is_finite() && (0.0..=10.0).contains(&self.tv_step),
+            "SART-TV's TV step {} must be 0…10 (0: no TV)",
+            self.tv_step
+        );
+        Ok(SartOptions {
+            iterations: self.sweeps,
+            subsets: views.clamp(1, 10),
+            tv: (self.tv_step > 0.0).then_some(TvOptions {
+                step: self.tv_step,
+                ..TvOptions::default()
+            }),
+            ..SartOptions::default()
+        })
+    }
+}
+
+/// SART with TV regularisation (`tomograf_sim::recon::sart_tv_from`, non-negative, its
+/// sweeps and TV step from [`SartTvSettings`]) from the reference views, started from zero,
+/// or from the mean training volume when `start` holds it (a fair classical baseline for a
+/// learned prior: the same population knowledge, then data consistency).
 #[derive(Debug, Clone, Default)]
 pub struct SartTv {
     /// The volume to start from (normalised density); `None` starts from zero.
     pub start: Option<MeanVolume>,
+    /// Sweeps and TV step.
+    pub settings: SartTvSettings,
 }
 
 impl SartTv {
-    /// SART-TV from zero.
-    pub const FROM_ZERO: Self = Self { start: None };
+    /// SART-TV from zero with the default settings.
+    pub fn from_zero() -> Self {
+        Self::default()
+    }
 
-    /// SART-TV started from `mean`.
+    /// SART-TV started from `mean`, with the default settings.
     pub fn from_mean(mean: MeanVolume) -> Self {
-        Self { start: Some(mean) }
+        Self {
+            start: Some(mean),
+            settings: SartTvSettings::default(),
+        }
+    }
+
+    /// The same start with `settings`.
+    pub fn with(self, settings: SartTvSettings) -> Self {
+        Self { settings, ..self }
     }
 }
 
@@ -179,28 +248,24 @@ impl Baseline for SartTv {
                 vec![(m.data.as_slice(), 1.0)]
             }
         };
-        sart_tv_density(refs, grid, scale, &start, SartOptions::default().iterations)
+        sart_tv_density(refs, grid, scale, &start, &self.settings)
     }
 }
 
-/// SART-TV (`tomograf_sim::recon::sart_tv_from` with its defaults, `iterations` sweeps,
-/// `min(views, 10)` ordered subsets) from the reference views, started from the sum over
-/// `start`'s `(density, weight)` terms of weight times the attenuation of the normalised
-/// density on `grid` (empty: zero attenuation; one term of weight 1: that volume itself);
-/// returns normalised density.
+/// SART-TV (`tomograf_sim::recon::sart_tv_from` with `settings`, `min(views, 10)` ordered
+/// subsets) from the reference views, started from the sum over `start`'s `(density,
+/// weight)` terms of weight times the attenuation of the normalised density on `grid`
+/// (empty: zero attenuation; one term of weight 1: that volume itself); returns normalised
+/// density.
 pub fn sart_tv_density(
     refs: &[Reference],
     grid: &Volume,
     scale: &DensityScale,
     start: &[(&[f32], f64)],
-    iterations: usize,
+    settings: &SartTvSettings,
 ) -> Result<Volume> {
     let views: Vec<View> = refs.iter().map(|r| r.view).collect();
-    let options = SartOptions {
-        iterations,
-        subsets: refs.len().min(10),
-        ..SartOptions::default()
-    };
+    let options = settings.options(refs.len())?;
     let voxels = grid.data().len();
     for (d, _) in start {
         ensure!(
@@ -229,4 +294,35 @@ pub fn sart_tv_density(
         |_| {},
     )?;
     density_of(&r.volume, scale)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn sart_settings_map_to_options_and_refuse_bad_values() {
+        let d = SartTvSettings::default();
+        assert_eq!((d.sweeps, d.tv_step), (20, 0.2));
+        let o = d.options(2).unwrap();
+        assert_eq!((o.iterations, o.subsets), (20, 2));
+        assert_eq!(o.tv.map(|t| t.step), Some(0.2));
+        assert_eq!(d.options(36).unwrap().subsets, 10, "at most 10 subsets");
+        let plain = SartTvSettings {
+            sweeps: 5,
+            tv_step: 0.0,
+        };
+        assert_eq!(
+            plain.options(1).unwrap().tv,
+            None,
+            "TV step 0 is plain SART"
+        );
+        for (sweeps, tv_step) in [(0, 0.2), (20, -0.1), (20, f64::NAN), (20_000, 0.2)] {
+            let e = SartTvSettings { sweeps, tv_step }
+                .options(1)
+                .unwrap_err()
+                .to_string();
+            assert!(e.contains("SART-TV"), "{e}");
+        }
+    }
 }

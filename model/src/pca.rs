@@ -17,7 +17,54 @@ use crate::reconstruct::Reference;
 use crate::render::DensityScale;
 use nalgebra::{DMatrix, DVector};
 use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
 use tomograf_sim::{Projector, Renderer, Volume};
+
+/// The PCA-MAP prior's settings a user would tune.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PcaSettings {
+    /// Assumed noise of the projections, as a fraction of the largest training line
+    /// integral (`proj_scale`); > 0.
+    pub noise: f64,
+    /// Use only the first this many components (by variance); absent: all.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub components: Option<usize>,
+}
+
+impl Default for PcaSettings {
+    /// Noise 1 % of the largest line integral, every component.
+    fn default() -> Self {
+        Self {
+            noise: 0.01,
+            components: None,
+        }
+    }
+}
+
+impl PcaSettings {
+    /// Checks the noise is finite and > 0 and at least one component is kept.
+    pub fn validate(&self) -> Result<()> {
+        ensure!(
+            self.noise.is_finite() && self.noise > 0.0 && self.noise <= 1e6,
+            "PCA-MAP noise {} must be > 0 (a fraction of the largest line integral)",
+            self.noise
+        );
+        ensure!(
+            self.components != Some(0),
+            "PCA-MAP with 0 components is the mean volume: give at least 1"
+        );
+        Ok(())
+    }
+}
+
+/// The linear system of a MAP fit: the components' projections `J` (one column each) and
+/// the residual of the mean's projection, both scaled by the projections' scale.
+#[derive(Debug, Clone)]
+pub struct PcaSystem {
+    j: DMatrix<f64>,
+    residual: DVector<f64>,
+}
 
 /// Principal components of a set of training volumes, and the MAP fit of their
 /// coefficients to a new item's views.
@@ -30,9 +77,8 @@ pub struct PcaMap {
     /// Variance of each component's coefficient (normalised density², per unit-norm
     /// component).
     pub variances: Vec<f64>,
-    /// Assumed noise of the projections, as a fraction of the largest training line
-    /// integral (`proj_scale`).
-    pub noise: f64,
+    /// Noise and how many components the fit uses.
+    pub settings: PcaSettings,
     /// The projections' scale (largest training line integral).
     pub proj_scale: f64,
 }
@@ -50,6 +96,10 @@ impl PcaMap {
             noise.is_finite() && noise > 0.0 && proj_scale.is_finite() && proj_scale > 0.0,
             "PCA noise {noise} and projection scale {proj_scale} must be > 0"
         );
+        let settings = PcaSettings {
+            noise,
+            components: None,
+        };
         let mean = MeanVolume::from_volumes(volumes.iter().copied())?;
         let n = volumes.len();
         let centred: Vec<Vec<f32>> = volumes
@@ -102,13 +152,39 @@ impl PcaMap {
             mean,
             components,
             variances,
-            noise,
+            settings,
             proj_scale,
         })
     }
 
-    /// The MAP coefficients for `refs` on `grid` (normalised density → mu by `scale`).
+    /// The same prior fitted with `settings`.
+    pub fn with(self, settings: PcaSettings) -> Self {
+        Self { settings, ..self }
+    }
+
+    /// This prior as a baseline fitted with `settings` (borrowed: no copy of the
+    /// components).
+    pub fn fitted_with(&self, settings: PcaSettings) -> PcaFit<'_> {
+        PcaFit {
+            prior: self,
+            settings,
+        }
+    }
+
+    /// The MAP coefficients for `refs` on `grid` (normalised density → mu by `scale`),
+    /// with the prior's own settings.
     pub fn fit(&self, refs: &[Reference], grid: &Volume, scale: &DensityScale) -> Result<Vec<f64>> {
+        self.solve(&self.system(refs, grid, scale)?, &self.settings)
+    }
+
+    /// The fit's linear system for `refs` on `grid`: the expensive part (every component
+    /// projected through every view), shared by fits with different [`PcaSettings`].
+    pub fn system(
+        &self,
+        refs: &[Reference],
+        grid: &Volume,
+        scale: &DensityScale,
+    ) -> Result<PcaSystem> {
         ensure!(!refs.is_empty(), "no reference views");
         ensure!(
             grid.dims() == self.mean.dims,
@@ -178,20 +254,43 @@ impl PcaMap {
         let k = columns.len();
         let m = target.len();
         let j = DMatrix::from_fn(m, k, |r, c| columns[c][r]);
-        let resid = DVector::from_iterator(m, target.iter().zip(&base).map(|(t, b)| t - b));
-        let s2 = self.noise * self.noise;
-        let mut lhs = j.transpose() * &j / s2;
-        for (i, v) in self.variances.iter().enumerate() {
+        let residual = DVector::from_iterator(m, target.iter().zip(&base).map(|(t, b)| t - b));
+        Ok(PcaSystem { j, residual })
+    }
+
+    /// The MAP coefficients of `system` under `settings` (coefficients past
+    /// `settings.components` are 0).
+    pub fn solve(&self, system: &PcaSystem, settings: &PcaSettings) -> Result<Vec<f64>> {
+        settings.validate()?;
+        let all = system.j.ncols();
+        let k = settings.components.unwrap_or(all).min(all);
+        let j = system.j.columns(0, k);
+        let s2 = settings.noise * settings.noise;
+        let mut lhs = j.transpose() * j / s2;
+        for (i, v) in self.variances.iter().take(k).enumerate() {
             lhs[(i, i)] += 1.0 / v;
         }
-        let rhs = j.transpose() * resid / s2;
+        let rhs = j.transpose() * &system.residual / s2;
         let a = lhs
             .cholesky()
             .ok_or_else(|| {
                 crate::ModelError::Invalid("PCA MAP system is not positive definite".into())
             })?
             .solve(&rhs);
-        Ok(a.iter().copied().collect())
+        let mut out: Vec<f64> = a.iter().copied().collect();
+        out.resize(all, 0.0);
+        Ok(out)
+    }
+
+    /// The volume of coefficients `a` on `grid`'s geometry.
+    pub fn volume_on(&self, a: &[f64], grid: &Volume) -> Result<Volume> {
+        Ok(Volume::new(
+            grid.dims(),
+            grid.spacing(),
+            grid.origin(),
+            grid.direction(),
+            self.volume(a),
+        )?)
     }
 
     /// The volume m + Σ a_k c_k.
@@ -218,13 +317,31 @@ impl Baseline for PcaMap {
         scale: &DensityScale,
     ) -> Result<Volume> {
         let a = self.fit(refs, grid, scale)?;
-        Ok(Volume::new(
-            grid.dims(),
-            grid.spacing(),
-            grid.origin(),
-            grid.direction(),
-            self.volume(&a),
-        )?)
+        self.volume_on(&a, grid)
+    }
+}
+
+/// A [`PcaMap`] fitted with other settings than its own ([`PcaMap::fitted_with`]).
+#[derive(Debug, Clone, Copy)]
+pub struct PcaFit<'a> {
+    prior: &'a PcaMap,
+    settings: PcaSettings,
+}
+
+impl Baseline for PcaFit<'_> {
+    fn name(&self) -> &str {
+        self.prior.name()
+    }
+
+    fn reconstruct(
+        &self,
+        refs: &[Reference],
+        grid: &Volume,
+        scale: &DensityScale,
+    ) -> Result<Volume> {
+        let system = self.prior.system(refs, grid, scale)?;
+        let a = self.prior.solve(&system, &self.settings)?;
+        self.prior.volume_on(&a, grid)
     }
 }
 
@@ -288,5 +405,60 @@ mod tests {
             .map(|(a, b)| (a - b).abs())
             .fold(0.0f32, f32::max);
         assert!(err0 > 0.05, "{err0}");
+
+        // The settings: one system, several fits.
+        let system = pca.system(&refs, &truth, &scale).unwrap();
+        let fit = |noise: f64, components: Option<usize>| {
+            pca.solve(&system, &PcaSettings { noise, components })
+                .unwrap()
+        };
+        assert_eq!(fit(1e-4, None), pca.fit(&refs, &truth, &scale).unwrap());
+        assert_eq!(fit(1e-4, Some(2)), fit(1e-4, None));
+        let max_err = |a: &[f64]| {
+            pca.volume(a)
+                .iter()
+                .zip(truth.data())
+                .map(|(x, y)| (x - y).abs())
+                .fold(0.0f32, f32::max)
+        };
+        // One component cannot hold a mix of both patterns; the other coefficient is 0.
+        let one = fit(1e-4, Some(1));
+        assert_eq!(one.len(), 2);
+        assert_eq!(one[1], 0.0);
+        assert!(max_err(&one) > 0.01, "{}", max_err(&one));
+        // Noise far above the projections' scale: the prior wins, the fit stays at the mean.
+        let loud = fit(1e3, None);
+        assert!(loud.iter().all(|a| a.abs() < 1e-3), "{loud:?}");
+        for bad in [0.0, -1.0, f64::NAN] {
+            assert!(
+                pca.solve(
+                    &system,
+                    &PcaSettings {
+                        noise: bad,
+                        components: None
+                    }
+                )
+                .is_err()
+            );
+        }
+        assert!(
+            pca.solve(
+                &system,
+                &PcaSettings {
+                    noise: 0.01,
+                    components: Some(0)
+                }
+            )
+            .is_err()
+        );
+        // Through the baseline interface, with other settings than the prior's own.
+        let v = pca
+            .fitted_with(PcaSettings {
+                noise: 1e-4,
+                components: Some(1),
+            })
+            .reconstruct(&refs, &truth, &scale)
+            .unwrap();
+        assert_eq!(v.data(), pca.volume(&one).as_slice());
     }
 }

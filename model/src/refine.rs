@@ -10,7 +10,7 @@
 //! `(a, b)` fixed by the configuration ([`RefineStart::Fixed`]) or fitted to the views
 //! ([`RefineStart::Fitted`]).
 
-use crate::baseline::sart_tv_density;
+use crate::baseline::{SartTvSettings, sart_tv_density};
 use crate::config::{InferConfig, RefineStart};
 use crate::error::{Result, ensure};
 use crate::prior::MeanVolume;
@@ -64,7 +64,11 @@ pub fn refine(
         let m = mean.get_or_insert_with(|| mean_on_grid(prior, network));
         start.push((m.as_slice(), weights.mean));
     }
-    let volume = sart_tv_density(refs, network, scale, &start, infer.refine_iterations)?;
+    let sweeps = SartTvSettings {
+        sweeps: infer.refine_iterations,
+        ..SartTvSettings::default()
+    };
+    let volume = sart_tv_density(refs, network, scale, &start, &sweeps)?;
     Ok((volume, weights))
 }
 

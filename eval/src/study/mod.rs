@@ -2,9 +2,11 @@
 //! train the models, evaluate every model on every test set (with FDK and SART-TV from
 //! the same views) and write a report with tables and plots.
 //!
-//! A study folder holds `study.json` (its settings), `data/{train,test}/<set>/`,
+//! A study folder holds `study.json` (its settings), `data/{train,val,test}/<set>/`,
 //! `models/<set>/` (a `tomograf train` run; `done.json` when finished),
-//! `eval/<test set>/{classical,model-<train set>}/` (`tomograf evaluate` folders),
+//! `tune/<test set>/` (the baselines' settings chosen on that set's validation phantoms, a
+//! `tomograf tune-baselines` folder), `eval/<test set>/{classical,model-<train set>}/`
+//! (`tomograf evaluate` folders),
 //! `results.csv`, `report.md`, `report.html` and `figures/`. Every step is resumable —
 //! finished items, models and scores are kept and skipped — and every file is written
 //! atomically. Stages (`--stage data|train|evaluate|report`) and `--shard I/N` split the
@@ -19,6 +21,7 @@ mod report;
 
 use crate::evaluation::{DEFAULT_PCA_NOISE, Evaluation, evaluate};
 use crate::training::{Training, train};
+use crate::tuning::{BaselineSettings, Tuning, tune};
 use anyhow::{Context, Result, bail};
 use levels::DataSpec;
 use serde::{Deserialize, Serialize};
@@ -47,6 +50,12 @@ pub struct Scale {
 }
 
 impl Scale {
+    /// Validation phantoms per test set (half the test phantoms, at least 1): the
+    /// baselines' settings are chosen on them.
+    pub fn val_phantoms(&self) -> usize {
+        self.test_phantoms.div_ceil(2).max(1)
+    }
+
     pub fn parse(name: &str) -> Result<Self> {
         let (size, views, test_views, train, test, config, photons) = match name {
             "tiny" => (16, 10, 10, 4, 2, "tiny", 100),
@@ -204,23 +213,30 @@ impl Study {
         shard: (usize, usize),
     ) -> Result<DatasetJob> {
         let s = &self.settings;
-        let test = split == "test";
-        // Train and test phantoms are disjoint; the same phantoms at every realism level.
-        let first = s
-            .seed
-            .wrapping_mul(100_000)
-            .wrapping_add(if test { 50_000 } else { 0 });
+        let (test, val) = (split == "test", split == "val");
+        // Train, validation and test phantoms are disjoint; the same phantoms at every
+        // realism level.
+        let first = s.seed.wrapping_mul(100_000).wrapping_add(match split {
+            "test" => 50_000,
+            "val" => 70_000,
+            _ => 0,
+        });
         let mut physics = spec.physics.clone();
         if spec.real_physics() {
-            physics.noise_seed = Some(s.seed.wrapping_mul(2).wrapping_add(u64::from(test)));
+            physics.noise_seed = Some(if val {
+                tomograf_sim::seed::frame_seed(s.seed, 0x7A1)
+            } else {
+                s.seed.wrapping_mul(2).wrapping_add(u64::from(test))
+            });
         }
-        let (count, views) = if test {
-            (s.scale.test_phantoms, s.scale.test_views)
-        } else {
-            (s.scale.train_phantoms, s.scale.views)
+        let (count, views) = match split {
+            "test" => (s.scale.test_phantoms, s.scale.test_views),
+            "val" => (s.scale.val_phantoms(), s.scale.test_views),
+            _ => (s.scale.train_phantoms, s.scale.views),
         };
         let profile = Profile::parse(spec.profile)?;
-        let sources = if spec.cts.is_empty() {
+        // Validation sets are phantoms even when the test set is the user's CTs.
+        let sources = if spec.cts.is_empty() || val {
             (0..count)
                 .map(|n| ItemSource::phantom(first + n as u64, profile, spec.table, spec.pacemaker))
                 .collect()
@@ -251,8 +267,14 @@ impl Study {
         splits: &[&str],
         progress: &dyn Progress,
     ) -> Result<()> {
-        for (split, specs) in [("train", &self.train), ("test", &self.test)] {
-            if !splits.contains(&split) {
+        // The validation sets (the baselines are tuned on them) come with the test sets.
+        for (split, specs) in [
+            ("train", &self.train),
+            ("test", &self.test),
+            ("val", &self.test),
+        ] {
+            let asked = if split == "val" { "test" } else { split };
+            if !splits.contains(&asked) {
                 continue;
             }
             for spec in specs.iter().filter(|s| s.data_of.is_none()) {
@@ -337,6 +359,7 @@ impl Study {
         // training set holds the same CTs).
         let prior_data = self.train.first().map(|m| self.data_dir("train", m));
         for test in &self.test {
+            let baselines = self.tune(test, progress)?;
             let data = self.finish_data("test", test, progress)?;
             let mut cells: Vec<(Option<PathBuf>, PathBuf, Option<PathBuf>)> =
                 vec![(None, self.eval_dir(test.name, None), None)];
@@ -362,6 +385,7 @@ impl Study {
                     backend: self.backend.as_deref(),
                     shard,
                     pca_noise: DEFAULT_PCA_NOISE,
+                    baselines: Some(&baselines),
                     classical: checkpoint.is_none(),
                     scatter_correction: test.correction,
                     scatter_prior_data: prior_data.as_deref(),
@@ -377,6 +401,52 @@ impl Study {
 }
 
 impl Study {
+    /// The folder of a test set's baseline tuning.
+    pub fn tune_dir(&self, test: &str) -> PathBuf {
+        self.dir.join("tune").join(test)
+    }
+
+    /// The baselines' settings for `test`, chosen on its validation set (the same
+    /// population and acquisition, other phantoms; the views corrected as the test set's
+    /// are) with the mean volume and PCA-MAP prior of the training set of the same
+    /// acquisition, or of the first training set where none has it: each baseline at
+    /// its best for that set, so that no lead of TomoGRAF's comes from untuned baselines.
+    /// Resumable; the search is kept in [`Self::tune_dir`].
+    fn tune(&self, test: &DataSpec, progress: &dyn Progress) -> Result<BaselineSettings> {
+        let data_spec = match test.data_of {
+            Some(name) => self.test.iter().find(|t| t.name == name).with_context(|| {
+                format!(
+                    "test set '{}' takes its data from unknown '{name}'",
+                    test.name
+                )
+            })?,
+            None => test,
+        };
+        // The training set of the same acquisition when there is one (realism gap), else
+        // the first: its line integrals set PCA-MAP's noise scale.
+        let train = self
+            .train
+            .iter()
+            .find(|t| t.name == data_spec.name)
+            .or(self.train.first())
+            .context("a study without a training set has nothing to tune with")?;
+        let train_data = self.finish_data("train", train, progress)?;
+        let val = self.finish_data("val", data_spec, progress)?;
+        progress.note(&format!("tune: the baselines for '{}'", test.name));
+        let (settings, _) = tune(&Tuning {
+            data: &val,
+            split: None,
+            items: None,
+            train_data: &train_data,
+            views: &VIEWS,
+            scatter_correction: test.correction,
+            output: &self.tune_dir(test.name),
+            progress: &Silent,
+        })
+        .with_context(|| format!("tuning the baselines for test set '{}'", test.name))?;
+        Ok(settings)
+    }
+
     /// Writes `report.md`, `report.html`, `results.csv` and `figures/` from the scores so
     /// far (`partial`: an interim report while shards still run; otherwise every cell must
     /// be complete).

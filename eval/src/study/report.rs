@@ -171,6 +171,7 @@ pub fn write(study: &Study, partial: bool) -> Result<()> {
     blocks.extend(effects_table(&effects::load_or_measure(study)?));
     blocks.extend(tables(study, &stats));
     blocks.extend(paired_tables(study, &stats));
+    blocks.extend(baselines_table(study));
     blocks.extend(plots(study, &stats)?);
     if let Some(id) = first_item.filter(|_| pooled.is_empty()) {
         blocks.extend(examples(study, &id));
@@ -183,6 +184,75 @@ pub fn write(study: &Study, partial: bool) -> Result<()> {
         std::io::Write::write_all(w, html.as_bytes())
     })?;
     Ok(())
+}
+
+/// The baselines' settings each test set was scored with, as its classical cell's
+/// `job.json` records them (chosen on the set's validation phantoms by the evaluate stage;
+/// absent in folders evaluated before tuning existed: the defaults).
+fn baselines_table(study: &Study) -> Vec<Block> {
+    let mut rows = Vec::new();
+    let mut untuned = Vec::new();
+    for test in &study.settings.test_sets {
+        let path = eval_dir_in(&study.dir, test, None).join("job.json");
+        let job: Option<crate::evaluation::Job> = std::fs::read(&path)
+            .ok()
+            .and_then(|b| serde_json::from_slice(&b).ok());
+        let Some(tuned) = job.and_then(|j| j.baselines) else {
+            untuned.push(format!("`{test}`"));
+            continue;
+        };
+        for (views, v) in &tuned.views {
+            let sart = |s: &tomograf_model::baseline::SartTvSettings| {
+                format!("{} sweeps, TV {}", s.sweeps, s.tv_step)
+            };
+            rows.push(vec![
+                format!("`{test}`"),
+                views.clone(),
+                sart(&v.sart_tv),
+                sart(&v.sart_tv_from_mean),
+                format!(
+                    "noise {}, {} components",
+                    v.pca_map.noise,
+                    v.pca_map.components.map_or("all".into(), |c| c.to_string())
+                ),
+                format!("{:?}", v.fdk_window),
+            ]);
+        }
+    }
+    let mut out = vec![
+        Block::Heading("The baselines' settings, chosen on validation".into()),
+        Block::Para(
+            "Each test set's baselines were tuned on its own validation phantoms (the same \
+             population and acquisition, other seeds; `tune/<set>/search.md` holds the whole \
+             search) by the highest mean PSNR per method and view count, with the mean volume \
+             and PCA-MAP prior of the training set of the same acquisition (else the first): \
+             every baseline at its best for the set it is scored on. TomoGRAF's own settings are its checkpoint's."
+                .into(),
+        ),
+    ];
+    if !rows.is_empty() {
+        out.push(Block::Table(
+            [
+                "test set",
+                "views",
+                "SART-TV",
+                "SART-TV from the mean",
+                "PCA-MAP",
+                "FDK window",
+            ]
+            .map(String::from)
+            .to_vec(),
+            rows,
+        ));
+    }
+    if !untuned.is_empty() {
+        out.push(Block::Para(format!(
+            "Scored with the baselines' defaults (evaluated before tuning existed, or not yet): \
+             {}.",
+            untuned.join(", ")
+        )));
+    }
+    out
 }
 
 fn title(kind: Kind) -> &'static str {

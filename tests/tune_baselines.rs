@@ -1,0 +1,206 @@
+//! `tomograf tune-baselines` → `tomograf evaluate --baselines`, at 16³ (seconds): the
+//! chosen settings are the search's best by mean PSNR (recomputed here from search.csv),
+//! `evaluate` with them reproduces the search's scores of those settings to the printed
+//! digit, and the errors a user meets with a file tuned for other view counts.
+
+mod common;
+
+use common::{ok, tomograf};
+use std::collections::BTreeMap;
+use std::path::Path;
+
+fn dataset(dir: &Path, phantoms: &str, seed: &str) {
+    ok(&tomograf(&[
+        "dataset",
+        "-o",
+        dir.to_str().unwrap(),
+        "--phantoms",
+        phantoms,
+        "--seed",
+        seed,
+        "--size",
+        "16",
+        "--views",
+        "10",
+    ]));
+}
+
+/// `(item, views, method, setting) → (PSNR text, PSNR)` of search.csv.
+type Search = BTreeMap<(String, String, String, String), (String, f64)>;
+
+fn read_search(path: &Path) -> Search {
+    let text = std::fs::read_to_string(path).unwrap();
+    let mut lines = text.lines();
+    assert_eq!(
+        lines.next().unwrap(),
+        "item,views,method,setting,psnr_db,ssim,body_psnr_db,body_ssim"
+    );
+    lines
+        .map(|l| {
+            let f: Vec<&str> = l.split(',').collect();
+            assert_eq!(f.len(), 8, "{l}");
+            let psnr: f64 = f[4].parse().unwrap();
+            assert!(psnr.is_finite(), "{l}");
+            (
+                (f[0].into(), f[1].into(), f[2].into(), f[3].into()),
+                (f[4].to_string(), psnr),
+            )
+        })
+        .collect()
+}
+
+/// The setting label of the chosen `method` in a parsed baselines.toml, as search.csv
+/// writes it.
+fn chosen(toml: &toml::Table, views: &str, method: &str) -> String {
+    let v = toml["views"][views].as_table().unwrap();
+    let sart = |key: &str| {
+        let s = v[key].as_table().unwrap();
+        let step = s["tv_step"].as_float().unwrap();
+        format!(
+            "{} sweeps; TV step {step}",
+            s["sweeps"].as_integer().unwrap()
+        )
+    };
+    match method {
+        "SART-TV" => sart("sart_tv"),
+        "SART-TV from the mean" => sart("sart_tv_from_mean"),
+        "PCA-MAP prior" => {
+            let p = v["pca_map"].as_table().unwrap();
+            let c = p
+                .get("components")
+                .map_or("all".to_string(), |c| c.as_integer().unwrap().to_string());
+            format!("noise {}; {c} components", p["noise"].as_float().unwrap())
+        }
+        "FDK" => {
+            let w = v["fdk_window"].as_str().unwrap();
+            let name = match w {
+                "ram-lak" => "RamLak",
+                "shepp-logan" => "SheppLogan",
+                "cosine" => "Cosine",
+                "hann" => "Hann",
+                _ => panic!("window {w}"),
+            };
+            format!("{name} window")
+        }
+        _ => unreachable!(),
+    }
+}
+
+#[test]
+fn tuned_settings_are_the_search_best_and_evaluate_reproduces_them() {
+    let tmp = tempfile::tempdir().unwrap();
+    let (train, val) = (tmp.path().join("train"), tmp.path().join("val"));
+    dataset(&train, "3", "0");
+    dataset(&val, "2", "70000");
+    let out = tmp.path().join("tune");
+    let tune = |views: &str| {
+        tomograf(&[
+            "tune-baselines",
+            val.to_str().unwrap(),
+            "--train-data",
+            train.to_str().unwrap(),
+            "--views",
+            views,
+            "-o",
+            out.to_str().unwrap(),
+        ])
+    };
+    let run = tune("1,2");
+    ok(&run);
+    let printed = String::from_utf8_lossy(&run.stdout).to_string();
+    assert!(printed.contains("## SART-TV, 1 view(s)"), "{printed}");
+    let search = read_search(&out.join("search.csv"));
+    // 25 SART-TV settings for each start, 28 PCA-MAP, 4 FDK; 2 items × 2 view counts.
+    assert_eq!(search.len(), 82 * 2 * 2);
+    let text = std::fs::read_to_string(out.join("baselines.toml")).unwrap();
+    let toml: toml::Table = toml::from_str(&text).unwrap();
+    for views in ["1", "2"] {
+        for method in ["SART-TV", "SART-TV from the mean", "PCA-MAP prior", "FDK"] {
+            let mut means: BTreeMap<&str, Vec<f64>> = BTreeMap::new();
+            for ((_, v, m, s), (_, p)) in &search {
+                if v == views && m == method {
+                    means.entry(s.as_str()).or_default().push(*p);
+                }
+            }
+            let mean = |s: &str| means[s].iter().sum::<f64>() / means[s].len() as f64;
+            let best = means
+                .keys()
+                .map(|s| mean(s))
+                .fold(f64::NEG_INFINITY, f64::max);
+            let pick = chosen(&toml, views, method);
+            assert!(means.contains_key(pick.as_str()), "{pick} not searched");
+            assert_eq!(mean(&pick), best, "{method}, {views} view(s): {pick}");
+            assert!(means.values().all(|v| v.len() == 2));
+        }
+    }
+    // Resuming re-reads the items and writes the same choice; another search is refused.
+    ok(&tune("1,2"));
+    assert_eq!(
+        std::fs::read_to_string(out.join("baselines.toml")).unwrap(),
+        text
+    );
+    let other = tune("1");
+    assert!(!other.status.success());
+    assert!(String::from_utf8_lossy(&other.stderr).contains("another search"));
+
+    // evaluate with the file scores what the search scored for the chosen settings.
+    let eval = tmp.path().join("eval");
+    let file = out.join("baselines.toml");
+    let evaluate = |views: &str, dir: &Path| {
+        tomograf(&[
+            "evaluate",
+            val.to_str().unwrap(),
+            "--train-data",
+            train.to_str().unwrap(),
+            "--baselines",
+            file.to_str().unwrap(),
+            "--views",
+            views,
+            "-o",
+            dir.to_str().unwrap(),
+        ])
+    };
+    ok(&evaluate("1,2", &eval));
+    let mut compared = 0;
+    for item in ["00000", "00001"] {
+        let csv = std::fs::read_to_string(eval.join("items").join(format!("{item}.csv"))).unwrap();
+        for line in csv.lines().skip(1) {
+            let f: Vec<&str> = line.split(',').collect();
+            let (views, method) = (f[1], f[2]);
+            if method == "mean training volume" {
+                continue; // nothing to tune
+            }
+            let key = (
+                item.to_string(),
+                views.to_string(),
+                method.to_string(),
+                chosen(&toml, views, method),
+            );
+            let (psnr, _) = &search[&key];
+            assert_eq!(f[3], psnr, "{line}");
+            compared += 1;
+        }
+    }
+    // SART-TV from the mean (of the training CTs, without a checkpoint), PCA-MAP, FDK and
+    // SART-TV.
+    assert_eq!(compared, 2 * 2 * 4);
+    // A file tuned for 1 and 2 views does not stand in for 5.
+    let e = evaluate("5", &tmp.path().join("eval5"));
+    assert!(!e.status.success());
+    let msg = String::from_utf8_lossy(&e.stderr);
+    assert!(msg.contains("tuned for 1, 2 view(s), not 5"), "{msg}");
+    // --pca-noise and --baselines together are refused (the file sets the noise).
+    let both = tomograf(&[
+        "evaluate",
+        val.to_str().unwrap(),
+        "--train-data",
+        train.to_str().unwrap(),
+        "--baselines",
+        file.to_str().unwrap(),
+        "--pca-noise",
+        "0.1",
+        "-o",
+        tmp.path().join("eval-both").to_str().unwrap(),
+    ]);
+    assert!(!both.status.success());
+}
