@@ -204,3 +204,18 @@ fn tuned_settings_are_the_search_best_and_evaluate_reproduces_them() {
     ]);
     assert!(!both.status.success());
 }
+
+#[test]
+fn the_shipped_checkpoints_settings_cover_the_papers_view_counts() {
+    // `tomograf demo` reads them; every view count of the paper must be there.
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("model/checkpoints/demo/baselines.toml");
+    let text = std::fs::read_to_string(&path).unwrap();
+    let t: toml::Table = toml::from_str(&text).unwrap();
+    for views in ["1", "2", "5", "10"] {
+        let v = t["views"][views].as_table().unwrap();
+        for key in ["sart_tv", "sart_tv_from_mean", "pca_map", "fdk_window"] {
+            assert!(v.contains_key(key), "views {views}: no {key}");
+        }
+    }
+    assert!(t["tuned_on"].as_str().unwrap().contains("70000"));
+}

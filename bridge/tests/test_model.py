@@ -60,6 +60,36 @@ def test_evaluate_scores_as_the_cli_does(tmp_path, cli, test_set):
     assert np.isfinite(rows["TomoGRAF"]["psnr_db"])
 
 
+def test_evaluate_takes_tuned_baselines(tmp_path, cli, test_set):
+    # A baselines.toml with 5 SART-TV sweeps and no TV for one view: the Python call scores
+    # SART-TV as the command line does with the same file, and not as with the defaults.
+    settings = tmp_path / "baselines.toml"
+    settings.write_text(
+        'tuned_on = "by hand"\nrule = "test"\n[views.1]\nfdk_window = "hann"\n'
+        "[views.1.sart_tv]\nsweeps = 5\ntv_step = 0.0\n"
+        "[views.1.sart_tv_from_mean]\nsweeps = 5\ntv_step = 0.0\n"
+        "[views.1.pca_map]\nnoise = 0.1\n")
+    cli("evaluate", test_set, "-o", tmp_path / "cli", "--views", "1", "--baselines", settings)
+    cli("evaluate", test_set, "-o", tmp_path / "default", "--views", "1")
+    result = tomograf.evaluate(test_set, tmp_path / "py", views=[1], baselines=settings)
+    ours = {r["method"]: r["psnr_db"] for r in result["rows"] if r["item"] == "00000"}
+
+    def cli_psnr(folder):
+        lines = (tmp_path / folder / "items" / "00000.csv").read_text().splitlines()
+        header = lines[0].split(",")
+        return {c["method"]: float(c["psnr_db"])
+                for c in (dict(zip(header, line.split(","))) for line in lines[1:])}
+
+    tuned, default = cli_psnr("cli"), cli_psnr("default")
+    for method in ["SART-TV", "FDK"]:
+        assert ours[method] == pytest.approx(tuned[method], rel=1e-6)
+        assert abs(tuned[method] - default[method]) > 1e-3, method
+    with pytest.raises(ValueError, match="tuned for 1 view"):
+        tomograf.evaluate(test_set, tmp_path / "py2", views=[2], baselines=settings)
+    with pytest.raises(ValueError, match="baselines"):
+        tomograf.evaluate(test_set, tmp_path / "py3", views=[1], baselines=tmp_path / "none.toml")
+
+
 def test_bad_arguments_are_refused_by_name(tmp_path, test_set):
     with pytest.raises(ValueError, match="scatter_correction"):
         tomograf.reconstruct(test_set / "00000", CHECKPOINT, scatter_correction="magic")

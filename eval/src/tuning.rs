@@ -370,6 +370,8 @@ fn choose(
     );
     let mut views = BTreeMap::new();
     let mut edges = Vec::new();
+    // (method, views, default's PSNR, chosen setting, its PSNR) for the summary.
+    let mut summary: Vec<(&str, usize, f64, String, f64)> = Vec::new();
     let defaults = ViewSettings::default();
     for &count in t.views {
         let mut chosen = defaults;
@@ -408,14 +410,24 @@ fn choose(
                 .iter()
                 .enumerate()
                 .fold(0, |b, (i, r)| if r.1[0] > table[b].1[0] { i } else { b });
+            let is_default = |c: &Candidate| match *c {
+                Candidate::SartTv(s) | Candidate::SartTvFromMean(s) => {
+                    s == SartTvSettings::default()
+                }
+                Candidate::PcaMap(p) => p == PcaSettings::default(),
+                Candidate::Fdk(w) => w == Window::default(),
+            };
+            if let Some((_, d)) = table.iter().find(|(c, _)| is_default(c)) {
+                summary.push((
+                    method,
+                    count,
+                    d[0],
+                    table[best].0.setting(),
+                    table[best].1[0],
+                ));
+            }
             for (i, (c, v)) in table.iter().enumerate() {
-                let is_default = match *c {
-                    Candidate::SartTv(s) | Candidate::SartTvFromMean(s) => {
-                        s == SartTvSettings::default()
-                    }
-                    Candidate::PcaMap(p) => p == PcaSettings::default(),
-                    Candidate::Fdk(w) => w == Window::default(),
-                };
+                let is_default = is_default(c);
                 let name = format!(
                     "{}{}",
                     c.setting(),
@@ -444,6 +456,19 @@ fn choose(
         }
         views.insert(count.to_string(), chosen);
     }
+    let mut head = String::from(
+        "\n## Summary\n\n| method | views | default: PSNR (dB) | chosen | PSNR (dB) | gain (dB) \
+         |\n|---|---:|---:|---|---:|---:|\n",
+    );
+    for (method, count, d, chosen, p) in &summary {
+        let _ = writeln!(
+            head,
+            "| {method} | {count} | {d:.2} | {chosen} | {p:.2} | {:+.2} |",
+            p - d
+        );
+    }
+    let at = md.find("\n## ").unwrap_or(md.len());
+    md.insert_str(at, &head);
     if !edges.is_empty() {
         let _ = write!(
             md,
