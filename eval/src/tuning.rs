@@ -17,7 +17,7 @@ use std::collections::BTreeMap;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use tomograf_datasets::atomic::write_atomic;
-use tomograf_model::baseline::{Baseline, Fdk, MeanVolume, SartTv, SartTvSettings};
+use tomograf_model::baseline::{Baseline, Fdk, SartTv, SartTvSettings};
 use tomograf_model::data;
 use tomograf_model::pca::{PcaMap, PcaSettings};
 use tomograf_model::scatter_correction::ScatterCorrection;
@@ -257,12 +257,12 @@ pub fn tune(t: &Tuning) -> Result<(BaselineSettings, String)> {
     let train = data::load_dataset(t.train_data, None)
         .with_context(|| format!("the training set {}", t.train_data.display()))?;
     let cts: Vec<&Volume> = train.iter().filter_map(|i| i.ct.as_ref()).collect();
-    let mean = MeanVolume::from_volumes(cts.iter().copied())?;
     let pca = PcaMap::from_volumes(
         &cts,
         PcaSettings::default().noise,
         tomograf_model::train::projection_scale(&train)?,
     )?;
+    let mean = &pca.mean;
     let candidates = grid();
     let job = Job {
         data: t.data.to_path_buf(),
@@ -293,7 +293,7 @@ pub fn tune(t: &Tuning) -> Result<(BaselineSettings, String)> {
             poses.extend(paper_poses(count)?);
         }
         let corrected =
-            correct_scatter(item, t.scatter_correction, Some(&mean), &poses, 0, &Silent)?;
+            correct_scatter(item, t.scatter_correction, Some(mean), &poses, 0, &Silent)?;
         let item = corrected.as_ref().unwrap_or(item);
         let grid = item.ct.as_ref().context("item has no ground-truth CT")?;
         let mut mine = Vec::new();

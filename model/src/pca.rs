@@ -316,8 +316,8 @@ impl Baseline for PcaMap {
         grid: &Volume,
         scale: &DensityScale,
     ) -> Result<Volume> {
-        let a = self.fit(refs, grid, scale)?;
-        self.volume_on(&a, grid)
+        self.fitted_with(self.settings)
+            .reconstruct(refs, grid, scale)
     }
 }
 
