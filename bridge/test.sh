@@ -40,4 +40,4 @@ if [ -z "${TOMOGRAF_BIN:-}" ]; then
   cargo build --release --quiet --bin tomograf
   export TOMOGRAF_BIN="$PWD/target/release/tomograf"
 fi
-"$venv/bin/python" -m pytest -q -p no:cacheprovider bridge/tests
+"$venv/bin/python" -m pytest -q -p no:cacheprovider --durations=8 bridge/tests

@@ -7,7 +7,7 @@ use anyhow::Result;
 use clap::Args;
 use std::path::PathBuf;
 use tomograf_eval::evaluation::{DEFAULT_PCA_NOISE, Evaluation, evaluate, merge, parse_shard};
-use tomograf_eval::tuning::{BaselineSettings, FILE, Tuning};
+use tomograf_eval::tuning::{BaselineSettings, FILE, Grid, Tuning};
 use tomograf_model::scatter_correction::ScatterCorrection;
 
 #[derive(Debug, Args)]
@@ -156,6 +156,18 @@ pub struct TuneArgs {
     /// from the training set's mean volume).
     #[arg(long, default_value = "none")]
     pub scatter_correction: ScatterCorrection,
+    /// Also search this checkpoint's data-consistency sweeps (TomoGRAF) on the SART-TV grid;
+    /// its network runs once per item and view count. `evaluate --checkpoint` with
+    /// `--baselines` then runs the chosen sweeps.
+    #[arg(long)]
+    pub checkpoint: Option<PathBuf>,
+    /// Inference seed of the checkpoint's network (as `evaluate --seed`).
+    #[arg(long, default_value_t = 0, requires = "checkpoint")]
+    pub seed: u64,
+    /// Backend of the checkpoint's network: flex (CPU, default), ndarray, cuda, wgpu (as
+    /// compiled in).
+    #[arg(long, requires = "checkpoint")]
+    pub backend: Option<String>,
 }
 
 pub fn tune(args: TuneArgs) -> Result<()> {
@@ -167,6 +179,10 @@ pub fn tune(args: TuneArgs) -> Result<()> {
         train_data: &args.train_data,
         views: &args.views,
         scatter_correction: args.scatter_correction,
+        checkpoint: args.checkpoint.as_deref(),
+        seed: args.seed,
+        backend: args.backend.as_deref(),
+        grid: Grid::Full,
         output: &args.output,
         progress: &bar,
     })?;

@@ -27,6 +27,9 @@ pub struct InferArgs {
     /// started from the network's volume; 0 = the network's volume as it is).
     #[arg(long)]
     pub refine: Option<usize>,
+    /// Override the TV step of those sweeps (0 = plain SART; the default 0.2).
+    #[arg(long)]
+    pub refine_tv_step: Option<f64>,
 }
 
 impl InferArgs {
@@ -37,6 +40,7 @@ impl InferArgs {
             iterations: self.iterations,
             psnr_threshold: self.psnr_threshold,
             refine_iterations: self.refine,
+            refine_tv_step: self.refine_tv_step,
         }
     }
 }

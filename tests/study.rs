@@ -171,6 +171,9 @@ fn check_tuning(study: &Path, sets: &[&str], seed: u64) {
         let text = std::fs::read_to_string(tune.join("baselines.toml")).unwrap();
         let tuned: toml::Table = toml::from_str(&text).unwrap();
         assert!(tune.join("search.md").is_file());
+        // `tiny` searches the smoke grid: 12 settings × 4 view counts × 1 validation item.
+        let search = std::fs::read_to_string(tune.join("search.csv")).unwrap();
+        assert_eq!(search.lines().count(), 1 + 12 * 4, "{set}");
         let job: serde_json::Value = serde_json::from_slice(
             &std::fs::read(study.join("eval").join(set).join("classical/job.json")).unwrap(),
         )

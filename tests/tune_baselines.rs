@@ -219,3 +219,101 @@ fn the_shipped_checkpoints_settings_cover_the_papers_view_counts() {
     }
     assert!(t["tuned_on"].as_str().unwrap().contains("70000"));
 }
+
+/// `tune-baselines --checkpoint`: TomoGRAF's data-consistency sweeps are searched on the
+/// SART-TV grid (its network once per item and view count), the choice is the search's best
+/// by mean PSNR, `evaluate --checkpoint --baselines` runs the chosen sweeps and scores what
+/// the search scored, and a sweeps override beside such a file is refused.
+#[test]
+fn the_checkpoints_sweeps_are_tuned_alike() {
+    let tmp = tempfile::tempdir().unwrap();
+    let (train, val) = (tmp.path().join("train"), tmp.path().join("val"));
+    dataset(&train, "3", "0");
+    dataset(&val, "1", "70000");
+    let run = tmp.path().join("run");
+    ok(&tomograf(&[
+        "train",
+        train.to_str().unwrap(),
+        "-o",
+        run.to_str().unwrap(),
+        "--config",
+        "tiny",
+        "--iterations",
+        "4",
+    ]));
+    let ck = run.join("checkpoint");
+    let out = tmp.path().join("tune");
+    let printed = tomograf(&[
+        "tune-baselines",
+        val.to_str().unwrap(),
+        "--train-data",
+        train.to_str().unwrap(),
+        "--checkpoint",
+        ck.to_str().unwrap(),
+        "--views",
+        "1",
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    ok(&printed);
+    let md = String::from_utf8_lossy(&printed.stdout).to_string();
+    assert!(md.contains("## TomoGRAF, 1 view(s)"), "{md}");
+    let search = read_search(&out.join("search.csv"));
+    // 25 sweep settings each for TomoGRAF and both SART-TV starts, 28 PCA-MAP, 4 FDK.
+    assert_eq!(search.len(), 82 + 25);
+    let tomograf_rows: BTreeMap<&str, f64> = search
+        .iter()
+        .filter(|((_, _, m, _), _)| m == "TomoGRAF")
+        .map(|((_, _, _, s), (_, p))| (s.as_str(), *p))
+        .collect();
+    assert_eq!(tomograf_rows.len(), 25);
+    let text = std::fs::read_to_string(out.join("baselines.toml")).unwrap();
+    let toml: toml::Table = toml::from_str(&text).unwrap();
+    let s = toml["views"]["1"]["tomograf_sweeps"].as_table().unwrap();
+    let pick = format!(
+        "{} sweeps; TV step {}",
+        s["sweeps"].as_integer().unwrap(),
+        s["tv_step"].as_float().unwrap()
+    );
+    let best = tomograf_rows
+        .values()
+        .copied()
+        .fold(f64::NEG_INFINITY, f64::max);
+    assert_eq!(tomograf_rows[pick.as_str()], best, "{pick}");
+
+    let file = out.join("baselines.toml");
+    let evaluate = |dir: &str, extra: &[&str]| {
+        let mut args = vec![
+            "evaluate",
+            val.to_str().unwrap(),
+            "--checkpoint",
+            ck.to_str().unwrap(),
+            "--baselines",
+            file.to_str().unwrap(),
+            "--views",
+            "1",
+            "--no-baselines",
+        ];
+        let dir = tmp.path().join(dir);
+        args.extend(["-o", dir.to_str().unwrap()]);
+        args.extend(extra);
+        (tomograf(&args), dir)
+    };
+    let (e, dir) = evaluate("eval", &[]);
+    ok(&e);
+    let csv = std::fs::read_to_string(dir.join("items/00000.csv")).unwrap();
+    let row = csv
+        .lines()
+        .find(|l| l.starts_with("00000,1,TomoGRAF,"))
+        .unwrap();
+    let key = ("00000".into(), "1".into(), "TomoGRAF".into(), pick.clone());
+    assert_eq!(
+        row.split(',').nth(3),
+        Some(search[&key].0.as_str()),
+        "{row}"
+    );
+    let (e, _) = evaluate("eval-refine", &["--refine", "5"]);
+    assert!(!e.status.success());
+    let msg = String::from_utf8_lossy(&e.stderr);
+    assert!(msg.contains("leave out --refine"), "{msg}");
+}

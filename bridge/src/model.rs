@@ -30,6 +30,7 @@ fn overrides(
         iterations,
         psnr_threshold,
         refine_iterations: refine,
+        refine_tv_step: None,
     })
 }
 

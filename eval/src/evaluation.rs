@@ -68,6 +68,9 @@ pub struct Job {
     /// Data-consistency sweeps override (absent in folders written before it existed).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub refine_iterations: Option<usize>,
+    /// Their TV step override (absent in folders written before it existed).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub refine_tv_step: Option<f64>,
     /// The PCA-MAP prior's training set and noise, when it is scored.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub pca: Option<(PathBuf, f64)>,
@@ -161,6 +164,7 @@ pub fn evaluate(e: &Evaluation) -> Result<usize> {
         tune: e.infer.tune,
         psnr_threshold: e.infer.psnr_threshold,
         refine_iterations: e.infer.refine_iterations,
+        refine_tv_step: e.infer.refine_tv_step,
         pca: e.train_data.map(|p| (p.to_path_buf(), e.pca_noise)),
         scatter_correction: e.scatter_correction,
         baselines: e.baselines.cloned(),
@@ -168,7 +172,17 @@ pub fn evaluate(e: &Evaluation) -> Result<usize> {
     };
     if let Some(b) = e.baselines {
         for &count in e.views {
-            b.for_views(count)?;
+            let s = b.for_views(count)?;
+            if s.tomograf_sweeps.is_some()
+                && e.checkpoint.is_some()
+                && (e.infer.refine_iterations.is_some() || e.infer.refine_tv_step.is_some())
+            {
+                bail!(
+                    "the baselines' settings also hold TomoGRAF's data-consistency sweeps \
+                     (tuned for {count} view(s)): leave out --refine and --refine-tv-step, or \
+                     the file"
+                );
+            }
         }
     }
     if !job.model && !job.classical {
@@ -291,6 +305,12 @@ pub fn evaluate(e: &Evaluation) -> Result<usize> {
             baselines.extend(classical.iter().map(|b| b.as_ref()));
             let mut volumes: Vec<Volume> = Vec::new();
             if let Some((ck, infer, _, _)) = &model {
+                // TomoGRAF's sweeps for this view count, when the search chose them.
+                let mut infer = infer.clone();
+                if let Some(s) = settings.tomograf_sweeps {
+                    infer.refine_iterations = s.sweeps;
+                    infer.refine_tv_step = s.tv_step;
+                }
                 e.progress.note(&format!(
                     "item {} ({}/{}), {count} view(s)",
                     item.id,
@@ -298,7 +318,7 @@ pub fn evaluate(e: &Evaluation) -> Result<usize> {
                     items.len()
                 ));
                 let t0 = Instant::now();
-                let rec = run_one(ck, item, &poses, Some(infer), e.seed, &device, e.progress)?;
+                let rec = run_one(ck, item, &poses, Some(&infer), e.seed, &device, e.progress)?;
                 let seconds = t0.elapsed().as_secs_f64();
                 rows.push(Row {
                     item: item.id.clone(),

@@ -130,6 +130,11 @@ pub struct InferConfig {
     /// (docs/model.md, "How many sweeps").
     #[serde(default = "default_refine_iterations")]
     pub refine_iterations: usize,
+    /// TV step of the data-consistency sweeps (fraction of each voxel's total-variation
+    /// gradient step; 0: plain SART). 0.2, SART-TV's default, unless tuned on validation
+    /// (`tomograf tune-baselines --checkpoint`, docs/model.md).
+    #[serde(default = "default_refine_tv_step")]
+    pub refine_tv_step: f64,
     /// Run the data-consistency sweeps only when some reference view's full-image PSNR
     /// (dB) against the network volume's projection is below this: views the prior could
     /// not explain. `inf` = always.
@@ -180,6 +185,9 @@ fn default_check_every() -> usize {
 fn default_refine_iterations() -> usize {
     20
 }
+fn default_refine_tv_step() -> f64 {
+    crate::baseline::SartTvSettings::default().tv_step
+}
 fn default_refine_below_db() -> f64 {
     30.0
 }
@@ -199,6 +207,8 @@ pub struct InferOverrides {
     pub psnr_threshold: Option<f64>,
     /// Data-consistency (SART-TV) sweeps after the network's fit.
     pub refine_iterations: Option<usize>,
+    /// TV step of those sweeps.
+    pub refine_tv_step: Option<f64>,
 }
 
 impl InferConfig {
@@ -226,6 +236,13 @@ impl InferConfig {
         }
         if let Some(n) = o.refine_iterations {
             c.refine_iterations = n;
+        }
+        if let Some(t) = o.refine_tv_step {
+            ensure!(
+                t.is_finite() && t >= 0.0,
+                "the data-consistency sweeps' TV step {t} must be a finite number ≥ 0"
+            );
+            c.refine_tv_step = t;
         }
         Ok(c)
     }
@@ -390,6 +407,11 @@ impl TrainConfig {
             self.infer.refine_start_mean_weight
         );
         ensure!(
+            self.infer.refine_tv_step.is_finite() && self.infer.refine_tv_step >= 0.0,
+            "infer.refine_tv_step = {} must be a finite number ≥ 0 (0: plain SART sweeps)",
+            self.infer.refine_tv_step
+        );
+        ensure!(
             !self.infer.refine_below_db.is_nan(),
             "infer.refine_below_db is NaN: give a PSNR in dB (inf: always refine)"
         );
@@ -460,6 +482,17 @@ mod tests {
         c.model.patch = 6;
         let e = c.validate().unwrap_err().to_string();
         assert!(e.contains("patch M = 6"), "{e}");
+        // The sweeps' TV step: a preset's default is SART-TV's; a negative one is refused.
+        let mut c = TrainConfig::load("tiny").unwrap();
+        assert_eq!(c.infer.refine_tv_step, 0.2);
+        c.infer.refine_tv_step = -0.1;
+        let e = c.validate().unwrap_err().to_string();
+        assert!(e.contains("refine_tv_step = -0.1"), "{e}");
+        let o = InferOverrides {
+            refine_tv_step: Some(f64::NAN),
+            ..InferOverrides::default()
+        };
+        assert!(TrainConfig::load("tiny").unwrap().infer.overridden(&o).is_err());
         let e = TrainConfig::load("/nonexistent.toml")
             .unwrap_err()
             .to_string();

@@ -28,9 +28,9 @@ pub struct StartWeights {
     pub mean: f64,
 }
 
-/// The volume (normalised density) after `infer.refine_iterations` SART-TV sweeps from the
-/// start that `infer` and the views' PSNRs `psnr` (dB, one per reference) choose, and that
-/// start's weights. `network` is the network's volume on the grid, `prior` the mean
+/// The volume (normalised density) after `infer.refine_iterations` SART-TV sweeps (TV step
+/// `infer.refine_tv_step`) from the start that `infer` and the views' PSNRs `psnr` (dB, one
+/// per reference) choose, and that start's weights. `network` is the network's volume on the grid, `prior` the mean
 /// training volume.
 pub fn refine(
     refs: &[Reference],
@@ -66,7 +66,7 @@ pub fn refine(
     }
     let sweeps = SartTvSettings {
         sweeps: infer.refine_iterations,
-        ..SartTvSettings::default()
+        tv_step: infer.refine_tv_step,
     };
     let volume = sart_tv_density(refs, network, scale, &start, &sweeps)?;
     Ok((volume, weights))

@@ -21,7 +21,7 @@ mod report;
 
 use crate::evaluation::{DEFAULT_PCA_NOISE, Evaluation, evaluate};
 use crate::training::{Training, train};
-use crate::tuning::{BaselineSettings, Tuning, tune};
+use crate::tuning::{BaselineSettings, Grid, Tuning, tune};
 use anyhow::{Context, Result, bail};
 use levels::DataSpec;
 use serde::{Deserialize, Serialize};
@@ -440,6 +440,17 @@ impl Study {
             train_data: &train_data,
             views: &VIEWS,
             scatter_correction: test.correction,
+            // TomoGRAF's sweeps stay the checkpoint's: a search per model and test set
+            // would multiply the study's inference by the grid.
+            checkpoint: None,
+            seed: 0,
+            backend: None,
+            // `tiny` is a smoke test of the pipeline: a grid of 12 settings, not 82.
+            grid: if self.settings.scale.name == "tiny" {
+                Grid::Smoke
+            } else {
+                Grid::Full
+            },
             output: &self.tune_dir(test.name),
             progress: &Silent,
         })

@@ -1,16 +1,19 @@
 //! The baselines' settings, chosen on a validation set (`tomograf tune-baselines`): every
 //! setting a user of SART-TV (from zero and from the mean training volume), PCA-MAP and FDK
-//! would tune is searched on a grid ([`grid`]), each candidate is scored on every
+//! would tune is searched on a grid ([`Grid`]), each candidate is scored on every
 //! validation item from each view count, and the one with the highest mean PSNR per method
 //! and view count goes into `baselines.toml` ([`BaselineSettings`]), which `tomograf
-//! evaluate --baselines` and `tomograf demo` read. The whole search is kept
-//! (`search.csv`, `search.md`) so a reader can see how flat the optimum is.
+//! evaluate --baselines` and `tomograf demo` read. With a checkpoint, TomoGRAF's own
+//! data-consistency sweeps are searched on the same grid as SART-TV's, by the same rule
+//! (its network runs once per item and view count; only the sweeps after it vary). The
+//! whole search is kept (`search.csv`, `search.md`) so a reader can see how flat the
+//! optimum is.
 //!
 //! The search never touches a test set: it reads the data set it is given, which should be
 //! a validation split (disjoint seeds from training and test).
 
 use crate::evaluation::{Scores, score};
-use crate::protocol::{correct_scatter, paper_poses, references};
+use crate::protocol::{correct_scatter, paper_poses, references, run_one};
 use anyhow::{Context, Result, bail};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
@@ -18,179 +21,26 @@ use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use tomograf_datasets::atomic::write_atomic;
 use tomograf_model::baseline::{Baseline, Fdk, SartTv, SartTvSettings};
-use tomograf_model::data;
+use tomograf_model::config::InferConfig;
+use tomograf_model::data::Item;
 use tomograf_model::pca::{PcaMap, PcaSettings};
+use tomograf_model::prior::MeanVolume;
+use tomograf_model::reconstruct::{NetworkVolume, Reference};
+use tomograf_model::refine::refine;
+use tomograf_model::render::DensityScale;
 use tomograf_model::scatter_correction::ScatterCorrection;
+use tomograf_model::{backend, checkpoint, data};
 use tomograf_scene::{Progress, Silent};
-use tomograf_sim::Volume;
 use tomograf_sim::recon::Window;
+use tomograf_sim::{Pose, Volume};
 
-/// File name of the chosen settings in a tuning's output folder.
-pub const FILE: &str = "baselines.toml";
+mod grid;
+mod settings;
 
-/// The method names, as the evaluation tables print them.
-pub const SART_TV: &str = "SART-TV";
-pub const SART_TV_FROM_MEAN: &str = "SART-TV from the mean";
-pub const PCA_MAP: &str = "PCA-MAP prior";
-pub const FDK: &str = "FDK";
-
-/// Every baseline's settings for one view count.
-#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct ViewSettings {
-    pub sart_tv: SartTvSettings,
-    pub sart_tv_from_mean: SartTvSettings,
-    pub pca_map: PcaSettings,
-    /// FDK's ramp-filter window.
-    pub fdk_window: Window,
-}
-
-impl ViewSettings {
-    fn validate(&self) -> Result<()> {
-        self.sart_tv.options(1)?;
-        self.sart_tv_from_mean.options(1)?;
-        self.pca_map.validate()?;
-        Ok(())
-    }
-}
-
-/// `baselines.toml`: the settings per view count and what chose them.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct BaselineSettings {
-    /// The validation data (and training data) the search ran on.
-    pub tuned_on: String,
-    /// How the winner was chosen.
-    pub rule: String,
-    /// Settings per view count (keys "1", "2", …).
-    pub views: BTreeMap<String, ViewSettings>,
-}
-
-impl BaselineSettings {
-    /// Reads and checks a `baselines.toml`; errors name the file and the bad entry.
-    pub fn read(path: &Path) -> Result<Self> {
-        let text = std::fs::read_to_string(path)
-            .with_context(|| format!("cannot read the baselines' settings {}", path.display()))?;
-        let s: Self = toml::from_str(&text).with_context(|| {
-            format!(
-                "{} is not a baselines.toml (written by `tomograf tune-baselines`)",
-                path.display()
-            )
-        })?;
-        if s.views.is_empty() {
-            bail!("{}: no view counts tuned", path.display());
-        }
-        for (k, v) in &s.views {
-            if !k.parse::<usize>().is_ok_and(|n| n >= 1) {
-                bail!("{}: view count '{k}' is not a number ≥ 1", path.display());
-            }
-            v.validate()
-                .with_context(|| format!("{}, views {k}", path.display()))?;
-        }
-        Ok(s)
-    }
-
-    /// The settings for `count` views; an error naming the counts tuned.
-    pub fn for_views(&self, count: usize) -> Result<ViewSettings> {
-        self.views
-            .get(&count.to_string())
-            .copied()
-            .with_context(|| {
-                format!(
-                    "the baselines were tuned for {} view(s), not {count}: tune them for it \
-                 (`tomograf tune-baselines --views …`) or leave out --baselines",
-                    self.views.keys().cloned().collect::<Vec<_>>().join(", ")
-                )
-            })
-    }
-}
-
-/// One setting of one method.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub enum Candidate {
-    SartTv(SartTvSettings),
-    SartTvFromMean(SartTvSettings),
-    PcaMap(PcaSettings),
-    Fdk(Window),
-}
-
-impl Candidate {
-    /// The method's name in the evaluation tables.
-    pub fn method(&self) -> &'static str {
-        match self {
-            Self::SartTv(_) => SART_TV,
-            Self::SartTvFromMean(_) => SART_TV_FROM_MEAN,
-            Self::PcaMap(_) => PCA_MAP,
-            Self::Fdk(_) => FDK,
-        }
-    }
-
-    /// The setting, in words (no commas: it is a CSV field).
-    pub fn setting(&self) -> String {
-        match self {
-            Self::SartTv(s) | Self::SartTvFromMean(s) => {
-                format!("{} sweeps; TV step {}", s.sweeps, s.tv_step)
-            }
-            Self::PcaMap(p) => format!(
-                "noise {}; {} components",
-                p.noise,
-                p.components.map_or("all".to_string(), |c| c.to_string())
-            ),
-            Self::Fdk(w) => format!("{w:?} window"),
-        }
-    }
-}
-
-/// SART-TV's sweeps on the grid.
-const SWEEPS: [usize; 5] = [5, 10, 20, 40, 80];
-/// SART-TV's TV steps on the grid (0: plain SART).
-const TV_STEPS: [f64; 5] = [0.0, 0.1, 0.2, 0.4, 0.8];
-/// PCA-MAP's noise levels on the grid (fractions of the largest line integral).
-const NOISES: [f64; 7] = [0.001, 0.003, 0.01, 0.03, 0.1, 0.3, 1.0];
-/// PCA-MAP's component counts on the grid (`None`: all).
-const COMPONENTS: [Option<usize>; 4] = [Some(4), Some(8), Some(16), None];
-
-/// The search: SART-TV (both starts) over sweeps {5, 10, 20, 40, 80} × TV step {0, 0.1,
-/// 0.2, 0.4, 0.8}; PCA-MAP over noise {0.1, 0.3, 1, 3, 10, 30, 100} % × the first {4, 8,
-/// 16, all} components; FDK over the four ramp windows. The defaults (20 sweeps, TV step
-/// 0.2; noise 1 %, all components; Ram-Lak) are on the grid.
-pub fn grid() -> Vec<Candidate> {
-    let mut out = Vec::new();
-    for sweeps in SWEEPS {
-        for tv_step in TV_STEPS {
-            let s = SartTvSettings { sweeps, tv_step };
-            out.push(Candidate::SartTv(s));
-            out.push(Candidate::SartTvFromMean(s));
-        }
-    }
-    for noise in NOISES {
-        for components in COMPONENTS {
-            out.push(Candidate::PcaMap(PcaSettings { noise, components }));
-        }
-    }
-    for w in [
-        Window::RamLak,
-        Window::SheppLogan,
-        Window::Cosine,
-        Window::Hann,
-    ] {
-        out.push(Candidate::Fdk(w));
-    }
-    out
-}
-
-/// Whether `c` lies on an open edge of the grid (the most sweeps, the largest TV step, the
-/// smallest or largest noise): a winner there may have a better setting beyond it.
-pub fn on_edge(c: &Candidate) -> bool {
-    let last = |a: &[f64], x: f64| a.last() == Some(&x);
-    match c {
-        Candidate::SartTv(s) | Candidate::SartTvFromMean(s) => {
-            SWEEPS.last() == Some(&s.sweeps) || last(&TV_STEPS, s.tv_step)
-        }
-        Candidate::PcaMap(p) => NOISES.first() == Some(&p.noise) || last(&NOISES, p.noise),
-        Candidate::Fdk(_) => false,
-    }
-}
+pub use grid::{Candidate, Grid};
+pub use settings::{
+    BaselineSettings, FDK, FILE, PCA_MAP, SART_TV, SART_TV_FROM_MEAN, TOMOGRAF, ViewSettings,
+};
 
 /// What to tune on.
 pub struct Tuning<'a> {
@@ -207,6 +57,13 @@ pub struct Tuning<'a> {
     /// Correct the views for scatter first, as the evaluation the settings are for will
     /// (`prior`: from the training set's mean volume).
     pub scatter_correction: ScatterCorrection,
+    /// Also search this checkpoint's data-consistency sweeps (TomoGRAF), its network run
+    /// with inference seed `seed` as `tomograf evaluate --seed` runs it.
+    pub checkpoint: Option<&'a Path>,
+    pub seed: u64,
+    pub backend: Option<&'a str>,
+    /// The grid searched.
+    pub grid: Grid,
     /// Output folder: search.csv, search.md, baselines.toml, items/.
     pub output: &'a Path,
     pub progress: &'a dyn Progress,
@@ -234,6 +91,9 @@ struct Job {
     candidates: Vec<String>,
     #[serde(default, skip_serializing_if = "is_none")]
     scatter_correction: ScatterCorrection,
+    /// The checkpoint whose sweeps were searched, and its inference seed.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    checkpoint: Option<(PathBuf, u64)>,
 }
 
 fn is_none(c: &ScatterCorrection) -> bool {
@@ -263,7 +123,17 @@ pub fn tune(t: &Tuning) -> Result<(BaselineSettings, String)> {
         tomograf_model::train::projection_scale(&train)?,
     )?;
     let mean = &pca.mean;
-    let candidates = grid();
+    let device = backend::device(t.backend.unwrap_or(backend::default_name()))?;
+    // The checkpoint's inference settings and mean volume (the sweeps' start).
+    let model: Option<(&Path, InferConfig, MeanVolume)> = match t.checkpoint {
+        Some(ck) => {
+            let g = checkpoint::load_generator(ck, &device)
+                .with_context(|| format!("checkpoint {}", ck.display()))?;
+            Some((ck, g.config.infer, g.prior))
+        }
+        None => None,
+    };
+    let candidates = t.grid.candidates(model.is_some());
     let job = Job {
         data: t.data.to_path_buf(),
         train_data: t.train_data.to_path_buf(),
@@ -274,6 +144,7 @@ pub fn tune(t: &Tuning) -> Result<(BaselineSettings, String)> {
             .map(|c| format!("{}: {}", c.method(), c.setting()))
             .collect(),
         scatter_correction: t.scatter_correction,
+        checkpoint: t.checkpoint.map(|c| (c.to_path_buf(), t.seed)),
     };
     std::fs::create_dir_all(t.output.join("items"))
         .with_context(|| format!("cannot create {}", t.output.display()))?;
@@ -305,8 +176,13 @@ pub fn tune(t: &Tuning) -> Result<(BaselineSettings, String)> {
                 items.len(),
                 candidates.len()
             ));
-            let refs = references(item, &paper_poses(count)?)?;
+            let poses = paper_poses(count)?;
+            let refs = references(item, &poses)?;
             let system = pca.system(&refs, grid, &item.scale)?;
+            let network = match &model {
+                Some((ck, infer, _)) => Some(network(ck, item, &poses, infer, t, &device)?),
+                None => None,
+            };
             for c in &candidates {
                 let volume = match *c {
                     Candidate::SartTv(s) => {
@@ -320,6 +196,12 @@ pub fn tune(t: &Tuning) -> Result<(BaselineSettings, String)> {
                     Candidate::PcaMap(p) => pca.volume_on(&pca.solve(&system, &p)?, grid)?,
                     Candidate::Fdk(window) => {
                         Fdk { window }.reconstruct(&refs, grid, &item.scale)?
+                    }
+                    Candidate::Tomograf(s) => {
+                        let (Some((_, infer, prior)), Some(net)) = (&model, &network) else {
+                            bail!("TomoGRAF's sweeps are searched only with a checkpoint");
+                        };
+                        sweeps_after(net, &refs, prior, &item.scale, infer, s)?
                     }
                 };
                 mine.push(Row {
@@ -339,7 +221,12 @@ pub fn tune(t: &Tuning) -> Result<(BaselineSettings, String)> {
     write_atomic(&t.output.join("search.csv"), |w| {
         std::io::Write::write_all(w, csv(&rows).as_bytes())
     })?;
-    let (settings, md) = choose(t, &candidates, &rows, items.len())?;
+    // TomoGRAF's default: the checkpoint's own sweeps.
+    let own = model.as_ref().map(|(_, infer, _)| SartTvSettings {
+        sweeps: infer.refine_iterations,
+        tv_step: infer.refine_tv_step,
+    });
+    let (settings, md) = choose(t, &candidates, &rows, items.len(), own)?;
     write_atomic(&t.output.join("search.md"), |w| {
         std::io::Write::write_all(w, md.as_bytes())
     })?;
@@ -353,6 +240,44 @@ pub fn tune(t: &Tuning) -> Result<(BaselineSettings, String)> {
     Ok((settings, md))
 }
 
+/// TomoGRAF's network volume for `item` from `poses`: the checkpoint's inference with one
+/// data-consistency sweep, so that the network's volume and its views' projection PSNRs
+/// (the sweeps' gate) are reported; the sweeps themselves are the candidates'.
+fn network(
+    ck: &Path,
+    item: &Item,
+    poses: &[Pose],
+    infer: &InferConfig,
+    t: &Tuning,
+    device: &tomograf_model::Device,
+) -> Result<NetworkVolume> {
+    let mut infer = infer.clone();
+    infer.refine_iterations = 1;
+    let rec = run_one(ck, item, poses, Some(&infer), t.seed, device, t.progress)?;
+    rec.network
+        .context("the reconstruction did not report the network's volume")
+}
+
+/// TomoGRAF's volume with the sweeps `s` after its network (`infer`'s start and gate, as
+/// `tomograf evaluate` runs them): the network's volume as it is when some view is
+/// explained and the gate keeps the sweeps from running.
+fn sweeps_after(
+    net: &NetworkVolume,
+    refs: &[Reference],
+    prior: &MeanVolume,
+    scale: &DensityScale,
+    infer: &InferConfig,
+    s: SartTvSettings,
+) -> Result<Volume> {
+    if !net.refined {
+        return Ok(net.volume.clone());
+    }
+    let mut infer = infer.clone();
+    infer.refine_iterations = s.sweeps;
+    infer.refine_tv_step = s.tv_step;
+    Ok(refine(refs, &net.volume, prior, scale, &infer, &net.psnr)?.0)
+}
+
 /// The winner per method and view count (highest mean PSNR; the first on the grid on a
 /// tie), and the search as markdown tables.
 fn choose(
@@ -360,13 +285,19 @@ fn choose(
     candidates: &[Candidate],
     rows: &[Row],
     items: usize,
+    own: Option<SartTvSettings>,
 ) -> Result<(BaselineSettings, String)> {
     let mut md = format!(
         "# Baselines tuned on {} ({items} item(s)), training set {}\n\nMean over the \
          validation items; the chosen setting (highest mean PSNR) in bold, the default marked \
-         \"(default)\".\n",
+         \"(default)\"{}.\n",
         t.data.display(),
-        t.train_data.display()
+        t.train_data.display(),
+        if own.is_some() {
+            " (TomoGRAF's: the checkpoint's own sweeps; its network is the same in every row)"
+        } else {
+            ""
+        }
     );
     let mut views = BTreeMap::new();
     let mut edges = Vec::new();
@@ -375,7 +306,11 @@ fn choose(
     let defaults = ViewSettings::default();
     for &count in t.views {
         let mut chosen = defaults;
-        for method in [SART_TV, SART_TV_FROM_MEAN, PCA_MAP, FDK] {
+        let methods = [TOMOGRAF, SART_TV, SART_TV_FROM_MEAN, PCA_MAP, FDK];
+        for method in methods
+            .into_iter()
+            .filter(|m| candidates.iter().any(|c| c.method() == *m))
+        {
             let _ = write!(
                 md,
                 "\n## {method}, {count} view(s)\n\n| setting | PSNR (dB) | SSIM | body PSNR \
@@ -416,6 +351,7 @@ fn choose(
                 }
                 Candidate::PcaMap(p) => p == PcaSettings::default(),
                 Candidate::Fdk(w) => w == Window::default(),
+                Candidate::Tomograf(s) => Some(s) == own,
             };
             if let Some((_, d)) = table.iter().find(|(c, _)| is_default(c)) {
                 summary.push((
@@ -433,7 +369,7 @@ fn choose(
                     c.setting(),
                     if is_default { " (default)" } else { "" }
                 );
-                let cell = match (i == best, on_edge(c)) {
+                let cell = match (i == best, t.grid.on_edge(c)) {
                     (true, true) => {
                         edges.push(format!("{method}, {count} view(s)"));
                         format!("**{name}** (on the grid's edge)")
@@ -452,6 +388,7 @@ fn choose(
                 Candidate::SartTvFromMean(s) => chosen.sart_tv_from_mean = s,
                 Candidate::PcaMap(p) => chosen.pca_map = p,
                 Candidate::Fdk(w) => chosen.fdk_window = w,
+                Candidate::Tomograf(s) => chosen.tomograf_sweeps = Some(s),
             }
         }
         views.insert(count.to_string(), chosen);
@@ -483,9 +420,14 @@ fn choose(
     Ok((
         BaselineSettings {
             tuned_on: format!(
-                "{} ({items} validation item(s)); training set {}",
+                "{} ({items} validation item(s)); training set {}{}",
                 t.data.display(),
-                t.train_data.display()
+                t.train_data.display(),
+                t.checkpoint.map_or(String::new(), |c| format!(
+                    "; TomoGRAF's sweeps for checkpoint {} (inference seed {})",
+                    c.display(),
+                    t.seed
+                ))
             ),
             rule: "highest mean PSNR over the validation items, per method and view count".into(),
             views,
@@ -572,12 +514,23 @@ mod tests {
 
     #[test]
     fn the_defaults_are_on_the_grid_and_settings_round_trip() {
-        let g = grid();
+        let g = Grid::Full.candidates(true);
+        let smoke = Grid::Smoke.candidates(false);
         let d = ViewSettings::default();
         assert!(g.contains(&Candidate::SartTv(d.sart_tv)));
         assert!(g.contains(&Candidate::SartTvFromMean(d.sart_tv_from_mean)));
         assert!(g.contains(&Candidate::PcaMap(d.pca_map)));
         assert!(g.contains(&Candidate::Fdk(d.fdk_window)));
+        assert!(g.contains(&Candidate::Tomograf(d.sart_tv)));
+        for c in [
+            Candidate::SartTv(d.sart_tv),
+            Candidate::PcaMap(d.pca_map),
+            Candidate::Fdk(d.fdk_window),
+        ] {
+            assert!(smoke.contains(&c), "{c:?}");
+        }
+        assert!(!smoke.iter().any(|c| matches!(c, Candidate::Tomograf(_))));
+        assert!(smoke.len() * 5 < g.len());
         let labels: std::collections::BTreeSet<String> = g
             .iter()
             .map(|c| format!("{}{}", c.method(), c.setting()))
@@ -586,11 +539,13 @@ mod tests {
         assert!(g.iter().all(|c| !c.setting().contains(',')));
         assert!(
             !g.iter()
-                .any(|c| on_edge(c) && *c == Candidate::SartTv(d.sart_tv))
+                .any(|c| Grid::Full.on_edge(c) && *c == Candidate::SartTv(d.sart_tv))
         );
         let sart = |sweeps, tv_step| Candidate::SartTv(SartTvSettings { sweeps, tv_step });
+        let on_edge = |c: &Candidate| Grid::Full.on_edge(c);
         assert!(on_edge(&sart(80, 0.1)) && on_edge(&sart(10, 0.8)));
         assert!(!on_edge(&sart(40, 0.0)) && !on_edge(&sart(5, 0.4)));
+        assert!(Grid::Smoke.on_edge(&sart(20, 0.0)) && !Grid::Smoke.on_edge(&sart(5, 0.0)));
         let pca = |noise| {
             Candidate::PcaMap(PcaSettings {
                 noise,
