@@ -10,13 +10,15 @@
 #   val-lidc-ideal  the same phantoms as ideal DRRs (the protocol of docs/model.md's
 #                   in-distribution table)
 #
-# with the mean volume and PCA-MAP prior of the checkpoint's 32 training phantoms. Then the
+# with the mean volume and PCA-MAP prior of the checkpoint's 32 training phantoms, and the
+# checkpoint's own data-consistency sweeps (count and TV step, on SART-TV's grid: its network
+# runs once per item and view count; `--checkpoint`). Then the
 # baselines alone (`evaluate` without a checkpoint: TomoGRAF's rows are those of the
 # checkpoint's own evaluation, which does not depend on the baselines) on the 8 test
 # phantoms of that table, once, with the ideal-DRR settings. No test set is read before the
 # settings are fixed.
 #
-#   scripts/tune_baselines.sh [OUT]        # about 50 min on 2 cores (resumable)
+#   scripts/tune_baselines.sh [OUT]        # about 2.5 h on 2 cores (resumable)
 #
 # Committed copies: OUT/tune/baselines.toml → model/checkpoints/demo/baselines.toml (what
 # `tomograf demo` reads), OUT/tune*/search.md → docs/model-baselines/.
@@ -31,23 +33,25 @@ $bin dataset -o "$out/val-lidc" --phantoms 4 --seed 70000 --size 64 --views 10 -
     --split val --preset kv-flat-panel-120kvp
 $bin dataset -o "$out/val-lidc-ideal" --phantoms 4 --seed 70000 --size 64 --views 10 \
     --profile lidc --split val
-$bin tune-baselines "$out/val-lidc" --train-data "$out/train" --views 1,2,5,10 -o "$out/tune"
+ck=model/checkpoints/demo
+$bin tune-baselines "$out/val-lidc" --train-data "$out/train" --views 1,2,5,10 \
+    --checkpoint $ck -o "$out/tune"
 $bin tune-baselines "$out/val-lidc-ideal" --train-data "$out/train" --views 1,2,5,10 \
-    -o "$out/tune-ideal"
+    --checkpoint $ck -o "$out/tune-ideal"
 $bin dataset -o "$out/te8" --phantoms 8 --seed 50000 --size 64 --views 10 --profile lidc \
     --split test
 $bin evaluate "$out/te8" --train-data "$out/train" --baselines "$out/tune-ideal/baselines.toml" \
     -o "$out/te8-baselines-tuned"
-# TomoGRAF beside the tuned baselines from one view (its row reproduces the published one),
-# and the paired 95 % interval of its lead over PCA-MAP, the best tuned baseline there.
-$bin evaluate "$out/te8" --checkpoint model/checkpoints/demo --train-data "$out/train" \
-    --baselines "$out/tune-ideal/baselines.toml" --views 1 -o "$out/te8-1view-tuned"
-python3 - "$out/te8-1view-tuned/results.csv" <<'EOF'
+# TomoGRAF, with its sweeps as tuned, beside the tuned baselines from every view count, and
+# the paired 95 % interval of its lead over PCA-MAP, the best tuned baseline from one view.
+$bin evaluate "$out/te8" --checkpoint $ck --train-data "$out/train" \
+    --baselines "$out/tune-ideal/baselines.toml" -o "$out/te8-tuned"
+python3 - "$out/te8-tuned/results.csv" <<'EOF'
 import csv, math, statistics, sys
 rows = list(csv.DictReader(open(sys.argv[1])))
 T975 = {7: 2.364624}  # Student t, 97.5 % quantile, 7 degrees of freedom (8 phantoms)
 for key in ["psnr_db", "ssim", "body_psnr_db", "body_ssim"]:
-    col = lambda m: {r["item"]: float(r[key]) for r in rows if r["method"] == m}
+    col = lambda m: {r["item"]: float(r[key]) for r in rows if r["method"] == m and r["views"] == "1"}
     a, b = col("TomoGRAF"), col("PCA-MAP prior")
     d = [a[i] - b[i] for i in a]
     h = T975[len(d) - 1] * statistics.stdev(d) / math.sqrt(len(d))

@@ -213,7 +213,13 @@ fn the_shipped_checkpoints_settings_cover_the_papers_view_counts() {
     let t: toml::Table = toml::from_str(&text).unwrap();
     for views in ["1", "2", "5", "10"] {
         let v = t["views"][views].as_table().unwrap();
-        for key in ["sart_tv", "sart_tv_from_mean", "pca_map", "fdk_window"] {
+        for key in [
+            "sart_tv",
+            "sart_tv_from_mean",
+            "pca_map",
+            "fdk_window",
+            "tomograf_sweeps",
+        ] {
             assert!(v.contains_key(key), "views {views}: no {key}");
         }
     }

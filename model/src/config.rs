@@ -492,7 +492,13 @@ mod tests {
             refine_tv_step: Some(f64::NAN),
             ..InferOverrides::default()
         };
-        assert!(TrainConfig::load("tiny").unwrap().infer.overridden(&o).is_err());
+        assert!(
+            TrainConfig::load("tiny")
+                .unwrap()
+                .infer
+                .overridden(&o)
+                .is_err()
+        );
         let e = TrainConfig::load("/nonexistent.toml")
             .unwrap_err()
             .to_string();

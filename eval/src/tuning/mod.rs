@@ -278,8 +278,8 @@ fn sweeps_after(
     Ok(refine(refs, &net.volume, prior, scale, &infer, &net.psnr)?.0)
 }
 
-/// The winner per method and view count (highest mean PSNR; the first on the grid on a
-/// tie), and the search as markdown tables.
+/// The winner per method and view count (highest mean PSNR; on a tie the default, else the
+/// first on the grid), and the search as markdown tables.
 fn choose(
     t: &Tuning,
     candidates: &[Candidate],
@@ -341,10 +341,6 @@ fn choose(
                     ],
                 ));
             }
-            let best = table
-                .iter()
-                .enumerate()
-                .fold(0, |b, (i, r)| if r.1[0] > table[b].1[0] { i } else { b });
             let is_default = |c: &Candidate| match *c {
                 Candidate::SartTv(s) | Candidate::SartTvFromMean(s) => {
                     s == SartTvSettings::default()
@@ -353,6 +349,17 @@ fn choose(
                 Candidate::Fdk(w) => w == Window::default(),
                 Candidate::Tomograf(s) => Some(s) == own,
             };
+            // The highest mean PSNR; on a tie the default keeps its place (a search that
+            // cannot tell the settings apart changes nothing), else the first on the grid.
+            let top = table
+                .iter()
+                .map(|r| r.1[0])
+                .fold(f64::NEG_INFINITY, f64::max);
+            let best = table
+                .iter()
+                .position(|(c, v)| v[0] == top && is_default(c))
+                .or_else(|| table.iter().position(|(_, v)| v[0] == top))
+                .context("no setting scored")?;
             if let Some((_, d)) = table.iter().find(|(c, _)| is_default(c)) {
                 summary.push((
                     method,
@@ -429,7 +436,9 @@ fn choose(
                     t.seed
                 ))
             ),
-            rule: "highest mean PSNR over the validation items, per method and view count".into(),
+            rule: "highest mean PSNR over the validation items, per method and view count (the \
+                   default on a tie)"
+                .into(),
             views,
         },
         md,
@@ -511,6 +520,65 @@ fn check_job(output: &Path, job: &Job) -> Result<()> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_flat_search_keeps_the_default() {
+        let t = Tuning {
+            data: Path::new("val"),
+            split: None,
+            items: None,
+            train_data: Path::new("train"),
+            views: &[1],
+            scatter_correction: ScatterCorrection::None,
+            checkpoint: None,
+            seed: 0,
+            backend: None,
+            grid: Grid::Full,
+            output: Path::new("out"),
+            progress: &Silent,
+        };
+        let sweeps = |sweeps, tv_step| SartTvSettings { sweeps, tv_step };
+        let candidates = [
+            Candidate::Tomograf(sweeps(5, 0.0)),
+            Candidate::Tomograf(sweeps(20, 0.2)),
+            Candidate::Tomograf(sweeps(40, 0.2)),
+        ];
+        let rows = |psnr: [f64; 3]| -> Vec<Row> {
+            candidates
+                .iter()
+                .zip(psnr)
+                .map(|(c, p)| Row {
+                    item: "00000".into(),
+                    views: 1,
+                    method: c.method(),
+                    setting: c.setting(),
+                    scores: Scores {
+                        psnr: p,
+                        ssim: 0.5,
+                        rmse_hu: 1.0,
+                        body_psnr: p,
+                        body_ssim: 0.5,
+                        body_rmse_hu: 1.0,
+                    },
+                })
+                .collect()
+        };
+        let pick = |psnr, own| {
+            choose(&t, &candidates, &rows(psnr), 1, own)
+                .unwrap()
+                .0
+                .views["1"]
+                .tomograf_sweeps
+        };
+        let own = Some(sweeps(20, 0.2));
+        // Every setting alike (the sweeps never ran): the checkpoint's own stays.
+        assert_eq!(pick([26.0; 3], own), own);
+        // Without a default among the best, the first best on the grid.
+        assert_eq!(pick([26.0; 3], None), Some(sweeps(5, 0.0)));
+        assert_eq!(pick([25.0, 26.0, 26.0], Some(sweeps(5, 0.0))), own);
+        // A better setting wins over the default.
+        assert_eq!(pick([26.0, 26.0, 26.5], own), Some(sweeps(40, 0.2)));
+    }
 
     #[test]
     fn the_defaults_are_on_the_grid_and_settings_round_trip() {
