@@ -10,7 +10,7 @@
 //! classical baselines (FDK, SART-TV) are scored.
 
 use crate::figures::slices_and_profile;
-use crate::protocol::{correct_scatter, paper_poses, references, run_one, write_hu};
+use crate::protocol::{correct_scatter, load_items, paper_poses, references, run_one, write_hu};
 use crate::tuning::{BaselineSettings, ViewSettings};
 use anyhow::{Context, Result, bail};
 use serde::{Deserialize, Serialize};
@@ -143,16 +143,7 @@ pub struct Evaluation<'a> {
 /// scored. Figures (slices, residual, profile) and the reconstruction are written for the
 /// data set's first item, by the shard that holds it.
 pub fn evaluate(e: &Evaluation) -> Result<usize> {
-    if e.views.is_empty() || e.views.contains(&0) {
-        bail!("view counts must be ≥ 1 (view count 0 given)");
-    }
-    let mut items = data::load_dataset(e.data, e.split)?;
-    if let Some(n) = e.items {
-        if n == 0 {
-            bail!("--items 0 scores nothing: give at least 1 (or leave it out for every item)");
-        }
-        items.truncate(n);
-    }
+    let items = load_items(e.data, e.split, e.items, e.views)?;
     let device = backend::device(e.backend.unwrap_or(backend::default_name()))?;
     let job = Job {
         items: items.iter().map(|i| i.id.clone()).collect(),

@@ -14,6 +14,28 @@ use tomograf_model::scatter_correction::{ScatterCorrection, correct_item};
 use tomograf_scene::Progress;
 use tomograf_sim::{Pose, Volume};
 
+/// The items of the data set `data` (only `split`'s; at most `items` of them) for view
+/// counts `views`, as `evaluate` and `tune-baselines` take them: errors name a view count
+/// of 0 and `--items 0`.
+pub fn load_items(
+    data: &Path,
+    split: Option<&str>,
+    items: Option<usize>,
+    views: &[usize],
+) -> Result<Vec<Item>> {
+    if views.is_empty() || views.contains(&0) {
+        bail!("view counts must be ≥ 1 (view count 0 given)");
+    }
+    let mut loaded = tomograf_model::data::load_dataset(data, split)?;
+    if let Some(n) = items {
+        if n == 0 {
+            bail!("--items 0 scores nothing: give at least 1 (or leave it out for every item)");
+        }
+        loaded.truncate(n);
+    }
+    Ok(loaded)
+}
+
 /// The paper's view sets (Methods 1.7), starting from the AP view.
 pub fn paper_poses(count: usize) -> Result<Vec<Pose>> {
     Ok(match count {

@@ -13,7 +13,7 @@
 //! a validation split (disjoint seeds from training and test).
 
 use crate::evaluation::{Scores, score};
-use crate::protocol::{correct_scatter, paper_poses, references, run_one};
+use crate::protocol::{correct_scatter, load_items, paper_poses, references, run_one};
 use anyhow::{Context, Result, bail};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
@@ -104,16 +104,7 @@ fn is_none(c: &ScatterCorrection) -> bool {
 /// writes `search.csv`, `search.md` and `baselines.toml`; returns the settings and the
 /// search's markdown.
 pub fn tune(t: &Tuning) -> Result<(BaselineSettings, String)> {
-    if t.views.is_empty() || t.views.contains(&0) {
-        bail!("view counts must be ≥ 1");
-    }
-    let mut items = data::load_dataset(t.data, t.split)?;
-    if let Some(n) = t.items {
-        if n == 0 {
-            bail!("--items 0 tunes on nothing: give at least 1");
-        }
-        items.truncate(n);
-    }
+    let items = load_items(t.data, t.split, t.items, t.views)?;
     let train = data::load_dataset(t.train_data, None)
         .with_context(|| format!("the training set {}", t.train_data.display()))?;
     let cts: Vec<&Volume> = train.iter().filter_map(|i| i.ct.as_ref()).collect();
@@ -123,13 +114,15 @@ pub fn tune(t: &Tuning) -> Result<(BaselineSettings, String)> {
         tomograf_model::train::projection_scale(&train)?,
     )?;
     let mean = &pca.mean;
-    let device = backend::device(t.backend.unwrap_or(backend::default_name()))?;
-    // The checkpoint's inference settings and mean volume (the sweeps' start).
-    let model: Option<(&Path, InferConfig, MeanVolume)> = match t.checkpoint {
+    // The checkpoint's inference settings and mean volume (the sweeps' start), and the
+    // device its network runs on.
+    let model: Option<(&Path, InferConfig, MeanVolume, tomograf_model::Device)> = match t.checkpoint
+    {
         Some(ck) => {
+            let device = backend::device(t.backend.unwrap_or(backend::default_name()))?;
             let g = checkpoint::load_generator(ck, &device)
                 .with_context(|| format!("checkpoint {}", ck.display()))?;
-            Some((ck, g.config.infer, g.prior))
+            Some((ck, g.config.infer, g.prior, device))
         }
         None => None,
     };
@@ -180,7 +173,7 @@ pub fn tune(t: &Tuning) -> Result<(BaselineSettings, String)> {
             let refs = references(item, &poses)?;
             let system = pca.system(&refs, grid, &item.scale)?;
             let network = match &model {
-                Some((ck, infer, _)) => Some(network(ck, item, &poses, infer, t, &device)?),
+                Some((ck, infer, _, device)) => Some(network(ck, item, &poses, infer, t, device)?),
                 None => None,
             };
             for c in &candidates {
@@ -198,7 +191,7 @@ pub fn tune(t: &Tuning) -> Result<(BaselineSettings, String)> {
                         Fdk { window }.reconstruct(&refs, grid, &item.scale)?
                     }
                     Candidate::Tomograf(s) => {
-                        let (Some((_, infer, prior)), Some(net)) = (&model, &network) else {
+                        let (Some((_, infer, prior, _)), Some(net)) = (&model, &network) else {
                             bail!("TomoGRAF's sweeps are searched only with a checkpoint");
                         };
                         sweeps_after(net, &refs, prior, &item.scale, infer, s)?
@@ -222,7 +215,7 @@ pub fn tune(t: &Tuning) -> Result<(BaselineSettings, String)> {
         std::io::Write::write_all(w, csv(&rows).as_bytes())
     })?;
     // TomoGRAF's default: the checkpoint's own sweeps.
-    let own = model.as_ref().map(|(_, infer, _)| SartTvSettings {
+    let own = model.as_ref().map(|(_, infer, _, _)| SartTvSettings {
         sweeps: infer.refine_iterations,
         tv_step: infer.refine_tv_step,
     });
