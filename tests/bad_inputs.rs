@@ -89,6 +89,30 @@ fn patch_us(path: &Path, tag: (u16, u16), value: u16) {
     std::fs::write(path, b).unwrap();
 }
 
+/// Overwrites the tag, or the value, of the first explicit-VR little-endian DS element
+/// `tag` in a DICOM file: `value` (same length as the old one) and/or `new_tag`.
+fn patch_ds(path: &Path, tag: (u16, u16), new_tag: Option<(u16, u16)>, value: Option<&str>) {
+    let mut b = std::fs::read(path).unwrap();
+    let mut pat = Vec::new();
+    pat.extend_from_slice(&tag.0.to_le_bytes());
+    pat.extend_from_slice(&tag.1.to_le_bytes());
+    pat.extend_from_slice(b"DS");
+    let at = b
+        .windows(pat.len())
+        .position(|w| w == pat.as_slice())
+        .expect("tag present");
+    if let Some(t) = new_tag {
+        b[at..at + 2].copy_from_slice(&t.0.to_le_bytes());
+        b[at + 2..at + 4].copy_from_slice(&t.1.to_le_bytes());
+    }
+    if let Some(v) = value {
+        let len = u16::from_le_bytes([b[at + 6], b[at + 7]]) as usize;
+        assert_eq!(v.len(), len, "same length as the old value");
+        b[at + 8..at + 8 + len].copy_from_slice(v.as_bytes());
+    }
+    std::fs::write(path, b).unwrap();
+}
+
 #[test]
 fn every_bad_input_ends_in_a_clear_error() {
     let dir = tempfile::tempdir().unwrap();
@@ -155,6 +179,41 @@ fn every_bad_input_ends_in_a_clear_error() {
     for e in std::fs::read_dir(p("dicom-rows")).unwrap() {
         patch_us(&e.unwrap().path(), (0x0028, 0x0010), 8);
     }
+    // DICOM rescale: slope 0 (every voxel the intercept), slope −1, no slope at all
+    // (the tag renumbered to RescaleType, which the writer does not use).
+    for (name, value) in [("dicom-slope0", "0 "), ("dicom-slope-neg", "-1")] {
+        copy_dir(&p("dicom"), &p(name));
+        for e in std::fs::read_dir(p(name)).unwrap() {
+            patch_ds(&e.unwrap().path(), (0x0028, 0x1053), None, Some(value));
+        }
+    }
+    copy_dir(&p("dicom"), &p("dicom-no-slope"));
+    for e in std::fs::read_dir(p("dicom-no-slope")).unwrap() {
+        patch_ds(
+            &e.unwrap().path(),
+            (0x0028, 0x1053),
+            Some((0x0028, 0x1054)),
+            None,
+        );
+    }
+    // A NIfTI sform that puts the first voxel 10³⁰ mm away.
+    common::nifti_f32(&p("far.nii"), [8, 8, 8], [1.0; 3], &vec![0.0f32; 8 * 8 * 8]);
+    let mut far = std::fs::read(p("far.nii")).unwrap();
+    far[254..256].copy_from_slice(&1i16.to_le_bytes()); // sform_code
+    for (row, values) in [
+        [1.0f32, 0.0, 0.0, 1e30],
+        [0.0, 1.0, 0.0, 0.0],
+        [0.0, 0.0, 1.0, 0.0],
+    ]
+    .iter()
+    .enumerate()
+    {
+        for (c, v) in values.iter().enumerate() {
+            let at = 280 + 16 * row + 4 * c;
+            far[at..at + 4].copy_from_slice(&v.to_le_bytes());
+        }
+    }
+    std::fs::write(p("far.nii"), far).unwrap();
     // Meshes.
     // A binary STL header announcing 10 triangles, then half of one.
     let mut stl = vec![0u8; 80];
@@ -262,6 +321,10 @@ fn every_bad_input_ends_in_a_clear_error() {
         (vec!["project", &out("missing.nii"), "-o", &o].map_into(), "missing.nii"),
         (vec!["project", &out("no-dicom"), "-o", &o].map_into(), "no-dicom"),
         (vec!["project", &out("dicom-rows"), "-o", &o].map_into(), "do not describe the pixel data"),
+        (vec!["project", &out("dicom-slope0"), "-o", &o].map_into(), "RescaleSlope (0028,1053): 0: it must be finite and positive"),
+        (vec!["project", &out("dicom-slope-neg"), "-o", &o].map_into(), "RescaleSlope (0028,1053): -1: it must be finite and positive"),
+        (vec!["project", &out("dicom-no-slope"), "-o", &o].map_into(), "a CT slice without RescaleSlope (0028,1053)"),
+        (vec!["project", &out("far.nii"), "-o", &o].map_into(), "beyond ±1e6 mm (1 km) of the world origin"),
         (vec!["project", &out("ct.nii"), "--units", "furlongs", "-o", &o].map_into(), "furlongs"),
         // Meshes and scenes typed by hand.
         (vec!["project", "--scene", &scene("stl", &format!("{small_scene}[[mesh]]\nname = \"m\"\npath = \"{}\"\nmu_per_mm = 0.1\n", out("cut.stl"))), "-o", &o].map_into(), "ends early"),

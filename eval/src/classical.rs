@@ -75,12 +75,12 @@ pub struct Classical {
     pub mu: bool,
 }
 
+/// The largest voxel a reconstruction grid may have, mm (10 m: beyond any scanner, and far
+/// inside what a NIfTI header and f32 coordinates hold); every volume has the same bound.
+pub use tomograf_sim::volume::MAX_SPACING_MM;
+
 /// Reconstructs and writes `c.output` (iterative methods: stage "iteration" of
 /// `progress`, the relative residual as its message).
-/// The largest voxel a reconstruction grid may have, mm (10 m: beyond any scanner, and far
-/// inside what a NIfTI header and f32 coordinates hold).
-pub const MAX_SPACING_MM: f64 = 10_000.0;
-
 pub fn reconstruct_classical(c: &Classical, progress: &dyn Progress) -> Result<()> {
     // The output is checked before the work, not after it.
     let text = c.output.to_string_lossy();

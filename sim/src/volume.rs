@@ -49,6 +49,13 @@ pub struct Volume {
 /// requests are refused before any allocation is attempted.
 pub const MAX_VOXELS: usize = 1 << 34;
 
+/// Largest |coordinate| of a volume's first voxel, mm (1 km): no scanner frame is larger,
+/// and a header that says so has the wrong units or a corrupt affine.
+pub const MAX_ORIGIN_MM: f64 = 1e6;
+
+/// Largest voxel size, mm (10 m; the reconstruction grid's `--spacing` has the same bound).
+pub const MAX_SPACING_MM: f64 = 1e4;
+
 impl Volume {
     /// Builds a volume, checking every invariant.
     ///
@@ -76,15 +83,23 @@ impl Volume {
             )));
         }
         for (axis, s) in spacing.to_array().iter().enumerate() {
-            if !(s.is_finite() && *s > 0.0) {
+            if !(s.is_finite() && *s > 0.0 && *s <= MAX_SPACING_MM) {
                 return Err(SimError::InvalidVolume(format!(
-                    "spacing along axis {axis} is {s} mm; it must be finite and > 0"
+                    "spacing along axis {axis} is {s} mm; it must be finite, > 0 and at most \
+                     {MAX_SPACING_MM} mm"
                 )));
             }
         }
         if !origin.is_finite() {
             return Err(SimError::InvalidVolume(format!(
                 "origin {origin} is not finite"
+            )));
+        }
+        if origin.abs().max_element() > MAX_ORIGIN_MM {
+            return Err(SimError::InvalidVolume(format!(
+                "the first voxel lies at {origin} mm, beyond ±{MAX_ORIGIN_MM:e} mm (1 km) of \
+                 the world origin: check the file's affine (NIfTI sform/qform, DICOM \
+                 ImagePositionPatient) and its units (mm)"
             )));
         }
         let direction = orthonormalise(direction)?;

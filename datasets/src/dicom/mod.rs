@@ -37,8 +37,8 @@ use dicom_dictionary_std::tags;
 use glam::{DMat3, DVec3};
 use rayon::prelude::*;
 use slice::{
-    Slice, invalid, open_header, optional_str, optional_uint, parse_slice, read_pixels,
-    required_str,
+    Slice, element, invalid, open_header, optional_str, optional_uint, parse_slice, read_pixels,
+    required_str, tag_name,
 };
 use std::borrow::Cow;
 use std::collections::BTreeMap;
@@ -64,6 +64,29 @@ const GAP_REL_TOL: f64 = 0.01;
 const GAP_ABS_TOL: f64 = 0.01;
 /// Two slices closer than this (mm) along the normal are duplicates.
 const DUPLICATE_TOL: f64 = 1e-3;
+
+/// A CT slice must hold RescaleIntercept and RescaleSlope: the CT Image module requires both
+/// (type 1), and without them the stored values are not HU (most scanners store HU + 1024),
+/// which no later check would see.
+fn check_rescale_tags(path: &Path, obj: &dicom_object::InMemDicomObject) -> Result<()> {
+    let missing: Vec<String> = [tags::RESCALE_INTERCEPT, tags::RESCALE_SLOPE]
+        .into_iter()
+        .filter(|&t| element(obj, t).is_none())
+        .map(tag_name)
+        .collect();
+    if missing.is_empty() {
+        return Ok(());
+    }
+    Err(DatasetError::unsupported(
+        path,
+        format!(
+            "a CT slice without {}: its stored values cannot be read as HU (most scanners \
+             store HU + 1024). Add the tags, or read the stored values as they are with \
+             --allow-non-ct (allow_non_ct = true in a scene's [volume])",
+            missing.join(" and ")
+        ),
+    ))
+}
 
 /// One series found under a folder tree by [`scan_dicom_tree`]: the DICOM files of one
 /// folder that share a `SeriesInstanceUID` (a series split over several folders gives
@@ -169,7 +192,13 @@ pub fn read_dicom_series(dir: &Path, allow_non_ct: bool) -> Result<Volume> {
     }
     let mut slices = headers
         .iter()
-        .map(|(path, obj)| parse_slice(path, obj))
+        .map(|(path, obj)| {
+            let slice = parse_slice(path, obj)?;
+            if !allow_non_ct {
+                check_rescale_tags(path, obj)?;
+            }
+            Ok(slice)
+        })
         .collect::<Result<Vec<_>>>()?;
     drop(headers);
 

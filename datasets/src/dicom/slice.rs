@@ -181,6 +181,20 @@ pub(super) fn parse_slice(path: &Path, obj: &DefaultDicomObject) -> Result<Slice
     };
     let slope = optional_float(path, obj, tags::RESCALE_SLOPE)?.unwrap_or(1.0);
     let intercept = optional_float(path, obj, tags::RESCALE_INTERCEPT)?.unwrap_or(0.0);
+    if !(slope.is_finite() && slope > 0.0) {
+        return Err(invalid(
+            path,
+            tags::RESCALE_SLOPE,
+            format!("{slope}: it must be finite and positive (0 makes every voxel the intercept)"),
+        ));
+    }
+    if !intercept.is_finite() {
+        return Err(invalid(
+            path,
+            tags::RESCALE_INTERCEPT,
+            format!("{intercept}, not finite"),
+        ));
+    }
     let position = required_floats::<3>(path, obj, tags::IMAGE_POSITION_PATIENT)?;
     let orientation = required_floats::<6>(path, obj, tags::IMAGE_ORIENTATION_PATIENT)?;
     let pixel_spacing = required_floats::<2>(path, obj, tags::PIXEL_SPACING)?;
@@ -319,7 +333,7 @@ pub(super) fn read_pixels(slice: &Slice, out: &mut [f32]) -> Result<()> {
 }
 
 /// The element `tag` of `obj`, unless it is absent or empty.
-fn element(obj: &InMemDicomObject, tag: Tag) -> Option<&InMemElement> {
+pub(super) fn element(obj: &InMemDicomObject, tag: Tag) -> Option<&InMemElement> {
     obj.element_opt(tag)
         .ok()
         .flatten()
@@ -327,7 +341,7 @@ fn element(obj: &InMemDicomObject, tag: Tag) -> Option<&InMemElement> {
 }
 
 /// "Alias (gggg,eeee)", e.g. "PixelSpacing (0028,0030)".
-fn tag_name(tag: Tag) -> String {
+pub(super) fn tag_name(tag: Tag) -> String {
     let alias = StandardDataDictionary
         .by_tag(tag)
         .map_or("tag", |e| e.alias());

@@ -20,6 +20,7 @@ pub mod analytic;
 pub mod intersect;
 pub mod io;
 pub mod object;
+pub mod self_intersection;
 pub mod shapes;
 pub mod topology;
 

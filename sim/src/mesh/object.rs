@@ -15,7 +15,6 @@ use crate::ray::Ray;
 use glam::{DVec3, Vec3A};
 use obvhs::BvhBuildParams;
 use obvhs::aabb::Aabb;
-use obvhs::bvh2::Bvh2;
 use obvhs::bvh2::builder::build_bvh2;
 use obvhs::cwbvh::CwBvh;
 use obvhs::cwbvh::bvh2_to_cwbvh::bvh2_to_cwbvh;
@@ -58,11 +57,6 @@ struct Triangles {
     /// The 8-wide compressed BVH rays traverse (about 2× faster than the binary one,
     /// measured by `tomograf bench --accel-only --section meshes`).
     rays: CwBvh,
-    /// The binary BVH, for box queries ([`MeshObject::self_intersections`]); its
-    /// primitive indices are input triangle indices.
-    bvh: Bvh2,
-    /// Input triangle index → position in `tris`.
-    slot: Vec<u32>,
 }
 
 impl std::fmt::Debug for MeshObject {
@@ -124,9 +118,12 @@ impl MeshObject {
                 let lo = c[0].min(c[1]).min(c[2]);
                 let hi = c[0].max(c[1]).max(c[2]);
                 let (lo, hi) = (lo.as_vec3a(), hi.as_vec3a());
+                // Grown by 1–2 margins, varied per triangle: equal boxes (a fan's) make the
+                // PLOC build merge one pair per pass (65 536-side cylinder: 46 s → 11 s).
+                let jitter = 1.0 + super::self_intersection::jitter(t) as f32;
                 Aabb::new(
-                    lo - Vec3A::from(lo.to_array().map(margin)),
-                    hi + Vec3A::from(hi.to_array().map(margin)),
+                    lo - Vec3A::from(lo.to_array().map(margin)) * jitter,
+                    hi + Vec3A::from(hi.to_array().map(margin)) * jitter,
                 )
             })
             .collect();
@@ -144,22 +141,13 @@ impl MeshObject {
             .iter()
             .map(|&p| world.corners(p as usize))
             .collect();
-        let mut slot = vec![0u32; world.triangles.len()];
-        for (i, &p) in rays.primitive_indices.iter().enumerate() {
-            slot[p as usize] = i as u32;
-        }
         let (lo, hi) = world.bounds();
         let object = Self {
             name: name.to_string(),
             material: material.to_string(),
             mu_per_mm,
             density_g_cm3: crate::material::by_name(material).ok().map(|m| m.density()),
-            surface: Surface::Triangles(Box::new(Triangles {
-                tris,
-                rays,
-                bvh,
-                slot,
-            })),
+            surface: Surface::Triangles(Box::new(Triangles { tris, rays })),
             lo,
             hi,
             volume_mm3: world.signed_volume(),
@@ -234,7 +222,7 @@ impl MeshObject {
         (self.lo, self.hi)
     }
 
-    /// Heap bytes (triangles and both BVHs; 0 for an analytic solid).
+    /// Heap bytes (triangles and their BVH; 0 for an analytic solid).
     pub fn memory_bytes(&self) -> usize {
         let Surface::Triangles(t) = &self.surface else {
             return 0;
@@ -242,9 +230,6 @@ impl MeshObject {
         t.tris.capacity() * std::mem::size_of::<[DVec3; 3]>()
             + t.rays.nodes.capacity() * std::mem::size_of::<obvhs::cwbvh::node::CwBvhNode>()
             + t.rays.primitive_indices.capacity() * 4
-            + t.bvh.nodes.capacity() * std::mem::size_of::<obvhs::bvh2::node::Bvh2Node>()
-            + t.bvh.primitive_indices.capacity() * 4
-            + t.slot.capacity() * 4
     }
 
     /// The line of `ray` against the bounding box (slab test, f64): `(t0, t1)` or `None`.
@@ -338,34 +323,14 @@ impl MeshObject {
     }
 
     /// Pairs of triangles that cross (sharing no vertex position; coplanar overlaps are
-    /// not detected), found with the BVH; returns the count and one pair (input order
-    /// is lost: indices are in the ray BVH's order).
-    /// An analytic solid has none.
+    /// not detected; [`super::self_intersection`]): the count and the first pair (indices
+    /// in the ray BVH's order; input order is lost). About n log n for n triangles, fans
+    /// included. An analytic solid has none.
     pub fn self_intersections(&self) -> (usize, (usize, usize)) {
-        let mut pairs = 0;
-        let mut first = (0, 0);
-        let Surface::Triangles(t) = &self.surface else {
-            return (pairs, first);
-        };
-        for (i, tri) in t.tris.iter().enumerate() {
-            let lo = tri[0].min(tri[1]).min(tri[2]).as_vec3a();
-            let hi = tri[0].max(tri[1]).max(tri[2]).as_vec3a();
-            let query = Aabb::new(lo - 1e-3, hi + 1e-3);
-            t.bvh.aabb_traverse(query, |bvh, node| {
-                let n = &bvh.nodes[node as usize];
-                for j in n.first_index..n.first_index + n.prim_count {
-                    let j = t.slot[bvh.primitive_indices[j as usize] as usize] as usize;
-                    if j > i && triangles_cross(tri, &t.tris[j]) {
-                        if pairs == 0 {
-                            first = (i, j);
-                        }
-                        pairs += 1;
-                    }
-                }
-                true
-            });
+        match &self.surface {
+            Surface::Triangles(t) => super::self_intersection::crossing_pairs(&t.tris),
+            Surface::Analytic(_) => (0, (0, 0)),
         }
-        (pairs, first)
     }
 }
 
@@ -385,32 +350,6 @@ fn prefix(name: &str, e: MeshError) -> MeshError {
         MeshError::OutOfRange(s) => MeshError::OutOfRange(format!("mesh {name}: {s}")),
         other => MeshError::Invalid(format!("mesh {name}: {other}")),
     }
-}
-
-/// Whether two triangles that share no vertex cross: an edge of one passes through the
-/// interior of the other (f64; touching at a single point counts as crossing only when
-/// strictly inside).
-fn triangles_cross(p: &[DVec3; 3], q: &[DVec3; 3]) -> bool {
-    if p.iter().any(|a| q.contains(a)) {
-        return false;
-    }
-    let edge_hits = |s: &[DVec3; 3], t: &[DVec3; 3]| {
-        (0..3).any(|e| segment_hits_triangle(s[e], s[(e + 1) % 3], t))
-    };
-    edge_hits(p, q) || edge_hits(q, p)
-}
-
-fn segment_hits_triangle(a: DVec3, b: DVec3, t: &[DVec3; 3]) -> bool {
-    let n = (t[1] - t[0]).cross(t[2] - t[0]);
-    let (da, db) = (n.dot(a - t[0]), n.dot(b - t[0]));
-    if da * db >= 0.0 {
-        return false; // both on one side, or touching/coplanar
-    }
-    let p = a + (b - a) * (da / (da - db));
-    (0..3).all(|e| {
-        let (u, v) = (t[e], t[(e + 1) % 3]);
-        n.dot((v - u).cross(p - u)) > 0.0
-    })
 }
 
 /// A mesh's part of one ray.
