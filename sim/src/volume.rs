@@ -85,8 +85,8 @@ impl Volume {
         for (axis, s) in spacing.to_array().iter().enumerate() {
             if !(s.is_finite() && *s > 0.0 && *s <= MAX_SPACING_MM) {
                 return Err(SimError::InvalidVolume(format!(
-                    "spacing along axis {axis} is {s} mm; it must be finite, > 0 and at most \
-                     {MAX_SPACING_MM} mm"
+                    "spacing along axis {axis} is {s} mm; it must be finite and > 0, and at \
+                     most {MAX_SPACING_MM} mm"
                 )));
             }
         }
@@ -411,6 +411,17 @@ mod tests {
                 .to_string()
                 .contains("must be finite and > 0")
         );
+        let e = Volume::new(
+            [2, 2, 2],
+            DVec3::new(1.0, 2e4, 1.0),
+            DVec3::ZERO,
+            id,
+            cube(2),
+        );
+        assert!(e.unwrap_err().to_string().contains("at most 10000 mm"));
+        let far = DVec3::new(0.0, -2e6, 0.0);
+        let e = Volume::new([2, 2, 2], DVec3::ONE, far, id, cube(2));
+        assert!(e.unwrap_err().to_string().contains("beyond ±1e6 mm"));
         let mut d = cube(2);
         d[5] = f32::NAN;
         let e = Volume::new([2, 2, 2], DVec3::ONE, DVec3::ZERO, id, d).unwrap_err();
