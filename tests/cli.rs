@@ -279,7 +279,7 @@ fn empty_space_skipping_from_the_command_line() {
         (&["--empty-below=-1"][..], "threshold"),
         (
             &["--empty-below", "1e-4", "--preset", "kv-flat-panel-120kvp"][..],
-            "--empty-below is for the ideal DRR",
+            "empty_below_per_mm (--empty-below) is for the ideal DRR",
         ),
     ] {
         let mut args = vec!["project", "-o", dir.path().to_str().unwrap()];

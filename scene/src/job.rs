@@ -87,7 +87,7 @@ pub fn resolve(scene: &Scene, mu: &Volume) -> Result<Job> {
         p.step_voxels.unwrap_or(0.5),
     )?;
     if projector == Projector::Siddon && p.step_voxels.is_some() {
-        bail!("--step applies to the trilinear projector only");
+        bail!("[projector] step_voxels (--step) applies to the trilinear projector only");
     }
     let skipping = p.empty_below_per_mm.map(|threshold| SkipOptions {
         threshold,
@@ -99,7 +99,7 @@ pub fn resolve(scene: &Scene, mu: &Volume) -> Result<Job> {
         o.i0.unwrap_or(1.0),
     )?;
     if o.i0.is_some() && !matches!(quantity, Quantity::Intensity { .. }) {
-        bail!("--i0 applies to --quantity intensity only");
+        bail!("[output] i0 (--i0) applies to quantity = \"intensity\" (--quantity intensity) only");
     }
     quantity.validate()?;
     Ok(Job {

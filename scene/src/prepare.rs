@@ -85,14 +85,16 @@ pub fn prepare(scene: &Scene) -> Result<Prepared> {
     if acquisition.is_some() {
         if job.skipping.is_some() {
             bail!(
-                "--empty-below is for the ideal DRR; empty-space skipping of a material \
-                 composition (real detector physics) is not supported yet"
+                "[projector] empty_below_per_mm (--empty-below) is for the ideal DRR; \
+                 empty-space skipping of a material composition (real detector physics) is \
+                 not supported yet"
             );
         }
         if scene.output.quantity.is_some() || scene.output.i0.is_some() {
             bail!(
-                "--quantity and --i0 are for the ideal DRR; with real detector physics the \
-                 image is the detector's --signal (raw, flat-field or log-line-integral)"
+                "[output] quantity and i0 (--quantity, --i0) are for the ideal DRR; with \
+                 real detector physics the image is the detector's signal ([acquisition] \
+                 signal, --signal: raw, flat-field or log-line-integral)"
             );
         }
     }

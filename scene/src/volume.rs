@@ -47,7 +47,8 @@ fn load(scene: &Scene, keep_hu: Option<f64>) -> Result<(Volume, VolumeSource)> {
         && (v.phantom_dims.is_some() || v.phantom_spacing_mm.is_some())
     {
         bail!(
-            "--phantom-dims and --phantom-spacing are for the built-in phantom; the input {} \
+            "[volume] phantom_dims and phantom_spacing_mm (--phantom-dims, --phantom-spacing) \
+             are for the built-in phantom; the input {} \
              has its own grid (resample it first, or drop the input)",
             p.display()
         );
@@ -72,7 +73,8 @@ fn load(scene: &Scene, keep_hu: Option<f64>) -> Result<(Volume, VolumeSource)> {
         ("hu", Some(e)) => {
             if v.energy_kev.is_some() {
                 bail!(
-                    "--energy-kev is the monochromatic DRR's energy; with a spectrum the CT's \
+                    "[volume] energy_kev (--energy-kev) is the monochromatic DRR's energy; with \
+                     a spectrum the CT's \
                      energy is [materials] calibration_kev"
                 );
             }
@@ -106,7 +108,9 @@ fn load(scene: &Scene, keep_hu: Option<f64>) -> Result<(Volume, VolumeSource)> {
         },
         ("mu", None) => {
             if v.energy_kev.is_some() {
-                bail!("--energy-kev only applies to HU input (--units hu)");
+                bail!(
+                    "[volume] energy_kev (--energy-kev) only applies to HU input (units = \"hu\", --units hu)"
+                );
             }
             Attenuation::LinearPerMm
         }
