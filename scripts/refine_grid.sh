@@ -17,6 +17,8 @@
 #   A-N      start from A × the network volume's attenuation (refine_start_weight = A)
 #   A+B-N    ... + B × the mean training volume's (refine_start_mean_weight = B)
 #   fit-N    A and B fitted to the views by least squares (refine_start = "fitted")
+#   held-N   chosen among the configured start, ½ + ½ and the mean alone by views left out
+#            of the network's fit (refine_start = "held-out"; one view: the configured start)
 # (the start weights apply when no view is explained; see model/src/refine.rs).
 # TOMOGRAF: the binary (default target/release/tomograf).
 set -euo pipefail
@@ -30,6 +32,7 @@ for s in $settings; do
   start=${s%-*} n=${s#*-}
   case $start in
     fit) conf='refine_start = "fitted"' ;;
+    held) conf='refine_start = "held-out"' ;;
     *+*) conf="refine_start_weight = ${start%+*}
 refine_start_mean_weight = ${start#*+}" ;;
     *) conf="refine_start_weight = $start" ;;

@@ -151,7 +151,8 @@ pub struct InferConfig {
     pub refine_start_weight: f64,
     /// When no reference view is explained, the sweeps' start also holds this fraction of
     /// the mean training volume's attenuation (0: none), added to `refine_start_weight`
-    /// times the network volume's. Ignored with `refine_start = "fitted"`.
+    /// times the network volume's. Ignored with `refine_start = "fitted"`; with
+    /// `"held-out"` the first candidate.
     #[serde(default)]
     pub refine_start_mean_weight: f64,
     /// How the two weights of the start are set when no view is explained.
@@ -171,6 +172,13 @@ pub enum RefineStart {
     /// reference views in least squares (its projections against the views'), so the views
     /// decide how far each volume is trusted.
     Fitted,
+    /// With two or more reference views: the network is refitted with each of (at most)
+    /// two views left out, the sweeps run on the views kept from each candidate start (the
+    /// configured weights, ½ × network + ½ × mean, the mean alone), and the candidate
+    /// whose volumes best predict the left-out views is used ([`crate::held_out`]). Views
+    /// the network was not fitted to can tell a prior that is right from one that has been
+    /// bent to the views. One view: the configured weights.
+    HeldOut,
 }
 
 fn default_lr_codes() -> f64 {

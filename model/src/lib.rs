@@ -32,6 +32,7 @@ pub mod data;
 pub mod discriminator;
 pub mod error;
 pub mod field;
+pub mod held_out;
 pub mod losses;
 pub mod metrics;
 pub mod pca;

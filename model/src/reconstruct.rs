@@ -20,13 +20,14 @@
 //! each view's full-image PSNR reaches the threshold, or at the iteration cap.
 
 use crate::checkpoint::Generator;
-use crate::config::{InferConfig, Tune};
+use crate::config::{InferConfig, RefineStart, Tune};
 use crate::error::{Result, ensure};
 use crate::field::{Codes, Tuned};
+use crate::held_out;
 use crate::losses::{self, Perceptual, SsimL1};
 use crate::prior::{CodeStats, MeanVolume};
 use crate::rays::{Patch, bilinear, full_image, sample_rays};
-use crate::refine::{StartWeights, refine};
+use crate::refine::{StartWeights, start_weights, sweep_from};
 use crate::render::{DensityScale, RayTensors, render_field};
 use crate::train::adam;
 use burn::module::Module;
@@ -84,8 +85,11 @@ pub struct NetworkVolume {
     pub refined: bool,
     /// The weights of the sweeps' start (network volume, mean volume), when they ran.
     pub start: Option<StartWeights>,
-    /// Seconds the sweeps took.
+    /// Seconds the sweeps took (with the refits of a start chosen by left-out views).
     pub refine_seconds: f64,
+    /// With a start chosen by left-out views: each candidate start and its PSNR (dB) on
+    /// the left-out views ([`held_out::HeldOutChoice::scores`]).
+    pub held_out: Option<Vec<(StartWeights, f64)>>,
 }
 
 /// Checks references against each other and the grid: at least one, sizes consistent.
@@ -112,8 +116,10 @@ pub fn check_references(refs: &[Reference]) -> Result<()> {
 }
 
 /// Fits `generator` to `refs` (code first, then — as `infer.tune` says — the generator) and
-/// renders the volume on `grid` (its geometry only). `progress(iteration, loss)` is called
-/// after each iteration.
+/// renders the volume on `grid` (its geometry only); then, when `infer` asks for them and
+/// some view is unexplained, the data-consistency sweeps ([`crate::refine`], and
+/// [`crate::held_out`] for a start chosen by views left out). `progress(iteration, loss)`
+/// is called after each iteration of the fit to all views.
 pub fn reconstruct(
     generator: Generator,
     refs: &[Reference],
@@ -124,6 +130,85 @@ pub fn reconstruct(
     mut progress: impl FnMut(usize, f64),
 ) -> Result<Reconstruction> {
     check_references(refs)?;
+    let fit = fit_network(&generator, refs, grid, infer, seed, device, &mut progress)?;
+    let Fit {
+        tuned,
+        iterations,
+        losses,
+        mut volume,
+        mut psnr,
+    } = fit;
+    let density_scale = generator.state.density_scale;
+    let proj_scale = generator.state.proj_scale;
+    let mut network = None;
+    if infer.refine_iterations > 0 {
+        let unexplained = psnr.iter().any(|&p| p < infer.refine_below_db);
+        let mut net = NetworkVolume {
+            volume: volume.clone(),
+            psnr: psnr.clone(),
+            refined: unexplained,
+            start: None,
+            refine_seconds: 0.0,
+            held_out: None,
+        };
+        if unexplained {
+            let t0 = std::time::Instant::now();
+            let prior = &generator.prior;
+            let explained = psnr.iter().any(|&p| p >= infer.refine_below_db);
+            let weights =
+                if infer.refine_start == RefineStart::HeldOut && !explained && refs.len() >= 2 {
+                    let choice = held_out::choose(&generator, refs, grid, infer, seed, device)?;
+                    net.held_out = Some(choice.scores);
+                    choice.weights
+                } else {
+                    start_weights(refs, &net.volume, prior, &density_scale, infer, &psnr)?
+                };
+            volume = sweep_from(refs, &net.volume, prior, &density_scale, infer, weights)?;
+            net.start = Some(weights);
+            net.refine_seconds = t0.elapsed().as_secs_f64();
+            psnr = projection_psnr(&volume, &density_scale, refs, proj_scale)?;
+        }
+        network = Some(net);
+    }
+    let stats = &generator.codes.stats;
+    let (z_sh, z_a) = stats.codes(tuned.codes.shape.val(), tuned.codes.app.val());
+    let read = |t: Tensor<2>| t.into_data().try_to_vec::<f32>().expect("f32 codes");
+    Ok(Reconstruction {
+        volume,
+        network,
+        iterations,
+        psnr,
+        losses,
+        codes: (read(z_sh), read(z_a)),
+    })
+}
+
+/// The network fitted to some views: its tuned field and codes, and its volume.
+pub struct Fit {
+    /// The tuned field and (whitened) codes.
+    pub tuned: Tuned,
+    /// Iterations run (both phases).
+    pub iterations: usize,
+    /// Loss per iteration.
+    pub losses: Vec<f64>,
+    /// Normalised density on the grid.
+    pub volume: Volume,
+    /// Full-image PSNR (dB) of each view against the volume's projection.
+    pub psnr: Vec<f64>,
+}
+
+/// The network part of [`reconstruct`]: `generator` (left as it is: its field is copied)
+/// fitted to `refs`, code first, then as `infer.tune` says, and its volume on `grid`.
+pub fn fit_network(
+    generator: &Generator,
+    refs: &[Reference],
+    grid: &Volume,
+    infer: &InferConfig,
+    seed: u64,
+    device: &Device,
+    progress: &mut dyn FnMut(usize, f64),
+) -> Result<Fit> {
+    check_references(refs)?;
     let Generator {
         config,
         state,
@@ -132,18 +217,18 @@ pub fn reconstruct(
         codes: table,
     } = generator;
     let (proj_scale, density_scale) = (state.proj_scale, state.density_scale);
-    let stats = table.stats;
+    let stats = &table.stats;
     let m = &config.model;
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let mut tuned = Tuned {
-        field,
+        field: field.clone(),
         codes: Codes::new(vec![0.0; m.z_shape], vec![0.0; m.z_app], 1, device),
     };
     let (mut opt_codes, mut opt_field) = (adam(), adam());
     // The frozen generator of the first phase: no gradients of its weights are computed.
     let frozen = tuned.field.clone().no_grad();
     let perceptual = SsimL1;
-    let mut psnr = vec![f64::NEG_INFINITY; refs.len()];
+    let mut psnr;
     let mut losses_seen = Vec::new();
     let mut iterations = 0;
     let reached = |p: &[f64]| p.iter().all(|&x| x >= infer.psnr_threshold);
@@ -176,7 +261,7 @@ pub fn reconstruct(
             pose,
             n,
             m.samples,
-            &prior,
+            prior,
             device,
         );
         let target = Tensor::<2>::from_data(TensorData::new(target, [1, n]), device);
@@ -216,45 +301,21 @@ pub fn reconstruct(
         iterations += 1;
         progress(iterations, value);
         if iterations % infer.check_every == 0 && iterations < infer.iterations {
-            let v = render_volume(&tuned, &stats, &prior, grid, refs[0].pose, device)?;
+            let v = render_volume(&tuned, stats, prior, grid, refs[0].pose, device)?;
             psnr = projection_psnr(&v, &density_scale, refs, proj_scale)?;
             if reached(&psnr) {
                 break;
             }
         }
     }
-    let mut volume = render_volume(&tuned, &stats, &prior, grid, refs[0].pose, device)?;
+    let volume = render_volume(&tuned, stats, prior, grid, refs[0].pose, device)?;
     psnr = projection_psnr(&volume, &density_scale, refs, proj_scale)?;
-    let mut network = None;
-    if infer.refine_iterations > 0 {
-        let unexplained = psnr.iter().any(|&p| p < infer.refine_below_db);
-        let mut net = NetworkVolume {
-            volume: volume.clone(),
-            psnr: psnr.clone(),
-            refined: unexplained,
-            start: None,
-            refine_seconds: 0.0,
-        };
-        if unexplained {
-            let t0 = std::time::Instant::now();
-            let (refined, weights) =
-                refine(refs, &net.volume, &prior, &density_scale, infer, &psnr)?;
-            volume = refined;
-            net.start = Some(weights);
-            net.refine_seconds = t0.elapsed().as_secs_f64();
-            psnr = projection_psnr(&volume, &density_scale, refs, proj_scale)?;
-        }
-        network = Some(net);
-    }
-    let (z_sh, z_a) = stats.codes(tuned.codes.shape.val(), tuned.codes.app.val());
-    let read = |t: Tensor<2>| t.into_data().try_to_vec::<f32>().expect("f32 codes");
-    Ok(Reconstruction {
-        volume,
-        network,
+    Ok(Fit {
+        tuned,
         iterations,
-        psnr,
         losses: losses_seen,
-        codes: (read(z_sh), read(z_a)),
+        volume,
+        psnr,
     })
 }
 

@@ -7,8 +7,9 @@
 //! missing is seen only in other views (an object beside it): the sweeps start from the
 //! whole network volume. When no view is explained, the prior's body is wrong and the start
 //! is `a` × the network volume's attenuation + `b` × the mean training volume's, with
-//! `(a, b)` fixed by the configuration ([`RefineStart::Fixed`]) or fitted to the views
-//! ([`RefineStart::Fitted`]).
+//! `(a, b)` fixed by the configuration ([`RefineStart::Fixed`]), fitted to the views
+//! ([`RefineStart::Fitted`]) or chosen among candidates by views left out of the fit
+//! ([`RefineStart::HeldOut`], [`crate::held_out`]).
 
 use crate::baseline::{SartTvSettings, sart_tv_density};
 use crate::config::{InferConfig, RefineStart};
@@ -30,8 +31,8 @@ pub struct StartWeights {
 
 /// The volume (normalised density) after `infer.refine_iterations` SART-TV sweeps (TV step
 /// `infer.refine_tv_step`) from the start that `infer` and the views' PSNRs `psnr` (dB, one
-/// per reference) choose, and that start's weights. `network` is the network's volume on the grid, `prior` the mean
-/// training volume.
+/// per reference) choose ([`start_weights`]), and that start's weights. `network` is the
+/// network's volume on the grid, `prior` the mean training volume.
 pub fn refine(
     refs: &[Reference],
     network: &Volume,
@@ -40,36 +41,65 @@ pub fn refine(
     infer: &InferConfig,
     psnr: &[f64],
 ) -> Result<(Volume, StartWeights)> {
-    // The mean on the grid, made only when a fit or the start needs it.
-    let mut mean: Option<Vec<f32>> = None;
-    let weights = if psnr.iter().any(|&p| p >= infer.refine_below_db) {
-        StartWeights {
+    let weights = start_weights(refs, network, prior, scale, infer, psnr)?;
+    let volume = sweep_from(refs, network, prior, scale, infer, weights)?;
+    Ok((volume, weights))
+}
+
+/// The start's weights: the whole network volume when some view is explained (its PSNR in
+/// `psnr` at least `infer.refine_below_db`); else the configured weights
+/// ([`RefineStart::Fixed`], and [`RefineStart::HeldOut`], whose choice among candidates
+/// needs the network refitted and is made by [`crate::held_out`]) or the weights fitted to
+/// the views ([`RefineStart::Fitted`]).
+pub fn start_weights(
+    refs: &[Reference],
+    network: &Volume,
+    prior: &MeanVolume,
+    scale: &DensityScale,
+    infer: &InferConfig,
+    psnr: &[f64],
+) -> Result<StartWeights> {
+    if psnr.iter().any(|&p| p >= infer.refine_below_db) {
+        return Ok(StartWeights {
             network: 1.0,
             mean: 0.0,
-        }
-    } else {
-        match infer.refine_start {
-            RefineStart::Fixed => StartWeights {
-                network: infer.refine_start_weight,
-                mean: infer.refine_start_mean_weight,
-            },
-            RefineStart::Fitted => {
-                let m = mean.insert(mean_on_grid(prior, network));
-                fitted_weights(refs, network, m, scale)?
-            }
-        }
-    };
+        });
+    }
+    match infer.refine_start {
+        RefineStart::Fixed | RefineStart::HeldOut => Ok(configured_weights(infer)),
+        RefineStart::Fitted => fitted_weights(refs, network, &mean_on_grid(prior, network), scale),
+    }
+}
+
+/// `infer.refine_start_weight` × network + `infer.refine_start_mean_weight` × mean.
+pub fn configured_weights(infer: &InferConfig) -> StartWeights {
+    StartWeights {
+        network: infer.refine_start_weight,
+        mean: infer.refine_start_mean_weight,
+    }
+}
+
+/// The volume (normalised density) after `infer.refine_iterations` SART-TV sweeps (TV step
+/// `infer.refine_tv_step`) fitted to `refs` from `weights.network` × the attenuation of
+/// `network` + `weights.mean` × the mean training volume's.
+pub fn sweep_from(
+    refs: &[Reference],
+    network: &Volume,
+    prior: &MeanVolume,
+    scale: &DensityScale,
+    infer: &InferConfig,
+    weights: StartWeights,
+) -> Result<Volume> {
+    let mean = (weights.mean > 0.0).then(|| mean_on_grid(prior, network));
     let mut start = vec![(network.data(), weights.network)];
-    if weights.mean > 0.0 {
-        let m = mean.get_or_insert_with(|| mean_on_grid(prior, network));
+    if let Some(m) = &mean {
         start.push((m.as_slice(), weights.mean));
     }
     let sweeps = SartTvSettings {
         sweeps: infer.refine_iterations,
         tv_step: infer.refine_tv_step,
     };
-    let volume = sart_tv_density(refs, network, scale, &start, &sweeps)?;
-    Ok((volume, weights))
+    sart_tv_density(refs, network, scale, &start, &sweeps)
 }
 
 /// The mean training volume sampled at the voxel centres of `grid` (normalised density),

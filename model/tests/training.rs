@@ -443,6 +443,63 @@ fn refinement_brings_the_network_volume_to_the_views() {
     );
 }
 
+/// `refine_start = "held-out"`: with views of the mean training volume itself (the
+/// one-item model's mean) a start holding the whole mean predicts a left-out view better
+/// than half the network's volume (the configured start), and is chosen; with one view the
+/// configured start is used and nothing is left out.
+#[test]
+fn a_left_out_view_chooses_the_start_of_the_sweeps() {
+    let (item, _, config, dir) = one_item_checkpoint();
+    let ck = dir.path().join("ck");
+    let dev = device();
+    let truth = item.ct.as_ref().unwrap();
+    let run = |views: &[usize]| {
+        let mut infer = config.infer.clone();
+        infer.refine_start = tomograf_model::config::RefineStart::HeldOut;
+        infer.refine_start_weight = 0.5;
+        infer.refine_start_mean_weight = 0.0;
+        infer.tune = Tune::Codes;
+        infer.iterations = 2;
+        infer.lr_codes = 0.0;
+        infer.psnr_threshold = 99.0;
+        infer.refine_iterations = 5;
+        infer.refine_below_db = f64::INFINITY;
+        let generator = checkpoint::load_generator(&ck, &dev).unwrap();
+        reconstruct(
+            generator,
+            &refs_of(&item, views),
+            truth,
+            &infer,
+            7,
+            &dev,
+            |_, _| {},
+        )
+        .unwrap()
+    };
+    let two = run(&[0, 1]);
+    let net = two.network.as_ref().unwrap();
+    let scores = net.held_out.as_ref().expect("left-out views scored");
+    assert_eq!(scores.len(), 3);
+    assert_eq!((scores[0].0.network, scores[0].0.mean), (0.5, 0.0));
+    let chosen = net.start.unwrap();
+    assert_ne!((chosen.network, chosen.mean), (0.5, 0.0), "{scores:?}");
+    // A start with the best score (½ + ½ and the mean alone both start from the truth
+    // here, and both reach the scores' 200 dB floor).
+    let top = scores.iter().map(|s| s.1).fold(f64::NEG_INFINITY, f64::max);
+    assert!(
+        scores.iter().any(|s| s.0 == chosen && s.1 == top),
+        "{chosen:?} {scores:?}"
+    );
+    // The mean alone is the truth here: its left-out view is far better predicted than
+    // from half the network's volume (which the kept view cannot complete).
+    assert!(scores[2].1 > scores[0].1 + 3.0, "{scores:?}");
+    let one = run(&[0]);
+    let net = one.network.as_ref().unwrap();
+    assert!(net.held_out.is_none());
+    let w = net.start.unwrap();
+    assert_eq!((w.network, w.mean), (0.5, 0.0));
+}
+
 #[test]
 fn wrong_inputs_are_named() {
     let item = common::item(16, 2, 16, 0.0);

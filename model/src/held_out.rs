@@ -1,0 +1,132 @@
+//! Where the data-consistency sweeps start, chosen by views the network was not fitted to
+//! (`infer.refine_start = "held-out"`; docs/model.md, "Where the sweeps start, chosen by
+//! a view left out").
+//!
+//! Projection consistency cannot weigh the network volume against the mean training
+//! volume: the network has been fitted to the views and explains them better than any
+//! blend, whether its prior is right or has been bent to them. A view left out of the fit
+//! can. For each fold (each of the first [`MAX_FOLDS`] views left out in turn), the network
+//! is refitted to the other views with the same seed and settings, the sweeps run on those
+//! views from each of the [`candidates`], and each result is projected into the left-out
+//! view. The candidate with the least squared error over all folds' left-out views is the
+//! start of the sweeps on all views; on a tie the first (the configured weights) keeps its
+//! place. Costs one network fit per fold on top of the fit to all views.
+
+use crate::checkpoint::Generator;
+use crate::config::InferConfig;
+use crate::error::{Result, ensure};
+use crate::reconstruct::{Reference, fit_network};
+use crate::refine::{StartWeights, configured_weights, sweep_from};
+use burn::tensor::Device;
+use tomograf_sim::{Projector, Renderer, Volume};
+
+/// Folds at most: the first this many views are each left out once (the network is
+/// refitted this many times).
+pub const MAX_FOLDS: usize = 2;
+
+/// What the folds measured and the start they chose.
+#[derive(Debug, Clone, PartialEq)]
+pub struct HeldOutChoice {
+    /// The chosen start.
+    pub weights: StartWeights,
+    /// Each candidate's weights and its PSNR (dB, projections divided by the checkpoint's
+    /// projection scale, MAX 1) over all left-out views together.
+    pub scores: Vec<(StartWeights, f64)>,
+}
+
+/// The candidate starts, in order of precedence: the configured weights
+/// (`refine_start_weight` × network + `refine_start_mean_weight` × mean), ½ × network +
+/// ½ × mean, and the mean alone (SART-TV from the mean's start); repeats dropped.
+pub fn candidates(infer: &InferConfig) -> Vec<StartWeights> {
+    let mut out = vec![configured_weights(infer)];
+    for w in [
+        StartWeights {
+            network: 0.5,
+            mean: 0.5,
+        },
+        StartWeights {
+            network: 0.0,
+            mean: 1.0,
+        },
+    ] {
+        if !out.contains(&w) {
+            out.push(w);
+        }
+    }
+    out
+}
+
+/// The start of the sweeps for `refs` (two or more views) chosen by left-out views, as the
+/// module says; `grid` gives the volume's geometry, `seed` the fits' seed.
+pub fn choose(
+    generator: &Generator,
+    refs: &[Reference],
+    grid: &Volume,
+    infer: &InferConfig,
+    seed: u64,
+    device: &Device,
+) -> Result<HeldOutChoice> {
+    ensure!(
+        refs.len() >= 2,
+        "a start chosen by a left-out view needs at least two views (got {})",
+        refs.len()
+    );
+    let scale = generator.state.density_scale;
+    let proj_scale = generator.state.proj_scale;
+    let cands = candidates(infer);
+    let mut sq_err = vec![0.0f64; cands.len()];
+    let mut pixels = 0usize;
+    for left in 0..refs.len().min(MAX_FOLDS) {
+        let kept: Vec<Reference> = refs
+            .iter()
+            .enumerate()
+            .filter(|&(i, _)| i != left)
+            .map(|(_, r)| r.clone())
+            .collect();
+        let fit = fit_network(generator, &kept, grid, infer, seed, device, &mut |_, _| {})?;
+        let out = &refs[left];
+        pixels += out.image.len();
+        for (c, &w) in cands.iter().enumerate() {
+            let v = sweep_from(&kept, &fit.volume, &generator.prior, &scale, infer, w)?;
+            let mu = v.map(|d| scale.mu_scalar(f64::from(d)) as f32)?;
+            let p = Renderer::new(&mu, Projector::Siddon)?.render(&out.view)?;
+            sq_err[c] += p
+                .data
+                .iter()
+                .zip(&out.image)
+                .map(|(&a, &b)| ((f64::from(a) - f64::from(b)) / proj_scale).powi(2))
+                .sum::<f64>();
+        }
+    }
+    let scores: Vec<(StartWeights, f64)> = cands
+        .iter()
+        .zip(&sq_err)
+        .map(|(&w, &e)| (w, -10.0 * (e / pixels.max(1) as f64 + 1e-20).log10()))
+        .collect();
+    // The least error; the earliest candidate on a tie.
+    let best = (0..cands.len()).fold(0, |b, c| if sq_err[c] < sq_err[b] { c } else { b });
+    Ok(HeldOutChoice {
+        weights: cands[best],
+        scores,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn candidates_keep_the_configured_start_first_and_drop_repeats() {
+        let mut infer = crate::config::TrainConfig::load("tiny").unwrap().infer;
+        infer.refine_start_weight = 0.5;
+        infer.refine_start_mean_weight = 0.0;
+        let c = candidates(&infer);
+        assert_eq!(c.len(), 3);
+        assert_eq!((c[0].network, c[0].mean), (0.5, 0.0));
+        infer.refine_start_mean_weight = 0.5;
+        let c = candidates(&infer);
+        assert_eq!(c.len(), 2);
+        assert_eq!((c[0].network, c[0].mean), (0.5, 0.5));
+        assert_eq!((c[1].network, c[1].mean), (0.0, 1.0));
+    }
+}
