@@ -275,9 +275,10 @@ pub fn meshes(args: &Options, md: &mut String) -> Result<()> {
         big.triangle_count(),
         big.memory_bytes() as f64 / (1 << 20) as f64
     )?;
+    fans(args, md, (t_build, t_self, big.triangle_count()))?;
     writeln!(
         md,
-        "| view | voxels only ms | + sphere ms | + % | + devices ms | + % |"
+        "\n| view | voxels only ms | + sphere ms | + % | + devices ms | + % |"
     )?;
     writeln!(md, "|---|---:|---:|---:|---:|---:|")?;
     let base = Renderer::new(&mu, Projector::Siddon)?;
@@ -298,6 +299,71 @@ pub fn meshes(args: &Options, md: &mut String) -> Result<()> {
             100.0 * (t2 / t0 - 1.0)
         )?;
         eprintln!("meshes {name}: {t0:.1} / {t1:.1} / {t2:.1} ms");
+    }
+    Ok(())
+}
+
+/// Fans: a cylinder's caps are fans of `sides` triangles around one vertex, the shape on
+/// which a BVH build over equal boxes and a self-intersection check by neighbourhoods
+/// degrade (issue 51). Each cylinder's mesh build and self-intersection check, once, as
+/// time per triangle against the UV sphere's of the same run (`sphere`: build ms, check ms,
+/// triangles), and the growth exponent between successive sizes (1: linear).
+fn fans(args: &Options, md: &mut String, sphere: (f64, f64, usize)) -> Result<()> {
+    use tomograf_sim::mesh::{MeshObject, Placement, shapes};
+    let sides: &[u32] = if args.quick {
+        &[1024, 4096]
+    } else {
+        &[4096, 16384, 65536]
+    };
+    writeln!(
+        md,
+        "Fans (issue 51): a cylinder of radius 20 mm, height 60 mm, whose two caps are fans \
+         of `sides` triangles around one vertex; one run each. \"÷ sphere\" is the time per \
+         triangle over the UV sphere's above; the exponent is log(time ratio) / log(size \
+         ratio) from the row above (1: linear).\n"
+    )?;
+    writeln!(
+        md,
+        "| sides | triangles | build ms | ÷ sphere | exponent | check ms | ÷ sphere | exponent |"
+    )?;
+    writeln!(md, "|---:|---:|---:|---:|---:|---:|---:|---:|")?;
+    let per = |ms: f64, n: usize| ms / n as f64;
+    let mut last: Option<(f64, f64, usize)> = None;
+    for &n in sides {
+        let mesh = shapes::cylinder(20.0, 60.0, n)?;
+        let t = Instant::now();
+        let obj = MeshObject::new(
+            "fan",
+            &mesh,
+            &Placement::translation(glam::DVec3::ZERO),
+            "titanium",
+            Some(0.1),
+            false,
+        )?;
+        let build = t.elapsed().as_secs_f64() * 1e3;
+        let t = Instant::now();
+        let (pairs, _) = obj.self_intersections();
+        let check = t.elapsed().as_secs_f64() * 1e3;
+        anyhow::ensure!(
+            pairs == 0,
+            "a cylinder of {n} sides has {pairs} crossing pairs"
+        );
+        let tris = obj.triangle_count();
+        let exponent = |now: f64, before: Option<(f64, usize)>| {
+            before.map_or("–".to_string(), |(t0, n0)| {
+                format!("{:.2}", (now / t0).ln() / (tris as f64 / n0 as f64).ln())
+            })
+        };
+        let eb = exponent(build, last.map(|(b, _, n0)| (b, n0)));
+        let ec = exponent(check, last.map(|(_, c, n0)| (c, n0)));
+        writeln!(
+            md,
+            "| {n} | {tris} | {build:.1} | {:.1} | {eb} | {check:.1} | {:.1} | {ec} |",
+            per(build, tris) / per(sphere.0, sphere.2),
+            per(check, tris) / per(sphere.1, sphere.2),
+        )?;
+        eprintln!("fans {n}: build {build:.1} ms, check {check:.1} ms");
+        last = Some((build, check, tris));
     }
     Ok(())
 }
