@@ -158,6 +158,12 @@ pub struct InferConfig {
     /// How the two weights of the start are set when no view is explained.
     #[serde(default)]
     pub refine_start: RefineStart,
+    /// With `refine_start = "held-out"`: the most views for which the start is chosen by
+    /// left-out views; with more, the configured weights. 2: on validation phantoms the
+    /// left-out choice led from 2 views and trailed from 5 (docs/model.md, "Where the sweeps
+    /// start, chosen by a view left out").
+    #[serde(default = "default_held_out_max_views")]
+    pub held_out_max_views: usize,
 }
 
 /// How the data-consistency sweeps' start weighs the network volume against the mean
@@ -172,12 +178,13 @@ pub enum RefineStart {
     /// reference views in least squares (its projections against the views'), so the views
     /// decide how far each volume is trusted.
     Fitted,
-    /// With two or more reference views: the network is refitted with each of (at most)
-    /// two views left out, the sweeps run on the views kept from each candidate start (the
-    /// configured weights, ½ × network + ½ × mean, the mean alone), and the candidate
-    /// whose volumes best predict the left-out views is used ([`crate::held_out`]). Views
-    /// the network was not fitted to can tell a prior that is right from one that has been
-    /// bent to the views. One view: the configured weights.
+    /// With two to `held_out_max_views` reference views: the network is refitted with each
+    /// of (at most) two views left out, the sweeps run on the views kept from each
+    /// candidate start (the configured weights, ½ × network + ½ × mean, the mean alone),
+    /// and the candidate whose volumes best predict the left-out views is used
+    /// ([`crate::held_out`]). Views the network was not fitted to can tell a prior that is
+    /// right from one that has been bent to the views. Other view counts: the configured
+    /// weights.
     HeldOut,
 }
 
@@ -201,6 +208,9 @@ fn default_refine_below_db() -> f64 {
 }
 fn default_refine_start_weight() -> f64 {
     0.5
+}
+fn default_held_out_max_views() -> usize {
+    2
 }
 
 /// Settings that override a checkpoint's [`InferConfig`] (from the command line); `None`

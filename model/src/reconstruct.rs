@@ -155,14 +155,16 @@ pub fn reconstruct(
             let t0 = std::time::Instant::now();
             let prior = &generator.prior;
             let explained = psnr.iter().any(|&p| p >= infer.refine_below_db);
-            let weights =
-                if infer.refine_start == RefineStart::HeldOut && !explained && refs.len() >= 2 {
-                    let choice = held_out::choose(&generator, refs, grid, infer, seed, device)?;
-                    net.held_out = Some(choice.scores);
-                    choice.weights
-                } else {
-                    start_weights(refs, &net.volume, prior, &density_scale, infer, &psnr)?
-                };
+            let weights = if infer.refine_start == RefineStart::HeldOut
+                && !explained
+                && (2..=infer.held_out_max_views).contains(&refs.len())
+            {
+                let choice = held_out::choose(&generator, refs, grid, infer, seed, device)?;
+                net.held_out = Some(choice.scores);
+                choice.weights
+            } else {
+                start_weights(refs, &net.volume, prior, &density_scale, infer, &psnr)?
+            };
             volume = sweep_from(refs, &net.volume, prior, &density_scale, infer, weights)?;
             net.start = Some(weights);
             net.refine_seconds = t0.elapsed().as_secs_f64();

@@ -453,9 +453,10 @@ fn a_left_out_view_chooses_the_start_of_the_sweeps() {
     let ck = dir.path().join("ck");
     let dev = device();
     let truth = item.ct.as_ref().unwrap();
-    let run = |views: &[usize]| {
+    let run_capped = |views: &[usize], max_views: usize| {
         let mut infer = config.infer.clone();
         infer.refine_start = tomograf_model::config::RefineStart::HeldOut;
+        infer.held_out_max_views = max_views;
         infer.refine_start_weight = 0.5;
         infer.refine_start_mean_weight = 0.0;
         infer.tune = Tune::Codes;
@@ -476,6 +477,7 @@ fn a_left_out_view_chooses_the_start_of_the_sweeps() {
         )
         .unwrap()
     };
+    let run = |views: &[usize]| run_capped(views, 2);
     let two = run(&[0, 1]);
     let net = two.network.as_ref().unwrap();
     let scores = net.held_out.as_ref().expect("left-out views scored");
@@ -493,6 +495,12 @@ fn a_left_out_view_chooses_the_start_of_the_sweeps() {
     // The mean alone is the truth here: its left-out view is far better predicted than
     // from half the network's volume (which the kept view cannot complete).
     assert!(scores[2].1 > scores[0].1 + 3.0, "{scores:?}");
+    // More views than `held_out_max_views`: the configured start, nothing left out.
+    let capped = run_capped(&[0, 1], 1);
+    let net = capped.network.as_ref().unwrap();
+    assert!(net.held_out.is_none());
+    let w = net.start.unwrap();
+    assert_eq!((w.network, w.mean), (0.5, 0.0));
     let one = run(&[0]);
     let net = one.network.as_ref().unwrap();
     assert!(net.held_out.is_none());
