@@ -310,6 +310,7 @@ fn every_bad_input_ends_in_a_clear_error() {
         (vec!["project", "--view", "sideways", "-o", &o].map_into(), "neither a named view"),
         (vec!["project", "--arc", "0:5:0", "-o", &o].map_into(), "at least one view"),
         (vec!["project", "--rows", "0", "-o", &o].map_into(), "0"),
+        (vec!["project", "--rows", "1", "--cols", "1", "-o", &o].map_into(), "a 1 × 1 detector"),
         (vec!["project", &out("ct.nii"), "--phantom-dims", "16,16,16", "-o", &o].map_into(), "are for the built-in phantom"),
         (vec!["project", "--beam", "parallel", "--sad", "1000", "-o", &o].map_into(), "do not apply to a parallel beam"),
         // Volumes tomograf did not write.
@@ -426,6 +427,43 @@ trait MapInto {
 impl MapInto for Vec<&str> {
     fn map_into(self) -> Vec<String> {
         self.into_iter().map(String::from).collect()
+    }
+}
+
+/// A line detector (1 × N or N × 1) without a pitch is fitted along its long axis and
+/// renders the volume; it was refused with "no ray of any view meets the volume" (issue 51:
+/// its square pitch had been fitted to put the whole volume into one row).
+#[test]
+fn line_detectors_render_without_a_pitch() {
+    let dir = tempfile::tempdir().unwrap();
+    for (rows, cols) in [("1", "8"), ("8", "1")] {
+        let o = dir.path().join(format!("line{rows}x{cols}"));
+        let out = common::tomograf(&[
+            "project",
+            "--phantom-dims",
+            "16,16,8",
+            "--rows",
+            rows,
+            "--cols",
+            cols,
+            "--format",
+            "npy",
+            "-o",
+            &s(&o),
+        ]);
+        common::ok(&out);
+        let npy = std::fs::read_dir(&o)
+            .unwrap()
+            .map(|e| e.unwrap().path())
+            .find(|p| p.extension().is_some_and(|e| e == "npy"))
+            .expect("an .npy image");
+        let bytes = std::fs::read(npy).unwrap();
+        // The last 8 float32 values are the image (after the .npy header).
+        let image: Vec<f32> = bytes[bytes.len() - 32..]
+            .chunks(4)
+            .map(|c| f32::from_le_bytes(c.try_into().unwrap()))
+            .collect();
+        assert!(image.iter().any(|&v| v > 0.0), "{rows}×{cols}: {image:?}");
     }
 }
 

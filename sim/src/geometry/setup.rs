@@ -117,7 +117,9 @@ impl Geometry {
     }
 
     /// The square pixel pitch (mm) at which every corner of `volume` projects onto the
-    /// panel in every pose, with a 2 % margin (this geometry's own pitch is ignored).
+    /// panel in every pose, with a 2 % margin (this geometry's own pitch is ignored). A
+    /// line detector (one row or one column) is fitted along its long axis only; a 1 × 1
+    /// detector cannot be fitted (give the pitch).
     /// Corners behind a cone-beam source (a source inside the volume) are skipped.
     pub fn fit_pitch(&self, poses: &[Pose], volume: &Volume) -> Result<f64> {
         let mut unit = *self;
@@ -135,15 +137,22 @@ impl Geometry {
                     continue;
                 }
                 if let Some((r, col)) = view.project_point(c) {
-                    pitch = pitch
-                        .max((r - mid_r).abs() / (d.rows as f64 / 2.0))
-                        .max((col - mid_c).abs() / (d.cols as f64 / 2.0));
+                    // A line detector (one row or one column) samples one line through the
+                    // centre: the volume is fitted along its other axis only.
+                    if d.rows > 1 {
+                        pitch = pitch.max((r - mid_r).abs() / (d.rows as f64 / 2.0));
+                    }
+                    if d.cols > 1 {
+                        pitch = pitch.max((col - mid_c).abs() / (d.cols as f64 / 2.0));
+                    }
                 }
             }
         }
         if !(pitch.is_finite() && pitch > 0.0) {
             return Err(SimError::InvalidGeometry(
-                "cannot fit the volume on the detector; give the pixel pitch".into(),
+                "cannot fit the volume on the detector (a 1 × 1 detector, or no corner of the \
+                 volume projects onto the panel); give the pixel pitch"
+                    .into(),
             ));
         }
         Ok(pitch * 1.02)
@@ -180,6 +189,36 @@ mod tests {
         // The isocentre projects onto the panel centre.
         let (r, c) = v.project_point(DVec3::new(1.0, 2.0, 3.0)).unwrap();
         assert!((r - 1.0).abs() < 1e-9 && (c - 2.0).abs() < 1e-9);
+    }
+
+    /// A line detector (1 × 8 or 8 × 1) gets the pitch that fits the cube along its long
+    /// axis — the square 8 × 8 panel's, since a cube spans as much along rows as along
+    /// columns — not one 8× larger that fits the cube's height into its single row (every
+    /// column centre then fell beside the volume); a 1 × 1 detector is refused by name.
+    #[test]
+    fn line_detectors_are_fitted_along_their_long_axis() {
+        let cube = Volume::centred(
+            [10; 3],
+            DVec3::ONE,
+            DVec3::new(1.0, 2.0, 3.0),
+            vec![1.0; 1000],
+        )
+        .unwrap();
+        let fit = |rows: usize, cols: usize| {
+            let mut g = cone(1000.0, 1500.0);
+            g.detector = Detector::new(rows, cols, 1.0);
+            g.fit_pitch(&[Pose::AP, Pose::LATERAL], &cube)
+        };
+        let square = fit(8, 8).unwrap();
+        for (r, c) in [(1, 8), (8, 1)] {
+            let p = fit(r, c).unwrap();
+            assert!(
+                (p - square).abs() < 1e-9 * square,
+                "{r}×{c}: {p} mm vs {square} mm"
+            );
+        }
+        let e = fit(1, 1).unwrap_err().to_string();
+        assert!(e.contains("1 × 1 detector"), "{e}");
     }
 
     #[test]
