@@ -322,4 +322,75 @@ fn the_checkpoints_sweeps_are_tuned_alike() {
     assert!(!e.status.success());
     let msg = String::from_utf8_lossy(&e.stderr);
     assert!(msg.contains("leave out --refine"), "{msg}");
+
+    // A checkpoint whose sweeps start where left-out views say (refine_start =
+    // "held-out"), from 2 views: the search's TomoGRAF row for its choice is what
+    // `evaluate` scores with it (the start does not depend on the sweeps searched after it).
+    let ck2 = tmp.path().join("checkpoint-held-out");
+    std::fs::create_dir_all(&ck2).unwrap();
+    for f in std::fs::read_dir(&ck).unwrap() {
+        let f = f.unwrap().path();
+        std::fs::copy(&f, ck2.join(f.file_name().unwrap())).unwrap();
+    }
+    let config = std::fs::read_to_string(ck2.join("config.toml")).unwrap();
+    assert!(config.contains("refine_start = \"fixed\""), "{config}");
+    // No view explained, so that the start is chosen (this tiny model explains one view).
+    assert!(config.contains("refine_below_db = 30.0"), "{config}");
+    let config = config
+        .replace("refine_start = \"fixed\"", "refine_start = \"held-out\"")
+        .replace("refine_below_db = 30.0", "refine_below_db = 1000.0");
+    std::fs::write(ck2.join("config.toml"), config).unwrap();
+    let out2 = tmp.path().join("tune-held-out");
+    ok(&tomograf(&[
+        "tune-baselines",
+        val.to_str().unwrap(),
+        "--train-data",
+        train.to_str().unwrap(),
+        "--checkpoint",
+        ck2.to_str().unwrap(),
+        "--views",
+        "2",
+        "-o",
+        out2.to_str().unwrap(),
+    ]));
+    let search2 = read_search(&out2.join("search.csv"));
+    let text = std::fs::read_to_string(out2.join("baselines.toml")).unwrap();
+    let toml: toml::Table = toml::from_str(&text).unwrap();
+    let s = toml["views"]["2"]["tomograf_sweeps"].as_table().unwrap();
+    let pick2 = format!(
+        "{} sweeps; TV step {}",
+        s["sweeps"].as_integer().unwrap(),
+        s["tv_step"].as_float().unwrap()
+    );
+    let dir = tmp.path().join("eval-held-out");
+    let e = tomograf(&[
+        "evaluate",
+        val.to_str().unwrap(),
+        "--checkpoint",
+        ck2.to_str().unwrap(),
+        "--baselines",
+        out2.join("baselines.toml").to_str().unwrap(),
+        "--views",
+        "2",
+        "--no-baselines",
+        "-o",
+        dir.to_str().unwrap(),
+    ]);
+    ok(&e);
+    let notes = String::from_utf8_lossy(&e.stderr);
+    assert!(
+        notes.contains("left-out views"),
+        "the left-out choice ran: {notes}"
+    );
+    let csv = std::fs::read_to_string(dir.join("items/00000.csv")).unwrap();
+    let row = csv
+        .lines()
+        .find(|l| l.starts_with("00000,2,TomoGRAF,"))
+        .unwrap();
+    let key = ("00000".into(), "2".into(), "TomoGRAF".into(), pick2);
+    assert_eq!(
+        row.split(',').nth(3),
+        Some(search2[&key].0.as_str()),
+        "{row}"
+    );
 }

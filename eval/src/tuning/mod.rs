@@ -26,7 +26,7 @@ use tomograf_model::data::Item;
 use tomograf_model::pca::{PcaMap, PcaSettings};
 use tomograf_model::prior::MeanVolume;
 use tomograf_model::reconstruct::{NetworkVolume, Reference};
-use tomograf_model::refine::refine;
+use tomograf_model::refine::{start_weights, sweep_from};
 use tomograf_model::render::DensityScale;
 use tomograf_model::scatter_correction::ScatterCorrection;
 use tomograf_model::{backend, checkpoint, data};
@@ -268,7 +268,20 @@ fn sweeps_after(
     let mut infer = infer.clone();
     infer.refine_iterations = s.sweeps;
     infer.refine_tv_step = s.tv_step;
-    Ok(refine(refs, &net.volume, prior, scale, &infer, &net.psnr)?.0)
+    // The start the network's run chose (it does not depend on the sweeps after it, also
+    // when left-out views chose it: model/src/held_out.rs).
+    let weights = match net.start {
+        Some(w) => w,
+        None => start_weights(refs, &net.volume, prior, scale, &infer, &net.psnr)?,
+    };
+    Ok(sweep_from(
+        refs,
+        &net.volume,
+        prior,
+        scale,
+        &infer,
+        weights,
+    )?)
 }
 
 /// The winner per method and view count (highest mean PSNR; on a tie the default, else the
