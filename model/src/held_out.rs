@@ -15,10 +15,10 @@
 use crate::checkpoint::Generator;
 use crate::config::InferConfig;
 use crate::error::{Result, ensure};
-use crate::reconstruct::{Reference, fit_network};
+use crate::reconstruct::{Reference, fit_network, projection_sq_err};
 use crate::refine::{StartWeights, configured_weights, sweep_from};
 use burn::tensor::Device;
-use tomograf_sim::{Projector, Renderer, Volume};
+use tomograf_sim::Volume;
 
 /// Folds at most: the first this many views are each left out once (the network is
 /// refitted this many times).
@@ -92,18 +92,14 @@ pub fn choose(
             .map(|(_, r)| r.clone())
             .collect();
         let fit = fit_network(generator, &kept, grid, infer, seed, device, &mut |_, _| {})?;
-        let out = &refs[left];
-        pixels += out.image.len();
+        let out = std::slice::from_ref(&refs[left]);
         for (c, &w) in cands.iter().enumerate() {
             let v = sweep_from(&kept, &fit.volume, &generator.prior, &scale, &fold_infer, w)?;
-            let mu = v.map(|d| scale.mu_scalar(f64::from(d)) as f32)?;
-            let p = Renderer::new(&mu, Projector::Siddon)?.render(&out.view)?;
-            sq_err[c] += p
-                .data
-                .iter()
-                .zip(&out.image)
-                .map(|(&a, &b)| ((f64::from(a) - f64::from(b)) / proj_scale).powi(2))
-                .sum::<f64>();
+            let (sum, n) = projection_sq_err(&v, &scale, out, proj_scale)?[0];
+            sq_err[c] += sum;
+            if c == 0 {
+                pixels += n;
+            }
         }
     }
     let scores: Vec<(StartWeights, f64)> = cands

@@ -330,19 +330,33 @@ pub fn projection_psnr(
     refs: &[Reference],
     proj_scale: f64,
 ) -> Result<Vec<f64>> {
+    Ok(projection_sq_err(volume, scale, refs, proj_scale)?
+        .into_iter()
+        .map(|(sum, n)| -10.0 * (sum / n.max(1) as f64 + 1e-20).log10())
+        .collect())
+}
+
+/// For each reference view, the sum of squared differences between its image and the
+/// projection of `volume` (as [`projection_psnr`] makes it), both divided by `proj_scale`,
+/// and the number of pixels.
+pub fn projection_sq_err(
+    volume: &Volume,
+    scale: &DensityScale,
+    refs: &[Reference],
+    proj_scale: f64,
+) -> Result<Vec<(f64, usize)>> {
     let mu = volume.map(|d| scale.mu_scalar(f64::from(d)) as f32)?;
     let renderer = Renderer::new(&mu, Projector::Siddon)?;
     refs.iter()
         .map(|r| {
             let p = renderer.render(&r.view)?;
-            let mse = p
+            let sum = p
                 .data
                 .iter()
                 .zip(&r.image)
                 .map(|(&a, &b)| ((f64::from(a) - f64::from(b)) / proj_scale).powi(2))
-                .sum::<f64>()
-                / p.data.len().max(1) as f64;
-            Ok(-10.0 * (mse + 1e-20).log10())
+                .sum::<f64>();
+            Ok((sum, p.data.len()))
         })
         .collect()
 }

@@ -29,23 +29,6 @@ pub struct StartWeights {
     pub mean: f64,
 }
 
-/// The volume (normalised density) after `infer.refine_iterations` SART-TV sweeps (TV step
-/// `infer.refine_tv_step`) from the start that `infer` and the views' PSNRs `psnr` (dB, one
-/// per reference) choose ([`start_weights`]), and that start's weights. `network` is the
-/// network's volume on the grid, `prior` the mean training volume.
-pub fn refine(
-    refs: &[Reference],
-    network: &Volume,
-    prior: &MeanVolume,
-    scale: &DensityScale,
-    infer: &InferConfig,
-    psnr: &[f64],
-) -> Result<(Volume, StartWeights)> {
-    let weights = start_weights(refs, network, prior, scale, infer, psnr)?;
-    let volume = sweep_from(refs, network, prior, scale, infer, weights)?;
-    Ok((volume, weights))
-}
-
 /// The start's weights: the whole network volume when some view is explained (its PSNR in
 /// `psnr` at least `infer.refine_below_db`); else the configured weights
 /// ([`RefineStart::Fixed`], and [`RefineStart::HeldOut`], whose choice among candidates
@@ -263,7 +246,7 @@ mod tests {
             (w.network - 0.3).abs() < 1e-4 && (w.mean - 0.6).abs() < 1e-4,
             "{w:?}"
         );
-        // Through `refine`: the fitted start is chosen when no view is explained, the
+        // Through `start_weights` and the sweeps: the fitted start is chosen when no view is explained, the
         // whole network volume when one is.
         let prior = MeanVolume {
             data: slab.data().to_vec(),
@@ -272,9 +255,14 @@ mod tests {
         let mut infer = crate::config::TrainConfig::load("tiny").unwrap().infer;
         infer.refine_start = RefineStart::Fitted;
         infer.refine_iterations = 1;
-        let (_, w) = refine(&refs, &ball, &prior, &scale, &infer, &[10.0, 10.0]).unwrap();
+        let run = |psnr: &[f64]| {
+            let w = start_weights(&refs, &ball, &prior, &scale, &infer, psnr).unwrap();
+            sweep_from(&refs, &ball, &prior, &scale, &infer, w).unwrap();
+            w
+        };
+        let w = run(&[10.0, 10.0]);
         assert!((w.network - 0.3).abs() < 1e-4 && (w.mean - 0.6).abs() < 1e-4);
-        let (_, w) = refine(&refs, &ball, &prior, &scale, &infer, &[10.0, 40.0]).unwrap();
+        let w = run(&[10.0, 40.0]);
         assert_eq!((w.network, w.mean), (1.0, 0.0));
         assert_eq!(mean_on_grid(&prior, &ball), slab.data());
     }
