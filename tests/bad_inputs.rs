@@ -64,10 +64,14 @@ fn npy(path: &Path, shape: [u64; 3], data: &[f32]) {
     std::fs::write(path, out).unwrap();
 }
 
+/// Copies the files of `from` into `to` (sub-folders are left out).
 fn copy_dir(from: &Path, to: &Path) {
     std::fs::create_dir_all(to).unwrap();
     for e in std::fs::read_dir(from).unwrap() {
         let e = e.unwrap();
+        if e.file_type().unwrap().is_dir() {
+            continue;
+        }
         std::fs::copy(e.path(), to.join(e.file_name())).unwrap();
     }
 }
@@ -280,6 +284,22 @@ fn every_bad_input_ends_in_a_clear_error() {
     };
     let small_scene = "[volume]\nphantom_dims = [16, 16, 8]\nphantom_spacing_mm = [20.0, 20.0, 40.0]\n[detector]\nrows = 16\ncols = 16\n";
 
+    // Data sets: a manifest that lists its item twice; an item whose projections are all 0.
+    let data = p("data");
+    let dup = p("data-dup");
+    copy_dir(&data, &dup);
+    copy_dir(&data.join("00000"), &dup.join("00000"));
+    let line = std::fs::read_to_string(data.join("manifest.jsonl")).unwrap();
+    std::fs::write(dup.join("manifest.jsonl"), format!("{line}{line}")).unwrap();
+    let air = p("data-air");
+    copy_dir(&data, &air);
+    copy_dir(&data.join("00000"), &air.join("00000"));
+    npy(
+        &air.join("00000").join("projections.npy"),
+        [12, 16, 16], // 10 views of the orbit, AP and lateral
+        &[0.0; 12 * 16 * 16],
+    );
+
     let proj_s = s(&proj);
     let cut_proj = p("proj-cut");
     copy_dir(&proj, &cut_proj);
@@ -354,6 +374,8 @@ fn every_bad_input_ends_in_a_clear_error() {
         (vec!["train", &out("data"), "-o", &under_file, "--config", "tiny", "--iterations", "1"].map_into(), "cannot create the output folder"),
         // Evaluation and inference.
         (vec!["evaluate", &out("data"), "--items", "0", "-o", &out("ev")].map_into(), "--items 0 scores nothing"),
+        (vec!["train", &out("data-dup"), "-o", &out("tr-dup"), "--config", "tiny", "--iterations", "1"].map_into(), "line 2: item '00000' is listed twice (also on line 1)"),
+        (vec!["train", &out("data-air"), "-o", &out("tr-air"), "--config", "tiny", "--iterations", "1"].map_into(), "every projection value is 0"),
         (vec!["evaluate", &out("data"), "--scatter-correction", "prior", "-o", &out("ev-sc")].map_into(), "give --checkpoint or --train-data"),
         (vec!["evaluate", &out("data"), "--scatter-correction", "sideways", "-o", &out("ev-sc2")].map_into(), "expected 'none', 'prior' or 'oracle'"),
         (vec!["reconstruct", &item, "--checkpoint", &s(&demo), "--scatter-correction", "prior", "-o", &out("rec.nii")].map_into(), "has no scatter to correct"),

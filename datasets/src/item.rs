@@ -259,6 +259,8 @@ pub fn read_manifest(dir: &Path, split: Option<&str>) -> Result<Vec<ItemRecord>>
     let mp = dir.join(MANIFEST);
     let text = String::from_utf8(read(&mp)?).map_err(|e| corrupt(&mp, e))?;
     let mut records = Vec::new();
+    // Line of each id seen: an item listed twice would be trained on or scored twice.
+    let mut seen = std::collections::HashMap::new();
     for (n, line) in text
         .lines()
         .enumerate()
@@ -266,6 +268,16 @@ pub fn read_manifest(dir: &Path, split: Option<&str>) -> Result<Vec<ItemRecord>>
     {
         let record: ItemRecord =
             serde_json::from_str(line).map_err(|e| corrupt(&mp, format!("line {}: {e}", n + 1)))?;
+        if let Some(first) = seen.insert(record.id.clone(), n + 1) {
+            return Err(corrupt(
+                &mp,
+                format!(
+                    "line {}: item '{}' is listed twice (also on line {first}); remove one line",
+                    n + 1,
+                    record.id
+                ),
+            ));
+        }
         if split.is_none_or(|s| s == record.split) {
             records.push(record);
         }

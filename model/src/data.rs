@@ -64,6 +64,14 @@ impl Item {
 pub fn load_item(dir: &Path) -> Result<Item> {
     let files = item::read_item(dir)?;
     let record = &files.record;
+    // Nothing attenuated in any view (an all-air CT, or a volume outside the beam): the
+    // item holds nothing to learn or score.
+    ensure!(
+        files.projections.iter().any(|&p| p != 0.0),
+        "{}: every projection value is 0 (nothing in the beam attenuates: an all-air CT?); \
+         re-make the item or remove its line from manifest.jsonl",
+        dir.join(&record.projections).display()
+    );
     let acquisition = record
         .acquisition()
         .map_err(|e| ModelError::file(&dir.join(item::ITEM_JSON), e))?
