@@ -79,6 +79,21 @@ pub struct Classical {
 /// inside what a NIfTI header and f32 coordinates hold); every volume has the same bound.
 pub use tomograf_sim::volume::MAX_SPACING_MM;
 
+/// Peak resident memory of a reconstruction (bytes) onto a grid of `voxels` from views of
+/// `pixels` in all: `base + a · 4·voxels + b · 4·pixels` (the f32 volume and images), with
+/// the factors of each method fitted to `/usr/bin/time -v` peaks at 96³ and 192³ from 36
+/// and 144 views of 128², and checked at other sizes (docs/reliability.md, "Memory
+/// budget": within 25 %).
+pub fn peak_bytes(method: Method, voxels: usize, pixels: usize) -> u128 {
+    let (base_mib, a, b) = match method {
+        Method::Fdk => (19.0, 1.7, 4.4),
+        Method::Sart => (46.0, 6.3, 8.8),
+        Method::Sirt => (45.0, 6.6, 8.8),
+        Method::SartTv => (41.0, 7.7, 8.3),
+    };
+    (base_mib * (1u64 << 20) as f64 + a * 4.0 * voxels as f64 + b * 4.0 * pixels as f64) as u128
+}
+
 /// Reconstructs and writes `c.output` (iterative methods: stage "iteration" of
 /// `progress`, the relative residual as its message).
 pub fn reconstruct_classical(c: &Classical, progress: &dyn Progress) -> Result<()> {
@@ -137,6 +152,24 @@ pub fn reconstruct_classical(c: &Classical, progress: &dyn Progress) -> Result<(
             c.input.display()
         ),
     };
+    let pixels: usize = images.iter().map(|p| p.data.len()).sum();
+    let d = template.dims();
+    let peak = peak_bytes(c.method, d[0] * d[1] * d[2], pixels);
+    tomograf_sim::memory::check(
+        peak,
+        &format!(
+            "{} onto a {}×{}×{} grid from {} views (--dims, --like or --views set both)",
+            c.method.label(),
+            d[0],
+            d[1],
+            d[2],
+            views.len()
+        ),
+    )?;
+    progress.note(&format!(
+        "estimated peak memory {:.0} MiB",
+        peak as f64 / (1u64 << 20) as f64
+    ));
     let volume = match c.method {
         Method::Fdk => {
             let (Some(g), Some(poses)) = (input.geometry, &input.poses) else {

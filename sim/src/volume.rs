@@ -302,7 +302,7 @@ fn holds_any(block: &[f32], bad: impl Fn(f32) -> bool) -> bool {
 const SCAN_BLOCK: usize = 1 << 16;
 
 /// `nx·ny·nz`, refusing zero sizes, overflow, volumes above [`MAX_VOXELS`] and volumes
-/// whose f32 values would not fit in this machine's memory ([`crate::memory`]).
+/// whose f32 values would not fit in the memory a job may take ([`crate::memory`]).
 pub fn checked_voxel_count(dims: [usize; 3]) -> Result<usize> {
     let count = voxel_count_within_max(dims)?;
     crate::memory::check(
