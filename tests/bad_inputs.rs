@@ -300,6 +300,14 @@ fn every_bad_input_ends_in_a_clear_error() {
         &[0.0; 12 * 16 * 16],
     );
 
+    // A training config whose batch alone needs terabytes (it was an abort after 24 GB).
+    let tiny = include_str!("../model/presets/tiny.toml");
+    assert!(tiny.contains("\nbatch = 2\n"));
+    let big_batch = scene(
+        "big-batch",
+        &tiny.replace("\nbatch = 2\n", "\nbatch = 100000000\n"),
+    );
+
     let proj_s = s(&proj);
     let cut_proj = p("proj-cut");
     copy_dir(&proj, &cut_proj);
@@ -376,6 +384,7 @@ fn every_bad_input_ends_in_a_clear_error() {
         (vec!["train", &out("data"), "-o", &under_file, "--config", "tiny", "--iterations", "1"].map_into(), "cannot create the output folder"),
         // Evaluation and inference.
         (vec!["evaluate", &out("data"), "--items", "0", "-o", &out("ev")].map_into(), "--items 0 scores nothing"),
+        (vec!["train", &out("data"), "-o", &out("tr-big"), "--config", &big_batch, "--iterations", "1"].map_into(), "at the least, a training step of 'tiny' (batch 100000000, patch 8², samples 8, hidden 32, depth 2) needs"),
         (vec!["train", &out("data-dup"), "-o", &out("tr-dup"), "--config", "tiny", "--iterations", "1"].map_into(), "line 2: item '00000' is listed twice (also on line 1)"),
         (vec!["train", &out("data-air"), "-o", &out("tr-air"), "--config", "tiny", "--iterations", "1"].map_into(), "every projection value is 0"),
         (vec!["evaluate", &out("data"), "--scatter-correction", "prior", "-o", &out("ev-sc")].map_into(), "give --checkpoint or --train-data"),

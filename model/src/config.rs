@@ -345,6 +345,20 @@ impl TrainConfig {
         Ok(c)
     }
 
+    /// A floor under a training step's memory (bytes), from the sizes alone: the field's
+    /// parameters held four times (values, gradients, two optimiser moments) and, for every
+    /// sample point of a batch (`batch · patch² · samples`), one f32 activation and its
+    /// gradient per hidden unit per layer. Measured peaks are 1.7–3.3× this (docs/reliability.md, "Memory budget"); a floor beyond the memory a job may take
+    /// is refused before any network is made.
+    pub fn memory_floor_bytes(&self) -> f64 {
+        let m = &self.model;
+        let (w, depth) = (m.hidden as f64, m.depth as f64);
+        let inp = (crate::field::encoded_dims(3, m.freq_x) + m.z_shape) as f64;
+        let params = inp * w + (depth - 1.0).max(0.0) * w * w + (w + m.z_app as f64) * w / 2.0;
+        let points = self.batch as f64 * (m.patch as f64).powi(2) * m.samples as f64;
+        4.0 * 4.0 * params + 2.0 * 4.0 * points * w * (depth + 1.0)
+    }
+
     /// Checks sizes and weights.
     pub fn validate(&self) -> Result<()> {
         let m = &self.model;

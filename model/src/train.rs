@@ -200,6 +200,14 @@ impl Trainer {
             prior.dims
         );
         config.check_grid(*prior.dims.iter().min().expect("3 dims"))?;
+        let m = &config.model;
+        tomograf_sim::memory::check(
+            config.memory_floor_bytes() as u128,
+            &format!(
+                "at the least, a training step of '{}' (batch {}, patch {}², samples {}, hidden {}, depth {})",
+                config.name, config.batch, m.patch, m.samples, m.hidden, m.depth
+            ),
+        )?;
         // burn's RNG is global: hold a lock from seeding to the last initialisation so
         // networks made concurrently (other threads, other tests) cannot interleave draws.
         static INIT: std::sync::Mutex<()> = std::sync::Mutex::new(());
