@@ -261,6 +261,9 @@ fn every_bad_input_ends_in_a_clear_error() {
             &[0.0, 1.0, f32::NAN, 0.0, 0.0, 0.0, 0.0, 0.0],
         )
     });
+    let huge_mean = broken("ck-huge-mean", &|c| {
+        npy(&c.join("mean_volume.npy"), [2, 2, 2], &[1e30; 8])
+    });
     let cut_mean = broken("ck-cut-mean", &|c| {
         let b = std::fs::read(c.join("mean_volume.npy")).unwrap();
         std::fs::write(c.join("mean_volume.npy"), &b[..b.len() - 100]).unwrap();
@@ -395,6 +398,7 @@ fn every_bad_input_ends_in_a_clear_error() {
         (vec!["reconstruct", &item, "--checkpoint", &zero_scale, "-o", &out("rec.nii")].map_into(), "proj_scale = 0"),
         (vec!["reconstruct", &item, "--checkpoint", &huge_scale, "-o", &out("rec.nii")].map_into(), "must be finite and in (0, 1e6]"),
         (vec!["reconstruct", &item, "--checkpoint", &nan_mean, "-o", &out("rec.nii")].map_into(), "mean_volume.npy"),
+        (vec!["reconstruct", &item, "--checkpoint", &huge_mean, "-o", &out("rec.nii")].map_into(), "mean_volume.npy: value 0 is 1e30, outside [0, 1]"),
         (vec!["reconstruct", &item, "--checkpoint", &cut_mean, "-o", &out("rec.nii")].map_into(), "truncated or corrupt NPY"),
         (vec!["reconstruct", &item, "--checkpoint", &no_mean, "-o", &out("rec.nii")].map_into(), "missing"),
         (vec!["reconstruct", &item, "--checkpoint", &other_preset, "-o", &out("rec.nii")].map_into(), "generator.bpk"),
@@ -622,5 +626,54 @@ fn scan_names_the_files_it_skips() {
     assert!(
         listed.contains(&format!("\t{}\t", files.len() - 1)),
         "{listed}"
+    );
+}
+
+/// A checkpoint whose prior (the mean training volume) is on another grid than the item is
+/// named: it was silently resampled (issue 51: a 4³ `mean_volume.npy` for a 64³ model).
+#[test]
+fn a_prior_on_another_grid_is_named() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let data = d.join("data");
+    common::ok(&common::tomograf(&[
+        "dataset",
+        "-o",
+        &s(&data),
+        "--phantoms",
+        "1",
+        "--size",
+        "64",
+        "--views",
+        "4",
+    ]));
+    let demo = Path::new(env!("CARGO_MANIFEST_DIR")).join("model/checkpoints/demo");
+    let reconstruct = |ck: &Path| {
+        common::tomograf(&[
+            "reconstruct",
+            &s(&data.join("00000")),
+            "--checkpoint",
+            &s(ck),
+            "--views",
+            "1",
+            "--iterations",
+            "1",
+            "-o",
+            &s(&d.join("rec")),
+        ])
+    };
+    let words = "the checkpoint's prior (mean_volume.npy, the grid it was trained on) is 4×4×4";
+    let same = reconstruct(&demo);
+    common::ok(&same);
+    assert!(!String::from_utf8_lossy(&same.stderr).contains("prior (mean_volume.npy"));
+    let small = d.join("ck-small-prior");
+    copy_dir(&demo, &small);
+    npy(&small.join("mean_volume.npy"), [4, 4, 4], &[0.2; 64]);
+    let out = reconstruct(&small);
+    common::ok(&out);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains(words) && err.contains("64×64×64 CT grid"),
+        "{err}"
     );
 }

@@ -215,13 +215,25 @@ pub fn reconstruct_item(
 
 /// Notes (through `progress`), naming the numbers, when the item in `item_dir` lies far
 /// from the training population the checkpoint records (`population.json`;
-/// [`Population::outliers`]): its body fraction or tissue fractions. Silent when either
-/// records none.
+/// [`Population::outliers`]): its body fraction or tissue fractions; and when its CT grid
+/// is not the grid of the checkpoint's prior (`mean_volume.npy`, the training CTs' grid),
+/// which inference then resamples. Silent when the item or the checkpoint records none.
 pub fn warn_population(item_dir: &Path, checkpoint: &Path, progress: &dyn Progress) -> Result<()> {
-    let (Some(record), Some(population)) = (
-        tomograf_datasets::item::finished_record(item_dir),
-        Population::read(checkpoint)?,
-    ) else {
+    let Some(record) = tomograf_datasets::item::finished_record(item_dir) else {
+        return Ok(());
+    };
+    if let Some(mean) = tomograf_model::checkpoint::load_mean(checkpoint)?
+        && mean.dims != record.ct_dims
+    {
+        let [a, b] = [mean.dims, record.ct_dims].map(|d| format!("{}×{}×{}", d[0], d[1], d[2]));
+        progress.note(&format!(
+            "warning: item {} has a {b} CT grid but the checkpoint's prior (mean_volume.npy, \
+             the grid it was trained on) is {a}: the prior is resampled to the item's grid; \
+             a checkpoint is meant for items of its training size",
+            item_dir.display()
+        ));
+    }
+    let Some(population) = Population::read(checkpoint)? else {
         return Ok(());
     };
     let off = population.outliers(&record);

@@ -340,6 +340,17 @@ pub fn load_mean(dir: &Path) -> Result<Option<MeanVolume>> {
             format!("value {i} is {} (the checkpoint is corrupt)", data[i]),
         ));
     }
+    // The mean of training CTs each clamped to [0, 1] by its HU window.
+    if let Some(i) = data.iter().position(|v| !(-1e-6..=1.0 + 1e-6).contains(v)) {
+        return Err(err(
+            &p,
+            format!(
+                "value {i} is {:e}, outside [0, 1], the normalised density every training \
+                 CT is clamped to (the checkpoint is corrupt)",
+                data[i]
+            ),
+        ));
+    }
     let [nz, ny, nx] = shape[..] else {
         return Err(err(
             &p,
