@@ -323,6 +323,8 @@ fn every_bad_input_ends_in_a_clear_error() {
         (vec!["project", "--arc", "0:5:1000000000", "-o", &o].map_into(), "more than 1000000 in one job"),
         (vec!["project", "--scene", &scene("arc", &format!("{small_scene}[views]\narc = \"0:5:1000000000\"\n")), "-o", &o].map_into(), "more than 1000000"),
         (vec!["project", "--arc", "0:1:500000", "--rows", "256", "--cols", "256", "-o", &o].map_into(), "held as f32 images needs"),
+        // 2.5 GiB of images fit the 8 GiB; the render's peak (≈ 3.8 × the images) does not.
+        (vec!["project", "--arc", "0:0.03515625:10240", "--rows", "256", "--cols", "256", "-o", &o].map_into(), "rendering 10240 views (671088640 pixels in all) of a"),
         (vec!["project", "--scene", &scene("cyl", &format!("{small_scene}[[mesh]]\nname = \"c\"\nkind = \"cylinder\"\nresolution = 4000000000\nmu_per_mm = 0.1\n")), "-o", &o].map_into(), "segments"),
         (vec!["reconstruct-classical", &proj_s, "--dims", "100000,100000,100000", "-o", &out("r.nii")].map_into(), "exceed the limit"),
         (vec!["reconstruct-classical", &proj_s, "--dims", "2400,2400,2400", "-o", &out("r.nii")].map_into(), "more than the 8.0 GiB that TOMOGRAF_MEMORY_LIMIT_GB allows"),

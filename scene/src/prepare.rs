@@ -45,6 +45,8 @@ pub struct Prepared {
     pub warnings: Vec<String>,
     /// Seconds spent loading the volume.
     pub load_seconds: f64,
+    /// The job's estimated peak memory, bytes ([`render_peak_bytes`]).
+    pub peak_bytes: u128,
 }
 
 /// One rendered view: one image per detector channel, and with real detector physics the
@@ -54,6 +56,20 @@ pub struct Frame {
     pub images: Vec<Projection>,
     /// The parts of a real detector's image; `None` for the ideal DRR.
     pub parts: Option<Acquired>,
+}
+
+/// Peak resident memory of a `project` job (bytes) for a volume of `voxels` and views of
+/// `pixels` in all: `base + a · 4·voxels + b · 4·pixels` (the f32 volume and images), fitted
+/// to `/usr/bin/time -v` peaks at 96³ and 192³ with 36 and 144 views of 256² for the ideal
+/// DRR and for detector physics (`kv-flat-panel-120kvp`); docs/reliability.md, "Memory
+/// budget".
+pub fn render_peak_bytes(physics: bool, voxels: u128, pixels: u128) -> u128 {
+    let (base_mib, a, b) = if physics {
+        (26.0, 3.3, 3.9)
+    } else {
+        (18.0, 1.9, 3.8)
+    };
+    (base_mib * (1u64 << 20) as f64 + a * 4.0 * voxels as f64 + b * 4.0 * pixels as f64) as u128
 }
 
 /// Loads and resolves `scene`: the acquisition it asks for (checked first, so a bad
@@ -81,6 +97,26 @@ pub fn prepare(scene: &Scene) -> Result<Prepared> {
         pixels * 4,
         &format!("{} views held as f32 images", job.views.len()),
     )?;
+    // The job's peak beyond the volume already read (MemAvailable no longer counts it).
+    let voxels = volume.len() as u128;
+    let peak = render_peak_bytes(acquisition.is_some(), voxels, pixels);
+    tomograf_sim::memory::check(
+        peak.saturating_sub(voxels * 4),
+        &format!(
+            "rendering {} views ({} pixels in all) of a {}×{}×{} volume ({}), beyond the \
+             volume already read,",
+            job.views.len(),
+            pixels,
+            volume.dims()[0],
+            volume.dims()[1],
+            volume.dims()[2],
+            if acquisition.is_some() {
+                "detector physics"
+            } else {
+                "ideal DRR"
+            }
+        ),
+    )?;
     let warnings = check_geometry(&job.views, &volume, !scene.mesh.is_empty())?;
     if acquisition.is_some() {
         if job.skipping.is_some() {
@@ -106,6 +142,7 @@ pub fn prepare(scene: &Scene) -> Result<Prepared> {
         acquisition,
         warnings,
         load_seconds,
+        peak_bytes: peak,
     })
 }
 

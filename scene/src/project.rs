@@ -28,6 +28,8 @@ pub struct Summary {
     pub load_seconds: f64,
     /// Files written.
     pub files: usize,
+    /// The job's estimated peak memory, bytes (what it was checked against the limit with).
+    pub peak_bytes: u128,
     /// The output folder.
     pub dir: PathBuf,
 }
@@ -37,7 +39,7 @@ impl std::fmt::Display for Summary {
         write!(
             f,
             "rendered {} view(s) of {}×{} in {:.1} ms ({:.1} ms per view; loading {:.0} ms); \
-             wrote {} file(s) to {}",
+             wrote {} file(s) to {} (estimated peak memory {:.0} MiB)",
             self.views,
             self.rows,
             self.cols,
@@ -45,7 +47,8 @@ impl std::fmt::Display for Summary {
             self.render_seconds * 1e3 / self.views.max(1) as f64,
             self.load_seconds * 1e3,
             self.files,
-            self.dir.display()
+            self.dir.display(),
+            self.peak_bytes as f64 / (1u64 << 20) as f64
         )
     }
 }
@@ -159,5 +162,6 @@ pub fn project(scene: &Scene, progress: &dyn Progress) -> Result<Summary> {
         load_seconds: prepared.load_seconds,
         files,
         dir: outputs.dir.clone(),
+        peak_bytes: prepared.peak_bytes,
     })
 }
