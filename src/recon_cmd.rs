@@ -8,7 +8,7 @@ use anyhow::{Result, ensure};
 use clap::{Args, ValueEnum};
 use std::path::PathBuf;
 use tomograf_eval::classical::{self, Classical, Grid, reconstruct_classical};
-use tomograf_sim::recon::{AngularWeighting, FdkOptions, TvOptions, Window};
+use tomograf_recon::{AngularWeighting, FdkOptions, TvOptions, Window};
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
 pub enum Method {

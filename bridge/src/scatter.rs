@@ -6,8 +6,8 @@ use crate::errors;
 use glam::DVec3;
 use numpy::{IntoPyArray, PyArray2};
 use pyo3::prelude::*;
+use tomograf_eval::validation::matched::{MatchedMedium, simulate};
 use tomograf_sim::geometry::{View, ViewBeam};
-use tomograf_sim::scatter::matched::{MatchedMedium, simulate};
 
 type Image<'py> = Bound<'py, PyArray2<f64>>;
 

@@ -1,14 +1,14 @@
 //! Classical reconstruction of a projection folder (`tomograf reconstruct-classical`):
-//! FDK, SART, SART-TV or SIRT ([`tomograf_sim::recon`]) from the images of
+//! FDK, SART, SART-TV or SIRT ([`tomograf_recon`]) from the images of
 //! [`tomograf_scene::projections::read_projections`], to a NIfTI volume in HU (or mu).
 
 use anyhow::{Context, Result, bail};
 use glam::DVec3;
 use std::path::PathBuf;
 use tomograf_datasets::nifti;
+use tomograf_recon::{self as recon, FdkOptions, SartOptions, TvOptions};
 use tomograf_scene::Progress;
 use tomograf_scene::projections::read_projections;
-use tomograf_sim::recon::{self, FdkOptions, SartOptions, TvOptions};
 use tomograf_sim::{Pose, Projection, View, Volume};
 
 /// A classical reconstruction method.

@@ -25,3 +25,4 @@ pub mod tg195;
 pub mod tradeoff;
 pub mod training;
 pub mod tuning;
+pub mod validation;

@@ -1,8 +1,9 @@
 //! The AAPM TG-195 validation report (`tomograf validate tg195`): runs the cases through the energy-imparted tally
-//! (`tomograf_sim::validation::tg195`) and writes the comparison with the four codes as a
+//! (`crate::validation::tg195`) and writes the comparison with the four codes as a
 //! markdown table, a CSV and figures.
 
 use crate::figures::{Axes, plot_deviations, plot_points};
+use crate::validation::tg195::{self, Beam, Comparison};
 use anyhow::{Context, Result};
 use std::fmt::Write as _;
 use std::io::Write as _;
@@ -10,7 +11,6 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 use tomograf_datasets::atomic::write_atomic;
 use tomograf_scene::Progress;
-use tomograf_sim::validation::tg195::{self, Beam, Comparison};
 
 /// What to run and where (`tomograf validate tg195`'s flags).
 #[derive(Debug, Clone)]
@@ -410,7 +410,7 @@ fn from_csv(text: &str) -> Result<Vec<Comparison>> {
             quantity: f[1].replace(';', ","),
             ours: num(f[2])?,
             ours_se: num(f[3])?,
-            reference: tomograf_sim::validation::reference::Reference {
+            reference: crate::validation::reference::Reference {
                 key: vec![f[1].to_string()],
                 codes,
             },

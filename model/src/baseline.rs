@@ -6,7 +6,7 @@ pub use crate::prior::MeanVolume;
 use crate::reconstruct::Reference;
 use crate::render::DensityScale;
 use serde::{Deserialize, Serialize};
-use tomograf_sim::recon::{FdkOptions, SartOptions, TvOptions, Window, fdk, sart_tv_from};
+use tomograf_recon::{FdkOptions, SartOptions, TvOptions, Window, fdk, sart_tv_from};
 use tomograf_sim::{Beam, Detector, Geometry, Pose, Projection, View, ViewBeam, Volume};
 
 /// A reconstruction method to compare with.
@@ -111,7 +111,7 @@ fn projections(refs: &[Reference]) -> Vec<Projection> {
         .collect()
 }
 
-/// Feldkamp–Davis–Kress (`tomograf_sim::recon::fdk`, automatic angular weighting) from
+/// Feldkamp–Davis–Kress (`tomograf_recon::fdk`, automatic angular weighting) from
 /// the reference views, on the ground-truth grid; the ramp filter's window is a setting
 /// (default Ram-Lak).
 #[derive(Debug, Clone, Copy, Default)]
@@ -143,7 +143,7 @@ impl Baseline for Fdk {
 }
 
 /// The settings of SART-TV that a user would tune: how many sweeps, and how strongly TV
-/// smooths between them. The rest is `tomograf_sim::recon::SartOptions`' defaults
+/// smooths between them. The rest is `tomograf_recon::SartOptions`' defaults
 /// (relaxation 1, non-negative, `min(views, 10)` ordered subsets, 10 TV steps a sweep).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -190,7 +190,7 @@ impl SartTvSettings {
     }
 }
 
-/// SART with TV regularisation (`tomograf_sim::recon::sart_tv_from`, non-negative, its
+/// SART with TV regularisation (`tomograf_recon::sart_tv_from`, non-negative, its
 /// sweeps and TV step from [`SartTvSettings`]) from the reference views, started from zero,
 /// or from the mean training volume when `start` holds it (a fair classical baseline for a
 /// learned prior: the same population knowledge, then data consistency).
@@ -252,7 +252,7 @@ impl Baseline for SartTv {
     }
 }
 
-/// SART-TV (`tomograf_sim::recon::sart_tv_from` with `settings`, `min(views, 10)` ordered
+/// SART-TV (`tomograf_recon::sart_tv_from` with `settings`, `min(views, 10)` ordered
 /// subsets) from the reference views, started from the sum over `start`'s `(density,
 /// weight)` terms of weight times the attenuation of the normalised density on `grid`
 /// (empty: zero attenuation; one term of weight 1: that volume itself); returns normalised

@@ -7,7 +7,7 @@
 //! object: here the item's own acquisition (spectrum, tissues, detector, scatter model, as
 //! recorded in `item.json`) is run through an estimate of the patient and each view is
 //! corrected by its scatter-to-primary ratio
-//! ([`tomograf_sim::recon::scatter_correction`]). The estimate is
+//! ([`tomograf_recon::scatter_correction`]). The estimate is
 //! * [`ScatterCorrection::Prior`] — the mean training volume: what a method knows before
 //!   it sees the patient (fair to every method, since all of them get the same corrected
 //!   views);
@@ -17,9 +17,9 @@
 use crate::data::Item;
 use crate::error::{ModelError, Result, ensure};
 use serde::{Deserialize, Serialize};
+use tomograf_recon::scatter_correction::{correct_log, scatter_to_primary};
 use tomograf_sim::Volume;
 use tomograf_sim::acquisition::Acquisition;
-use tomograf_sim::recon::scatter_correction::{correct_log, scatter_to_primary};
 
 /// Where the object estimate of a scatter correction comes from.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]

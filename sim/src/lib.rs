@@ -23,15 +23,12 @@ pub mod occupancy;
 pub mod phantom;
 pub mod polychromatic;
 pub mod ray;
-pub mod recon;
 pub mod render;
 pub mod scatter;
 pub mod seed;
 pub mod spectrum;
 pub mod tissue;
 pub mod trace;
-pub mod tradeoff;
-pub mod validation;
 pub mod volume;
 
 pub use error::{Result, SimError};

@@ -97,61 +97,6 @@ fn an_acquisition_with_scatter_survives_json() {
     assert_eq!(back, a);
 }
 
-#[test]
-fn scatter_correction_from_the_object_removes_the_scatter() {
-    use tomograf_sim::recon::scatter_correction::{correct_log, scatter_to_primary};
-    let hu = water_cube();
-    let v = view();
-    let mut a = Acquisition::preset("kv-flat-panel-120kvp").unwrap();
-    a.scatter = ScatterModel::MonteCarlo {
-        photons: 4000,
-        grid: 4,
-        max_order: 20,
-        detection_cell_mm: 0.0,
-    };
-    let prepared = a.prepare(&hu, 3).unwrap();
-    // Noiseless −log with and without scatter: the expected images over the open field.
-    let (with, open) = prepared.expected(Projector::Siddon, &v).unwrap();
-    let primary = prepared.primary(Projector::Siddon, &v).unwrap();
-    let log = |signal: &[f64]| -> Vec<f32> {
-        signal
-            .iter()
-            .zip(&open.mean)
-            .map(|(s, o)| (-(s / o).ln()) as f32)
-            .collect()
-    };
-    let truth = log(&primary.mean);
-    let measured = log(&with.mean);
-    let error = |p: &[f32]| -> f64 {
-        p.iter()
-            .zip(&truth)
-            .map(|(a, b)| f64::from(a - b).abs())
-            .fold(0.0, f64::max)
-    };
-    let before = error(&measured);
-    assert!(before > 0.1, "scatter lowers the −log by {before}");
-    // The same Monte Carlo stream as the measurement (view 0): exact up to f32 rounding.
-    let mut same = measured.clone();
-    correct_log(&mut same, &scatter_to_primary(&prepared, &v, 0).unwrap()).unwrap();
-    assert!(error(&same) < 1e-5, "{}", error(&same));
-    // Another stream (view 7): exact up to the estimate's statistical error; 4000
-    // histories leave a few per cent of the scatter, so the error falls by ≥ 80 %.
-    let mut other = measured.clone();
-    correct_log(&mut other, &scatter_to_primary(&prepared, &v, 7).unwrap()).unwrap();
-    assert!(
-        error(&other) < 0.2 * before,
-        "{} of {before}",
-        error(&other)
-    );
-    // Without scatter in the acquisition there is nothing to estimate.
-    let plain = Acquisition::preset("kv-flat-panel-120kvp")
-        .unwrap()
-        .prepare(&hu, 3)
-        .unwrap();
-    let e = scatter_to_primary(&plain, &v, 0).unwrap_err();
-    assert!(e.to_string().contains("models scatter"), "{e}");
-}
-
 /// 120 × 90 × 60 mm of water holding a bone bar and a lung-like block, 3 mm voxels.
 fn mixed_block() -> Volume {
     let dims = [40, 30, 20];

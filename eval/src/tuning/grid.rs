@@ -4,7 +4,7 @@ use super::settings::{FDK, PCA_MAP, SART_TV, SART_TV_FROM_MEAN, TOMOGRAF};
 use serde::{Deserialize, Serialize};
 use tomograf_model::baseline::SartTvSettings;
 use tomograf_model::pca::PcaSettings;
-use tomograf_sim::recon::Window;
+use tomograf_recon::Window;
 
 /// One setting of one method.
 #[derive(Debug, Clone, Copy, PartialEq)]

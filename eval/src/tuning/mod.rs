@@ -30,8 +30,8 @@ use tomograf_model::refine::{start_weights, sweep_from};
 use tomograf_model::render::DensityScale;
 use tomograf_model::scatter_correction::ScatterCorrection;
 use tomograf_model::{backend, checkpoint, data};
+use tomograf_recon::Window;
 use tomograf_scene::{Progress, Silent};
-use tomograf_sim::recon::Window;
 use tomograf_sim::{Pose, Volume};
 
 mod grid;

@@ -6,7 +6,7 @@ use std::collections::BTreeMap;
 use std::path::Path;
 use tomograf_model::baseline::SartTvSettings;
 use tomograf_model::pca::PcaSettings;
-use tomograf_sim::recon::Window;
+use tomograf_recon::Window;
 
 /// File name of the chosen settings in a tuning's output folder.
 pub const FILE: &str = "baselines.toml";

@@ -14,8 +14,6 @@
 //! * [`energy_imparted`] — the energy-imparted (dose) tally per voxel and region;
 //! * [`dose`] — an acquisition's absorbed dose (Gy), view by view;
 //! * [`estimate`] — the fast estimate (coarse, few photons, smoothed);
-//! * [`matched`] — matched-physics mode (monoenergetic, constant albedo, isotropic or
-//!   Henyey–Greenstein phase, homogeneous box) for the cross-check with Mitsuba 3.
 //!
 //! The scatter images are expected detector signal (mean and second moment per channel),
 //! in the same units as the primary's [`crate::detector::ExpectedImage`], so the
@@ -32,7 +30,6 @@ pub mod estimator;
 pub mod field;
 pub mod interaction_table;
 pub mod majorant;
-pub mod matched;
 pub mod region;
 pub mod transport;
 

@@ -168,7 +168,7 @@ mod tests {
 
     #[test]
     fn between_the_nist_energies_it_follows_the_physics() {
-        // TG-195's own air table (0.5 keV bins, an independent fine grid; sim/data/tg195):
+        // TG-195's own air table (0.5 keV bins, an independent fine grid; eval/data/tg195):
         // 0.3775 at 22.5 keV, 0.2704 at 25, 0.2013 at 27.5; log–log interpolation of μen/μ
         // between NIST's 20 and 30 keV gave 0.3619, 0.2592, 0.1955 (−4.1, −4.1, −2.9 %).
         // Bound 1.5 %: the element-table physics itself is 1.0 % below TG-195 at 22.5 keV.

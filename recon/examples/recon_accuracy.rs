@@ -6,15 +6,15 @@
 //! reconstruction grid. Prints a markdown table (the one in docs/reconstruction.md).
 //!
 //! ```sh
-//! cargo run --release -p tomograf-sim --example recon_accuracy -- [N] [SART_ITERATIONS] [TV_STEPS,TV_ALPHA]
+//! cargo run --release -p tomograf-recon --example recon_accuracy -- [N] [SART_ITERATIONS] [TV_STEPS,TV_ALPHA]
 //! ```
 //! `N` (default 64) is the grid size (N³ voxels over 352 mm) and the detector is 2N².
 
 use glam::DVec3;
 use std::time::Instant;
+use tomograf_recon::{self as recon, FdkOptions, SartOptions, TvOptions};
 use tomograf_sim::attenuation::{hu_to_mu, mu_water_per_mm};
 use tomograf_sim::phantom::Phantom;
-use tomograf_sim::recon::{self, FdkOptions, SartOptions, TvOptions};
 use tomograf_sim::{Beam, Detector, Geometry, Pose, Projection, Renderer, Volume};
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {

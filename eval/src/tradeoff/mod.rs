@@ -1,16 +1,18 @@
 //! What each speed setting costs in accuracy on the user's own scene (`tomograf
-//! tradeoff`; [`tomograf_sim::tradeoff`] does the measuring): the table, a CSV, a plot and
+//! tradeoff`; [`ladder`] does the measuring): the table, a CSV, a plot and
 //! a recommendation for an error budget.
+
+pub mod ladder;
 
 use crate::figures::{Axes, plot_points};
 use anyhow::{Context, Result, bail};
+use ladder::{Chain, Knob, Ladder, Options};
 use std::fmt::Write as _;
 use std::path::PathBuf;
 use tomograf_scene::job::resolve;
 use tomograf_scene::physics::acquisition;
 use tomograf_scene::volume::{load_hu, load_mu};
 use tomograf_scene::{Progress, Scene};
-use tomograf_sim::tradeoff::{self, Chain, Knob, Ladder, Options};
 
 /// The ladder to measure and where to write the report.
 #[derive(Debug, Clone)]
@@ -27,7 +29,7 @@ pub struct Tradeoff {
     /// Detection cells to try for the scatter's forced detection, mm (scatter scenes only).
     pub scatter_cells: Vec<f64>,
     /// Histories of the reference's scatter Monte Carlo (`None`: see
-    /// [`tomograf_sim::tradeoff::Options::scatter_reference_photons`]).
+    /// [`ladder::Options::scatter_reference_photons`]).
     pub scatter_reference_photons: Option<u64>,
     /// Renders per timing (the median is reported).
     pub repeats: usize,
@@ -108,7 +110,7 @@ pub fn tradeoff(scene: &Scene, t: &Tradeoff, progress: &dyn Progress) -> Result<
         },
     };
     let mut started = false;
-    let ladder = tradeoff::ladder(chain, view, &options, |done, total| {
+    let ladder = ladder::ladder(chain, view, &options, |done, total| {
         if !started {
             progress.start("setting", total as u64, 0);
             started = true;
@@ -117,9 +119,9 @@ pub fn tradeoff(scene: &Scene, t: &Tradeoff, progress: &dyn Progress) -> Result<
     });
     progress.finish();
     let ladder = ladder?;
-    let combined = tradeoff::combine(&ladder, t.budget);
-    let (img, seconds) = tradeoff::render(chain, view, &combined, options.repeats)?;
-    let (rms, max) = tradeoff::errors(&img, &ladder.reference_image)?;
+    let combined = ladder::combine(&ladder, t.budget);
+    let (img, seconds) = ladder::render(chain, view, &combined, options.repeats)?;
+    let (rms, max) = ladder::errors(&img, &ladder.reference_image)?;
 
     std::fs::create_dir_all(&t.report)
         .with_context(|| format!("cannot create {}", t.report.display()))?;
@@ -198,7 +200,7 @@ fn knob_name(k: Knob) -> &'static str {
 }
 
 /// The reference, the primary reference (when there is scatter), then every rung.
-fn rows(ladder: &Ladder) -> impl Iterator<Item = &tradeoff::Rung> {
+fn rows(ladder: &Ladder) -> impl Iterator<Item = &ladder::Rung> {
     std::iter::once(&ladder.reference)
         .chain(&ladder.primary)
         .chain(&ladder.rungs)
@@ -226,7 +228,7 @@ fn report(
     ladder: &Ladder,
     t: &Tradeoff,
     view: &tomograf_sim::View,
-    combined: &tradeoff::Setting,
+    combined: &ladder::Setting,
     seconds: f64,
     rms: f64,
     max: f64,
@@ -288,7 +290,7 @@ fn report(
         "\n**For an error budget of {} (rms):** {} — measured {:.1} ms ({:.2}× the \
          reference), rms {:.2e}, max {:.2e}: {verdict}.",
         t.budget,
-        tradeoff::describe(combined, physics),
+        ladder::describe(combined, physics),
         seconds * 1e3,
         ladder.reference.seconds / seconds,
         rms,

@@ -25,12 +25,12 @@
 
 use super::backproject::SiddonOperator;
 use super::tv::{TvOptions, norm2, tv_descent};
-use crate::error::{Result, SimError};
-use crate::geometry::View;
-use crate::render::{Projection, Projector, Renderer};
-use crate::volume::Volume;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
+use tomograf_sim::error::{Result, SimError};
+use tomograf_sim::geometry::View;
+use tomograf_sim::render::{Projection, Projector, Renderer};
+use tomograf_sim::volume::Volume;
 
 /// SART / SIRT settings.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]

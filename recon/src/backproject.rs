@@ -2,7 +2,7 @@
 //!
 //! `A` maps a volume `x` (one value per voxel of a template grid) to one line integral per
 //! detector pixel: `(Ax)_ray = Σ_voxels x_v · l(ray, v)`, with `l` the exact path lengths
-//! (mm) that [`crate::trace::siddon`] reports. `Aᵀ` spreads each pixel value `y_ray` along
+//! (mm) that [`tomograf_sim::trace::siddon`] reports. `Aᵀ` spreads each pixel value `y_ray` along
 //! **the same** `(voxel, length)` segments: `(Aᵀy)_v = Σ_rays y_ray · l(ray, v)`. Both use
 //! the same clipped rays and the same tracer, so `⟨Ax, y⟩ = ⟨x, Aᵀy⟩` holds up to the
 //! order of f64 additions (tested to 1e-10 relative).
@@ -16,15 +16,15 @@
 //! result is bit-identical whatever the number of threads or slabs.
 //!
 //! Rays are clipped to the **whole** template grid (not to the non-zero part of a volume,
-//! as [`crate::render::Renderer`] does), so the operator does not depend on `x`.
+//! as [`tomograf_sim::render::Renderer`] does), so the operator does not depend on `x`.
 
-use crate::error::{Result, SimError};
-use crate::geometry::View;
-use crate::ray::GridRay;
-use crate::render::Projection;
-use crate::trace::{LineIntegral, PathAccumulator, siddon};
-use crate::volume::Volume;
 use rayon::prelude::*;
+use tomograf_sim::error::{Result, SimError};
+use tomograf_sim::geometry::View;
+use tomograf_sim::ray::GridRay;
+use tomograf_sim::render::Projection;
+use tomograf_sim::trace::{LineIntegral, PathAccumulator, siddon};
+use tomograf_sim::volume::Volume;
 
 /// The Siddon projection operator for a set of views on a template grid.
 #[derive(Debug, Clone, Copy)]
@@ -269,8 +269,8 @@ impl PathAccumulator for SlabAdd2<'_> {
 }
 
 /// Line-integral images of `volume` (mm⁻¹) in `views` with the exact Siddon operator on
-/// the volume's own grid (f32 images of f64 sums). Equal to [`crate::render::Renderer`]
-/// with [`crate::render::Projector::Siddon`] up to the rounding of f64 additions.
+/// the volume's own grid (f32 images of f64 sums). Equal to [`tomograf_sim::render::Renderer`]
+/// with [`tomograf_sim::render::Projector::Siddon`] up to the rounding of f64 additions.
 pub fn forward_project(volume: &Volume, views: &[View]) -> Result<Vec<Projection>> {
     let op = SiddonOperator::new(volume, views)?;
     Ok((0..views.len())

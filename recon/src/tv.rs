@@ -8,8 +8,8 @@
 //! last slice of each axis). Everything is computed per k-slice in parallel and reduced
 //! in slice order, so results do not depend on the thread count.
 
-use crate::error::{Result, SimError};
 use rayon::prelude::*;
+use tomograf_sim::error::{Result, SimError};
 
 /// TV regularisation between data-consistency sweeps (ASD-POCS style).
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]

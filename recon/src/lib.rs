@@ -12,10 +12,10 @@
 //! * [`scatter_correction`] — −log projections corrected by the scatter-to-primary ratio
 //!   an estimate of the object gives through the acquisition's own scatter model.
 //!
-//! Inputs are line-integral images ([`crate::render::Projection`], dimensionless ∫mu ds)
+//! Inputs are line-integral images ([`tomograf_sim::render::Projection`], dimensionless ∫mu ds)
 //! and the views they were taken in; outputs are volumes of linear attenuation (mm⁻¹) on
 //! a *template* grid (its dims, spacing, origin and direction; its values are ignored).
-//! [`mu_to_hu`] converts them to HU with [`crate::attenuation::mu_water_per_mm`].
+//! [`mu_to_hu`] converts them to HU with [`tomograf_sim::attenuation::mu_water_per_mm`].
 
 pub mod backproject;
 pub mod fdk;
@@ -30,10 +30,10 @@ pub use sart::{
 };
 pub use tv::TvOptions;
 
-use crate::error::{Result, SimError};
-use crate::geometry::View;
-use crate::render::Projection;
-use crate::volume::Volume;
+use tomograf_sim::error::{Result, SimError};
+use tomograf_sim::geometry::View;
+use tomograf_sim::render::Projection;
+use tomograf_sim::volume::Volume;
 
 /// Checks that there is at least one view, one image per view, each image the size of its
 /// view's detector and every pixel finite.
@@ -86,7 +86,7 @@ pub(crate) fn on_grid(template: &Volume, data: Vec<f32>) -> Result<Volume> {
 }
 
 /// Converts linear attenuation (mm⁻¹) to HU: `HU = 1000·(mu/mu_water − 1)`, the inverse of
-/// [`crate::attenuation::hu_to_mu`] above −1000 HU (negative mu, which reconstructions can
+/// [`tomograf_sim::attenuation::hu_to_mu`] above −1000 HU (negative mu, which reconstructions can
 /// produce, maps below −1000 HU and is kept, not clamped).
 pub fn mu_to_hu(volume: &Volume, mu_water_per_mm: f64) -> Result<Volume> {
     if !(mu_water_per_mm.is_finite() && mu_water_per_mm > 0.0) {
@@ -99,5 +99,8 @@ pub fn mu_to_hu(volume: &Volume, mu_water_per_mm: f64) -> Result<Volume> {
 
 /// [`mu_to_hu`] with `mu_water` at an effective energy (keV) from the shipped water table.
 pub fn mu_to_hu_at_kev(volume: &Volume, energy_kev: f64) -> Result<Volume> {
-    mu_to_hu(volume, crate::attenuation::mu_water_per_mm(energy_kev)?)
+    mu_to_hu(
+        volume,
+        tomograf_sim::attenuation::mu_water_per_mm(energy_kev)?,
+    )
 }

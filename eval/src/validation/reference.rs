@@ -1,7 +1,7 @@
-//! The AAPM TG-195 reference results and spectra shipped in `sim/data/tg195/` (see its
+//! The AAPM TG-195 reference results and spectra shipped in `eval/data/tg195/` (see its
 //! README for provenance): the four codes' results per row, and the 0.5 keV spectra.
 
-use crate::error::{Result, SimError};
+use tomograf_sim::error::{Result, SimError};
 
 const CASE1_CSV: &str = include_str!("../../data/tg195/tg195_case1_air_kerma.csv");
 const CASE2_CSV: &str = include_str!("../../data/tg195/tg195_case2_energy_imparted.csv");

@@ -23,10 +23,10 @@
 //! detector's blur acts on both alike and its noise has zero mean); the primary is traced
 //! with exact Siddon.
 
-use crate::acquisition::Prepared;
-use crate::error::{Result, SimError};
-use crate::geometry::View;
-use crate::render::Projector;
+use tomograf_sim::acquisition::Prepared;
+use tomograf_sim::error::{Result, SimError};
+use tomograf_sim::geometry::View;
+use tomograf_sim::render::Projector;
 
 /// Largest scatter-to-primary ratio a pixel is corrected by: where the estimate's primary
 /// is starved (P̂ → 0) the ratio is meaningless, and the correction is capped at

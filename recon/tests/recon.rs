@@ -4,10 +4,10 @@
 
 use glam::{DMat3, DVec3};
 use rand::{Rng, SeedableRng};
-use tomograf_sim::phantom::{Component, Phantom, Shape};
-use tomograf_sim::recon::{
-    self, AngularWeighting, FdkOptions, SartOptions, SiddonOperator, TvOptions, Window,
+use tomograf_recon::{
+    self as recon, AngularWeighting, FdkOptions, SartOptions, SiddonOperator, TvOptions, Window,
 };
+use tomograf_sim::phantom::{Component, Phantom, Shape};
 use tomograf_sim::{Detector, Geometry, Pose, Projection, Projector, Renderer, View, Volume};
 
 /// mu of water at 60 keV is ≈ 0.0206 mm⁻¹; any fixed value does for these checks.

@@ -17,7 +17,7 @@
 //!    sparse scans, Parker weights `w(β, γ)·Δβ` for short scans.
 //! 4. **Voxel-driven backprojection** with the distance weight `(D / L)²`, `L` the
 //!    distance from the source to the voxel along the central ray: each voxel centre is
-//!    projected with the view's own geometry ([`crate::geometry::View`]: the same
+//!    projected with the view's own geometry ([`tomograf_sim::geometry::View`]: the same
 //!    pixel-(0, 0)-top-left convention the projector uses) and the filtered image is
 //!    sampled bilinearly (0 outside the panel).
 //!
@@ -28,16 +28,16 @@
 //! Parallelism: filtering runs per view, backprojection per k-slice of the output; each
 //! voxel sums its views in order, so results are bit-identical for any thread count.
 
-use crate::error::{Result, SimError};
-use crate::geometry::{Beam, Geometry, Pose, View, ViewBeam};
-use crate::render::Projection;
-use crate::volume::Volume;
 use glam::DVec3;
 use rayon::prelude::*;
 use rustfft::FftPlanner;
 use rustfft::num_complex::Complex;
 use serde::{Deserialize, Serialize};
 use std::f64::consts::PI;
+use tomograf_sim::error::{Result, SimError};
+use tomograf_sim::geometry::{Beam, Geometry, Pose, View, ViewBeam};
+use tomograf_sim::render::Projection;
+use tomograf_sim::volume::Volume;
 
 /// Apodisation of the ramp filter, a function of the frequency `f` in cycles per sample
 /// (Nyquist = 0.5), as in scikit-image's `iradon`.

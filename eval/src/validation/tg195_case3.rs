@@ -3,7 +3,7 @@
 //! the breast (radiography) or turned 15° about the chest-wall axis (tomosynthesis).
 //!
 //! Geometry as the open-source XRayMClib build of the case (the CSV header in
-//! `sim/data/tg195/`), in mm with the origin at the centre of the breast's flat chest-wall
+//! `eval/data/tg195/`), in mm with the origin at the centre of the breast's flat chest-wall
 //! face, +z towards the source, the world TG-195 dry air:
 //!
 //! * the breast: a half cylinder of radius 100 mm and thickness 50 mm (|z| ≤ 25) on the
@@ -27,12 +27,12 @@
 
 use super::reference;
 use super::tg195::{Beam, Comparison, air, medium, pmma, regions_against, run};
-use crate::error::{Result, SimError};
-use crate::material::{Material, mixture};
-use crate::scatter::energy_imparted::RegionEstimator;
-use crate::scatter::field::FieldSource;
-use crate::scatter::region::Region;
 use glam::DVec3;
+use tomograf_sim::error::{Result, SimError};
+use tomograf_sim::material::{Material, mixture};
+use tomograf_sim::scatter::energy_imparted::RegionEstimator;
+use tomograf_sim::scatter::field::FieldSource;
+use tomograf_sim::scatter::region::Region;
 
 /// VOI centres (mm from the centre of the chest-wall face), by VOI number 1–7.
 const VOIS: [[f64; 3]; 7] = [

@@ -17,15 +17,15 @@
 //! into `multiple`. Seeds and batches as in the engine: the bytes do not depend on the
 //! thread count.
 
-use super::transport::rotate;
-use crate::error::{Result, SimError};
-use crate::geometry::{View, ViewBeam};
-use crate::seed::frame_seed;
 use glam::DVec3;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
 use std::f64::consts::PI;
+use tomograf_sim::error::{Result, SimError};
+use tomograf_sim::geometry::{View, ViewBeam};
+use tomograf_sim::scatter::transport::rotate;
+use tomograf_sim::seed::frame_seed;
 
 /// Histories per batch (one random stream each).
 const BATCH: u64 = 256;

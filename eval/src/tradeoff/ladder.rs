@@ -22,12 +22,12 @@
 //!   render with scatter), after the per-volume preparation (material classification,
 //!   spectral tables), which a data-set job pays once per CT.
 
-use crate::acquisition::Acquisition;
-use crate::error::{Result, SimError};
-use crate::render::{Projection, Projector, Quantity, Renderer};
-use crate::scatter::ScatterModel;
-use crate::{View, Volume};
 use std::time::Instant;
+use tomograf_sim::acquisition::Acquisition;
+use tomograf_sim::error::{Result, SimError};
+use tomograf_sim::render::{Projection, Projector, Quantity, Renderer};
+use tomograf_sim::scatter::ScatterModel;
+use tomograf_sim::{View, Volume};
 
 /// What is rendered: the ideal DRR or a realistic acquisition.
 #[derive(Debug, Clone, Copy)]
