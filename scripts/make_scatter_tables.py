@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
-"""Regenerates sim/data/scatter_factors.csv: per-element incoherent scattering function
+"""Regenerates physics/data/scatter_factors.csv: per-element incoherent scattering function
 S(x, Z) and coherent (Rayleigh) atomic form factor F(x, Z) for Z = 1..92, used by the
-Monte Carlo scatter engine (sim/src/scatter/cross_sections.rs) to modify Klein-Nishina and
+Monte Carlo scatter engine (physics/src/scatter/cross_sections.rs) to modify Klein-Nishina and
 Thomson angular distributions.
 
 Requirements: Python 3.9+, xraylib (pip install xraylib; tables made with 4.3.0).

@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Regenerates sim/data/tungsten_spectra.csv: tungsten-anode X-ray tube spectra, 40-150 kVp.
+"""Regenerates physics/data/tungsten_spectra.csv: tungsten-anode X-ray tube spectra, 40-150 kVp.
 
 Requirements: Python 3.9+, numpy, spekpy (pip install spekpy; tables made with 2.5.4).
 
@@ -17,7 +17,7 @@ Row format: kvp,n_1,n_2,...,n_(kvp-1) where n_i is the number of photons in the 
 [i, i+1] keV (bin centre i + 0.5 keV); the bin [0, 1] keV is not tabulated (SpekPy omits
 it, and 2.5 mm Al removes everything there).
 
-Usage: python3 scripts/make_spectra.py > sim/data/tungsten_spectra.csv
+Usage: python3 scripts/make_spectra.py > physics/data/tungsten_spectra.csv
        python3 scripts/make_spectra.py --reference   (SpekPy beam figures for the tests)
 """
 import numpy as np
@@ -46,7 +46,7 @@ def tables():
 
 
 def reference_beams():
-    """Prints SpekPy's own beam figures for the cross-check in sim/tests/spectrum_reference.rs:
+    """Prints SpekPy's own beam figures for the cross-check in physics/tests/spectrum_reference.rs:
     kvp, added Al mm, added Cu mm, first HVL (mm Al), second HVL (mm Al), mean energy (keV),
     air kerma at 1 m (uGy/mAs), fluence at 1 m (photons/mm^2/mAs)."""
     print("# kvp,add_al_mm,add_cu_mm,hvl1_mm_al,hvl2_mm_al,mean_kev,kerma_ugy_per_mas,fluence_per_mm2_mas")

@@ -1,13 +1,13 @@
 //! Real detector physics on the command line: the scene's `[acquisition]`, `[spectrum]`,
 //! `[materials]` and detector-model fields (and their flags) resolved into a
-//! [`tomograf_sim::acquisition::Acquisition`]. A scene that asks for none of it renders the
+//! [`tomograf_physics::acquisition::Acquisition`]. A scene that asks for none of it renders the
 //! ideal DRR with the monochromatic projector and pays for nothing else.
 
 use anyhow::Result;
 use clap::Args;
+use tomograf_physics::acquisition::Acquisition;
 use tomograf_scene::Scene;
 pub use tomograf_scene::overrides::PhysicsOverrides;
-use tomograf_sim::acquisition::Acquisition;
 
 /// Flags of `tomograf project` and `tomograf dataset` for real detector physics.
 #[derive(Debug, Args, Clone, Default)]
@@ -80,8 +80,8 @@ pub fn from_args(args: &PhysicsArgs) -> Result<Option<(Acquisition, u64)>> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use tomograf_sim::acquisition::Acquisition;
-    use tomograf_sim::detector::DetectorModel;
+    use tomograf_physics::acquisition::Acquisition;
+    use tomograf_physics::detector::DetectorModel;
 
     #[test]
     fn kvp_on_a_preset_keeps_its_filtration_and_exposure() {

@@ -10,9 +10,9 @@
 use anyhow::Result;
 use glam::DVec3;
 use std::fmt::Write as _;
-use tomograf_sim::acquisition::{Acquisition, Prepared};
+use tomograf_physics::acquisition::{Acquisition, Prepared};
+use tomograf_physics::detector::DetectorModel;
 use tomograf_sim::attenuation::Attenuation;
-use tomograf_sim::detector::DetectorModel;
 use tomograf_sim::phantom::Phantom;
 use tomograf_sim::tissue::TissueModel;
 use tomograf_sim::{Beam, Detector, Geometry, Pose, Projector, Renderer, View};

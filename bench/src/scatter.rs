@@ -4,7 +4,7 @@
 //! One view (the AP view of a 72-view orbit, 256² pixels, preset `kv-flat-panel-120kvp`,
 //! noise off) is scattered under a ladder of settings: the full-resolution Monte Carlo as
 //! the engine had it (the baseline of the speed ratios), the same with forced detection
-//! traced through coarse cells ([`tomograf_sim::scatter::detection_grid`]), and the fast
+//! traced through coarse cells ([`tomograf_physics::scatter::detection_grid`]), and the fast
 //! estimate. Each is compared with a converged full-resolution Monte Carlo (the reference,
 //! `reference_photons` histories; cached in a file when asked, as it takes minutes):
 //! * `line-integral rms` = RMS(a − r)/RMS(r) of −ln((primary + scatter)/open field), the
@@ -23,12 +23,12 @@ use std::fmt::Write as _;
 use std::path::Path;
 use std::time::Instant;
 use tomograf_datasets::image::{read_npy, write_npy};
+use tomograf_physics::acquisition::Acquisition;
+use tomograf_physics::scatter::{ScatterEngine, ScatterModel};
 use tomograf_scene::Scene;
 use tomograf_scene::job::resolve;
 use tomograf_scene::physics::acquisition;
 use tomograf_scene::volume::load_hu;
-use tomograf_sim::acquisition::Acquisition;
-use tomograf_sim::scatter::{ScatterEngine, ScatterModel};
 use tomograf_sim::{Projector, View, Volume};
 
 /// What to measure.
@@ -354,7 +354,7 @@ fn prepare(
     acq: &Acquisition,
     hu: &Volume,
     seed: u64,
-) -> Result<(tomograf_sim::acquisition::Prepared, ScatterEngine)> {
+) -> Result<(tomograf_physics::acquisition::Prepared, ScatterEngine)> {
     let mut a = acq.clone();
     a.scatter = mc(1, 0.0);
     let p = a.prepare(hu, seed)?;

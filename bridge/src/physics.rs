@@ -5,9 +5,9 @@ use crate::errors;
 use crate::volume::PyVolume;
 use numpy::{IntoPyArray, PyArrayDyn};
 use pyo3::prelude::*;
+use tomograf_physics::acquisition::{Acquisition, PRESETS};
+use tomograf_physics::detector::{Clipping, DetectorModel, Output};
 use tomograf_sim::Projector;
-use tomograf_sim::acquisition::{Acquisition, PRESETS};
-use tomograf_sim::detector::{Clipping, DetectorModel, Output};
 
 /// Names of the acquisition presets (``"ideal-drr"`` is :func:`project` itself).
 #[pyfunction]

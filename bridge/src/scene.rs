@@ -10,8 +10,8 @@ use pyo3::exceptions::{PyFileNotFoundError, PyUserWarning};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use std::path::PathBuf;
+use tomograf_physics::detector::Clipping;
 use tomograf_scene::Scene;
-use tomograf_sim::detector::Clipping;
 
 /// Renders every view of a scene: ``scene`` is the path of a TOML scene file (relative
 /// paths in it are taken from the file's folder) or a dict of the same tables (relative

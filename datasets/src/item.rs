@@ -20,7 +20,7 @@ use crate::error::{DatasetError, Result};
 use crate::preprocess::HuWindow;
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
-use tomograf_sim::acquisition::Acquisition;
+use tomograf_physics::acquisition::Acquisition;
 use tomograf_sim::{Geometry, Pose, View, Volume};
 
 /// The name of an item's record file.

@@ -83,7 +83,7 @@ pub fn mesh(ext: &str, data: &[u8]) {
 /// A user spectrum file (energy, fluence rows).
 pub fn spectrum(data: &[u8]) {
     let p = file("input.txt", data);
-    let _ = tomograf_sim::spectrum::Spectrum::from_file(&p);
+    let _ = tomograf_physics::spectrum::Spectrum::from_file(&p);
 }
 
 /// The marker that cuts an `item` input into the files of a data-set item.

@@ -7,7 +7,7 @@ use crate::render::DensityScale;
 use std::path::{Path, PathBuf};
 use tomograf_datasets::item;
 use tomograf_datasets::preprocess::HuWindow;
-use tomograf_sim::acquisition::Acquisition;
+use tomograf_physics::acquisition::Acquisition;
 use tomograf_sim::attenuation::mu_water_per_mm;
 use tomograf_sim::{Geometry, Pose, View, Volume};
 

@@ -17,9 +17,9 @@
 use crate::data::Item;
 use crate::error::{ModelError, Result, ensure};
 use serde::{Deserialize, Serialize};
+use tomograf_physics::acquisition::Acquisition;
 use tomograf_recon::scatter_correction::{correct_log, scatter_to_primary};
 use tomograf_sim::Volume;
-use tomograf_sim::acquisition::Acquisition;
 
 /// Where the object estimate of a scatter correction comes from.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]

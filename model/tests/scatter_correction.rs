@@ -5,8 +5,8 @@
 mod common;
 
 use tomograf_model::scatter_correction::correct_item;
-use tomograf_sim::acquisition::Acquisition;
-use tomograf_sim::scatter::ScatterModel;
+use tomograf_physics::acquisition::Acquisition;
+use tomograf_physics::scatter::ScatterModel;
 use tomograf_sim::{Projector, Volume};
 
 #[test]

@@ -23,7 +23,7 @@
 //! detector's blur acts on both alike and its noise has zero mean); the primary is traced
 //! with exact Siddon.
 
-use tomograf_sim::acquisition::Prepared;
+use tomograf_physics::acquisition::Prepared;
 use tomograf_sim::error::{Result, SimError};
 use tomograf_sim::geometry::View;
 use tomograf_sim::render::Projector;

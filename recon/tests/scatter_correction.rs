@@ -3,8 +3,8 @@
 //! stream and to its statistical error with another.
 
 use glam::{DMat3, DVec3};
-use tomograf_sim::acquisition::Acquisition;
-use tomograf_sim::scatter::ScatterModel;
+use tomograf_physics::acquisition::Acquisition;
+use tomograf_physics::scatter::ScatterModel;
 use tomograf_sim::*;
 
 fn water_cube() -> Volume {

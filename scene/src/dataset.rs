@@ -35,7 +35,7 @@ use tomograf_datasets::item::{self, AcquisitionRecord, ItemRecord};
 use tomograf_datasets::population::Population;
 use tomograf_datasets::preprocess::{HuWindow, crop_black_border, resample};
 use tomograf_datasets::{atomic, image, nifti};
-use tomograf_sim::acquisition::Acquisition;
+use tomograf_physics::acquisition::Acquisition;
 use tomograf_sim::attenuation::Attenuation;
 use tomograf_sim::geometry::angles;
 use tomograf_sim::{Beam, Detector, Geometry, Pose, Projector, Renderer, View};

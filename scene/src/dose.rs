@@ -1,10 +1,10 @@
 //! The scene's `[dose]` table: the absorbed dose the acquisition delivers to the CT
-//! (`tomograf_sim::scatter::dose`, docs/scatter.md, "Dose").
+//! (`tomograf_physics::scatter::dose`, docs/scatter.md, "Dose").
 
 use anyhow::{Result, bail};
 use serde::{Deserialize, Serialize};
-use tomograf_sim::acquisition::Acquisition;
-use tomograf_sim::scatter::dose::DEFAULT_DOSE_PHOTONS;
+use tomograf_physics::acquisition::Acquisition;
+use tomograf_physics::scatter::dose::DEFAULT_DOSE_PHOTONS;
 /// `[dose]`: photon histories per view (default 1 000 000).
 #[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -36,10 +36,10 @@ pub fn check(
         bail!("[dose] with mesh objects is not modelled (the Monte Carlo medium is the voxel CT)");
     }
     let n = section.photons();
-    if !(1..=tomograf_sim::scatter::MAX_PHOTONS).contains(&n) {
+    if !(1..=tomograf_physics::scatter::MAX_PHOTONS).contains(&n) {
         bail!(
             "[dose] photons = {n}; give 1 to {}",
-            tomograf_sim::scatter::MAX_PHOTONS
+            tomograf_physics::scatter::MAX_PHOTONS
         );
     }
     Ok(())

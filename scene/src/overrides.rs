@@ -5,7 +5,7 @@
 use crate::Scene;
 use crate::physics::{acquisition, scatter_model};
 use anyhow::{Result, bail};
-use tomograf_sim::acquisition::{Acquisition, SpectrumSpec};
+use tomograf_physics::acquisition::{Acquisition, SpectrumSpec};
 
 /// Named physics settings that override a scene's (every field optional; `None` keeps the
 /// scene's value). Names as in docs/physics.md, docs/detector.md and docs/scatter.md.

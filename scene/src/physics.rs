@@ -1,13 +1,13 @@
 //! Real detector physics of a scene: its `[acquisition]`, `[spectrum]`, `[materials]`,
 //! `[scatter]` and detector-model fields resolved into a
-//! [`tomograf_sim::acquisition::Acquisition`]. A scene that asks for none of it renders the
+//! [`tomograf_physics::acquisition::Acquisition`]. A scene that asks for none of it renders the
 //! ideal DRR with the monochromatic projector and pays for nothing else.
 
 use crate::Scene;
 use anyhow::{Result, bail};
-use tomograf_sim::acquisition::{Acquisition, PRESETS};
-use tomograf_sim::detector::{DetectorModel, Output};
-use tomograf_sim::scatter::ScatterModel;
+use tomograf_physics::acquisition::{Acquisition, PRESETS};
+use tomograf_physics::detector::{DetectorModel, Output};
+use tomograf_physics::scatter::ScatterModel;
 use tomograf_sim::tissue::TissueModel;
 
 /// The scatter model `--scatter NAME` and `--scatter-photons N` ask for; `None` when

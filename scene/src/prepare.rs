@@ -22,7 +22,7 @@ use crate::scene::{MeshPhysics, Scene};
 use crate::volume::{DEFAULT_ENERGY_KEV, VolumeSource, load_hu, load_mu};
 use anyhow::{Result, bail};
 use std::sync::Arc;
-use tomograf_sim::acquisition::{Acquired, Acquisition};
+use tomograf_physics::acquisition::{Acquired, Acquisition};
 use tomograf_sim::attenuation::Attenuation;
 use tomograf_sim::geometry::coverage::{Coverage, coverage};
 use tomograf_sim::mesh::MeshScene;
@@ -155,7 +155,7 @@ pub enum SceneRenderer<'a> {
     },
     /// Real detector physics, prepared once for every view, traced with `projector`.
     Physics {
-        prepared: Box<tomograf_sim::acquisition::Prepared>,
+        prepared: Box<tomograf_physics::acquisition::Prepared>,
         projector: tomograf_sim::Projector,
     },
 }

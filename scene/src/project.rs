@@ -11,8 +11,8 @@ use anyhow::{Result, bail};
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
 use tomograf_datasets::sidecar::{self, PixelQuantity};
+use tomograf_physics::detector::Clipping;
 use tomograf_sim::Projection;
-use tomograf_sim::detector::Clipping;
 
 /// What a run did.
 #[derive(Debug, Clone)]

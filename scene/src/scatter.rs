@@ -3,14 +3,14 @@
 //! writes beside its main output) and the `[scatter.anti_scatter_grid]` table
 //! ([`AntiScatterGrid`], which goes to the acquisition). Each image is the **expected**
 //! (noiseless) detector signal per channel, in the raw signal units of
-//! [`tomograf_sim::detector::ExpectedImage`] (before blur, gain and noise): `primary`,
+//! [`tomograf_physics::detector::ExpectedImage`] (before blur, gain and noise): `primary`,
 //! `compton` (single Compton), `rayleigh` (single Rayleigh), `multiple`, `scatter` (their
 //! sum) and `total` (primary + scatter).
 
 use anyhow::{Result, bail};
 use serde::de::Error as _;
 use serde::{Deserialize, Deserializer, Serialize, Serializer};
-use tomograf_sim::scatter::{AntiScatterGrid, ScatterModel};
+use tomograf_physics::scatter::{AntiScatterGrid, ScatterModel};
 /// One separate image.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]

@@ -122,8 +122,8 @@
 use anyhow::{Context, Result};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
-use tomograf_sim::acquisition::SpectrumSpec;
-use tomograf_sim::detector::DetectorModel;
+use tomograf_physics::acquisition::SpectrumSpec;
+use tomograf_physics::detector::DetectorModel;
 use tomograf_sim::tissue::TissueBin;
 
 /// A scene file: every section optional.
@@ -159,7 +159,7 @@ pub struct Scene {
 #[serde(deny_unknown_fields)]
 pub struct AcquisitionSection {
     /// "ideal-drr" (the monochromatic projector; the default), or a preset of
-    /// `tomograf_sim::acquisition::PRESETS`.
+    /// `tomograf_physics::acquisition::PRESETS`.
     pub preset: Option<String>,
     /// Seed of the detector noise (view i uses a seed derived from it and i).
     pub seed: Option<u64>,

@@ -10,10 +10,8 @@
 //! degrees. World frame: DICOM LPS (+x patient left, +y posterior, +z head).
 
 pub mod accel;
-pub mod acquisition;
 pub mod attenuation;
 pub mod composition;
-pub mod detector;
 pub mod error;
 pub mod geometry;
 pub mod material;
@@ -21,12 +19,9 @@ pub mod memory;
 pub mod mesh;
 pub mod occupancy;
 pub mod phantom;
-pub mod polychromatic;
 pub mod ray;
 pub mod render;
-pub mod scatter;
 pub mod seed;
-pub mod spectrum;
 pub mod tissue;
 pub mod trace;
 pub mod volume;

@@ -19,7 +19,7 @@
 //!   its 1st percentile over the pixels, and the pixels whose −log was floored for lack of
 //!   signal (photon starvation), in % of the AP and lateral pixels;
 //! * **blur**: the MTF50 of the detector's light spread and pixel aperture
-//!   (cycles/mm at the panel; [`tomograf_sim::detector::Blur`]) beside the panel's Nyquist
+//!   (cycles/mm at the panel; [`tomograf_physics::detector::Blur`]) beside the panel's Nyquist
 //!   frequency, 1/(2·pitch) (the items' mean pitch).
 //!
 //! A set whose line integrals move by less than [`NEGLIGIBLE_PCT`] % from its reference's is
@@ -30,11 +30,11 @@ use super::Study;
 use super::levels::DataSpec;
 use anyhow::{Context, Result};
 use serde::{Deserialize, Serialize};
+use tomograf_physics::acquisition::add_into;
+use tomograf_physics::detector::Blur;
+use tomograf_physics::scatter::ScatterModel;
 use tomograf_scene::dataset::{DatasetJob, ItemScene};
 use tomograf_scene::physics::item_seed;
-use tomograf_sim::acquisition::add_into;
-use tomograf_sim::detector::Blur;
-use tomograf_sim::scatter::ScatterModel;
 use tomograf_sim::{Geometry, Projector};
 
 /// Test items measured per set.

@@ -23,10 +23,10 @@
 //!   spectral tables), which a data-set job pays once per CT.
 
 use std::time::Instant;
-use tomograf_sim::acquisition::Acquisition;
+use tomograf_physics::acquisition::Acquisition;
+use tomograf_physics::scatter::ScatterModel;
 use tomograf_sim::error::{Result, SimError};
 use tomograf_sim::render::{Projection, Projector, Quantity, Renderer};
-use tomograf_sim::scatter::ScatterModel;
 use tomograf_sim::{View, Volume};
 
 /// What is rendered: the ideal DRR or a realistic acquisition.

@@ -22,9 +22,9 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
 use std::f64::consts::PI;
+use tomograf_physics::scatter::transport::rotate;
 use tomograf_sim::error::{Result, SimError};
 use tomograf_sim::geometry::{View, ViewBeam};
-use tomograf_sim::scatter::transport::rotate;
 use tomograf_sim::seed::frame_seed;
 
 /// Histories per batch (one random stream each).

@@ -1,5 +1,5 @@
 //! The AAPM TG-195 cases as scenes for the energy-imparted tally
-//! ([`tomograf_sim::scatter::energy_imparted`]), each run and set beside the four codes' results.
+//! ([`tomograf_physics::scatter::energy_imparted`]), each run and set beside the four codes' results.
 //!
 //! Geometry follows the open-source XRayMClib build of each case (the CSV headers in
 //! `eval/data/tg195/`), in mm, world filled with TG-195 dry air:
@@ -9,7 +9,7 @@
 //!   0.5 mm wide there) with its upstream face at 100 mm; air kerma at 1000 mm from the
 //!   photons crossing a 5 mm-radius disc, Σ w·E·(μen/ρ)_air/(A·|cos θ|), with TG-195's own
 //!   air μen/ρ table (part of the case's definition; with the NIST-based table of
-//!   `tomograf_sim::spectrum` as it was before this validation, 4 % low at 25 keV, the 100 kVp
+//!   `tomograf_physics::spectrum` as it was before this validation, 4 % low at 25 keV, the 100 kVp
 //!   ratios were +0.8 and +1.2 % off: docs/validation.md). Compared as the HVL and QVL
 //!   ratios (unit-free) and as absolute kerma in the transcription's convention
 //!   (Σ E[keV]·μen/ρ[cm²/g]·Φ[cm⁻²] / 100).
@@ -29,23 +29,23 @@
 //!   surface is right on average; the scoring cylinders are exact and scored with the
 //!   track-length estimator.
 //!
-//! Physics as [`tomograf_sim::scatter::energy_imparted`] states (no electron transport, no
+//! Physics as [`tomograf_physics::scatter::energy_imparted`] states (no electron transport, no
 //! fluorescence, Compton with S, Rayleigh with F², Elam/xraydb cross sections).
 
 use super::reference::{self, CODES, Reference};
 pub use super::tg195_case3::case3;
 use glam::{DMat3, DVec3};
 use std::sync::Arc;
-use tomograf_sim::composition::Composition;
-use tomograf_sim::error::{Result, SimError};
-use tomograf_sim::material::Material;
-use tomograf_sim::scatter::energy_imparted::{
+use tomograf_physics::scatter::energy_imparted::{
     BeamSpectrum, EnergyImparted, FluenceDisc, RegionEstimator, TallySettings,
     simulate_with_fluence,
 };
-use tomograf_sim::scatter::field::FieldSource;
-use tomograf_sim::scatter::region::Region;
-use tomograf_sim::scatter::transport::Medium;
+use tomograf_physics::scatter::field::FieldSource;
+use tomograf_physics::scatter::region::Region;
+use tomograf_physics::scatter::transport::Medium;
+use tomograf_sim::composition::Composition;
+use tomograf_sim::error::{Result, SimError};
+use tomograf_sim::material::Material;
 use tomograf_sim::volume::Volume;
 
 /// One of our figures beside the codes' results for the same quantity.

@@ -28,11 +28,11 @@
 use super::reference;
 use super::tg195::{Beam, Comparison, air, medium, pmma, regions_against, run};
 use glam::DVec3;
+use tomograf_physics::scatter::energy_imparted::RegionEstimator;
+use tomograf_physics::scatter::field::FieldSource;
+use tomograf_physics::scatter::region::Region;
 use tomograf_sim::error::{Result, SimError};
 use tomograf_sim::material::{Material, mixture};
-use tomograf_sim::scatter::energy_imparted::RegionEstimator;
-use tomograf_sim::scatter::field::FieldSource;
-use tomograf_sim::scatter::region::Region;
 
 /// VOI centres (mm from the centre of the chest-wall face), by VOI number 1–7.
 const VOIS: [[f64; 3]; 7] = [

@@ -1,7 +1,7 @@
 //! The files of the scene's `[dose]` table ([`crate::dose`]): the absorbed dose the acquisition delivers to the CT,
 //! written beside the images as `{prefix}_dose.nii.gz` (Gy, the CT's grid, all views) and
 //! `{prefix}_dose.json` (per view: energy imparted and source photons; totals).
-//! The Monte Carlo is `tomograf_sim::scatter::dose` (docs/scatter.md, "Dose").
+//! The Monte Carlo is `tomograf_physics::scatter::dose` (docs/scatter.md, "Dose").
 
 use super::Outputs;
 use crate::dose::DoseSection;
@@ -11,7 +11,7 @@ use anyhow::{Context, Result, bail};
 use std::io::Write as _;
 use tomograf_datasets::atomic::write_atomic;
 use tomograf_datasets::nifti::write_nifti;
-use tomograf_sim::acquisition::Acquisition;
+use tomograf_physics::acquisition::Acquisition;
 use tomograf_sim::geometry::View;
 use tomograf_sim::volume::Volume;
 

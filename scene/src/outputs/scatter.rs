@@ -5,7 +5,7 @@
 //! two keys of its own: `images` (which separate images to write) and the
 //! `[scatter.anti_scatter_grid]` table ([`AntiScatterGrid`], which goes to the
 //! acquisition). Each image is the **expected** (noiseless) detector signal per channel,
-//! in the raw signal units of [`tomograf_sim::detector::ExpectedImage`] (before blur, gain
+//! in the raw signal units of [`tomograf_physics::detector::ExpectedImage`] (before blur, gain
 //! and noise): `primary`, `compton` (single Compton), `rayleigh` (single Rayleigh),
 //! `multiple`, `scatter` (their sum) and `total` (primary + scatter). They are written as
 //! `{prefix}_{image}_NNN.<ext>`, `{prefix}_{image}.npy` and `{prefix}_{image}.json` (with
@@ -15,9 +15,9 @@ use super::Outputs;
 use crate::scatter::ScatterImage;
 use anyhow::Result;
 use tomograf_datasets::sidecar::{PixelQuantity, Sidecar};
+use tomograf_physics::acquisition::{Acquired, add_into};
+use tomograf_physics::detector::ExpectedImage;
 use tomograf_sim::Projection;
-use tomograf_sim::acquisition::{Acquired, add_into};
-use tomograf_sim::detector::ExpectedImage;
 
 /// The writers of the separate images of a run, and the stacks they collect.
 pub struct ScatterWriters {

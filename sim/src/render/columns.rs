@@ -40,7 +40,7 @@ pub(super) struct KFastest {
 /// other renderers over the same volume ([`super::Renderer::with_column_copy`]), so that a
 /// job that makes a renderer per view pays for the copy once.
 #[derive(Clone, Debug)]
-pub(crate) struct ColumnCopy(pub(super) Arc<KFastest>);
+pub struct ColumnCopy(pub(super) Arc<KFastest>);
 
 impl ColumnCopy {
     /// Whether this is the copy of `volume`'s values (the same values in memory).

@@ -10,7 +10,7 @@ mod meshes;
 mod sheets;
 mod sums;
 
-pub(crate) use columns::ColumnCopy;
+pub use columns::ColumnCopy;
 pub use image::Projection;
 pub use sums::{LineIntegrals, MassThicknesses, Sums};
 
@@ -126,7 +126,7 @@ impl Quantity {
 }
 
 /// Per-pixel mass thickness of each material of a [`Composition`]: ∫ρ_m ds in g/cm²,
-/// the input of polychromatic integration (`crate::polychromatic`).
+/// the input of polychromatic integration (`tomograf_physics::polychromatic`).
 #[derive(Debug, Clone, PartialEq)]
 pub struct MassThickness {
     /// Image height.
@@ -413,9 +413,9 @@ impl<'a, S: Sums> Renderer<'a, S> {
 
     /// The k-fastest copy this renderer traces columns over, if it made one
     /// ([`Renderer::with_column_sheets`], [`Renderer::for_views`]), for other renderers over
-    /// the same volume ([`Renderer::with_column_copy`]; within the crate, where the copy's
-    /// holder also owns the volume: [`crate::acquisition::Prepared`]).
-    pub(crate) fn column_copy(&self) -> Option<ColumnCopy> {
+    /// the same volume ([`Renderer::with_column_copy`]; e.g. tomograf-physics, where the copy's
+    /// holder also owns the volume: `tomograf_physics::acquisition::Prepared`).
+    pub fn column_copy(&self) -> Option<ColumnCopy> {
         self.columns.clone().map(ColumnCopy)
     }
 
@@ -423,7 +423,7 @@ impl<'a, S: Sums> Renderer<'a, S> {
     /// renderer's volume ([`Renderer::column_copy`]), instead of making one; a copy of
     /// another volume, or `None`, leaves the renderer as it is, as does a renderer that
     /// cannot take column sheets ([`Renderer::with_column_sheets`]).
-    pub(crate) fn with_column_copy(mut self, copy: Option<&ColumnCopy>) -> Self {
+    pub fn with_column_copy(mut self, copy: Option<&ColumnCopy>) -> Self {
         if let Some(c) = copy.filter(|c| c.of(self.mu) && self.column_sheets_possible()) {
             self.columns = Some(c.0.clone());
         }

@@ -1,0 +1,411 @@
+//! The Monte Carlo run of one view: photons from the source aimed over the detector,
+//! batches with their own random streams, forced detection at every collision, and the
+//! separate images (single Compton, single Rayleigh, multiple).
+//!
+//! Source sampling: a photon's energy is drawn from the spectrum (photons per bin) and its
+//! direction uniformly over the area of a pixel drawn with probability ∝ its exposure
+//! factor ([`crate::polychromatic::pixel_exposure_factor`]), so every photon carries the
+//! same weight `mAs · Σ_b N_b · Σ_p f_p / photons` and the images come out in the primary's
+//! units. Photons emitted outside the detector's solid angle are not followed (their
+//! scatter into the panel is missed; the collimated field is the panel).
+//!
+//! Variance reduction: implicit capture (a photoelectric collision multiplies the weight
+//! by 1 − P_photo instead of ending the history) and Russian roulette below 5 % of the
+//! starting weight (survival ½, weight doubled) — both unbiased.
+//!
+//! Determinism: photons are split into batches of [`BATCH`]; batch `b` draws from a
+//! ChaCha8 stream seeded by SplitMix64(seed, b), and batch tallies are summed in batch
+//! order, so the bytes do not depend on the thread count.
+
+use super::anti_scatter_grid::{AntiScatterGrid, GridTransmission};
+use super::detection_grid::DetectionGrid;
+use super::estimate::smooth;
+use super::estimator::{Component, Response, ScoreGrid, Tally, score, to_image};
+use super::transport::{E_CUTOFF_KEV, Medium};
+use super::{MAX_GRID, MAX_PHOTONS, ScatterModel};
+use crate::detector::ExpectedImage;
+use crate::polychromatic::pixel_exposure_factor;
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use rayon::prelude::*;
+use std::sync::{Arc, Mutex};
+use tomograf_sim::error::{Result, SimError};
+use tomograf_sim::geometry::{View, ViewBeam};
+use tomograf_sim::seed::frame_seed;
+
+/// Photon histories per batch (one random stream each).
+pub const BATCH: u64 = 256;
+/// Russian roulette threshold, as a fraction of the starting weight.
+const ROULETTE: f64 = 0.05;
+
+/// Detection grids by cell size (the size's bits).
+type DetectionGrids = Vec<(u64, Arc<DetectionGrid>)>;
+
+/// A medium, a beam and a detector response, ready to simulate views.
+#[derive(Debug, Clone)]
+pub struct ScatterEngine {
+    medium: Medium,
+    response: Response,
+    energies_kev: Vec<f64>,
+    /// Cumulative photons per bin (photons per mAs per mm² at 1 m).
+    cdf: Vec<f64>,
+    mas: f64,
+    /// The anti-scatter grid every scored photon crosses, if any.
+    anti_scatter: Option<GridTransmission>,
+    /// Detection grids made so far, by cell size (mm, as bits): made once per volume and
+    /// shared by every view that asks for the same size.
+    detection: Arc<Mutex<DetectionGrids>>,
+}
+
+/// Scatter images of one view: expected detector signal, same layout and units as the
+/// primary's [`ExpectedImage`].
+#[derive(Debug, Clone)]
+pub struct ScatterImages {
+    /// Photons scattered once, by Compton.
+    pub single_compton: ExpectedImage,
+    /// Photons scattered once, by Rayleigh.
+    pub single_rayleigh: ExpectedImage,
+    /// Photons scattered two or more times.
+    pub multiple: ExpectedImage,
+    /// Scoring grid (rows, cols).
+    pub grid: (usize, usize),
+    /// Channel 0's total scatter at each grid point, row-major.
+    pub grid_mean: Vec<f64>,
+    /// Its Monte Carlo standard error (from the spread of batch tallies), same units;
+    /// infinite with fewer than two batches.
+    pub grid_standard_error: Vec<f64>,
+}
+
+impl ScatterImages {
+    /// The sum of the three components.
+    pub fn total(&self) -> ExpectedImage {
+        let mut t = self.single_compton.clone();
+        for other in [&self.single_rayleigh, &self.multiple] {
+            t.mean
+                .iter_mut()
+                .zip(&other.mean)
+                .for_each(|(a, b)| *a += b);
+            t.second_moment
+                .iter_mut()
+                .zip(&other.second_moment)
+                .for_each(|(a, b)| *a += b);
+        }
+        t
+    }
+}
+
+impl ScatterEngine {
+    /// An engine for `medium` with a beam (`energies_kev`, photons per bin per mAs per mm²
+    /// at 1 m), `mas` per view, and the detector `response` on the medium's 1 keV grid.
+    pub fn new(
+        medium: Medium,
+        response: Response,
+        energies_kev: Vec<f64>,
+        photons: &[f64],
+        mas: f64,
+    ) -> Result<Self> {
+        let bad = |m: String| Err(SimError::OutOfRange(m));
+        if energies_kev.is_empty() || energies_kev.len() != photons.len() {
+            return bad("scatter: the spectrum has no bins or mismatched counts".into());
+        }
+        if photons.iter().any(|p| !(p.is_finite() && *p >= 0.0)) || !(mas.is_finite() && mas > 0.0)
+        {
+            return bad("scatter: spectrum counts must be finite and ≥ 0 and mAs > 0".into());
+        }
+        if let Some(e) = energies_kev
+            .iter()
+            .find(|e| !(E_CUTOFF_KEV..=medium.e_max_kev()).contains(*e))
+        {
+            return bad(format!(
+                "scatter: spectrum energy {e} keV outside the medium's tables (1–{} keV)",
+                medium.e_max_kev()
+            ));
+        }
+        if response.mean.is_empty() {
+            return bad("scatter: the detector has no channels".into());
+        }
+        let mut cdf = Vec::with_capacity(photons.len());
+        let mut acc = 0.0;
+        for p in photons {
+            acc += p;
+            cdf.push(acc);
+        }
+        if acc <= 0.0 {
+            return bad("scatter: the spectrum holds no photons".into());
+        }
+        Ok(Self {
+            medium,
+            response,
+            energies_kev,
+            cdf,
+            mas,
+            anti_scatter: None,
+            detection: Arc::default(),
+        })
+    }
+
+    /// The same engine with an anti-scatter grid in front of the detector (`None`: none).
+    pub fn with_anti_scatter_grid(mut self, grid: Option<&AntiScatterGrid>) -> Result<Self> {
+        self.anti_scatter = grid
+            .map(|g| g.tabulate(self.medium.e_max_kev()))
+            .transpose()?;
+        Ok(self)
+    }
+
+    /// The same engine with majorants per brick of `size³` voxels or one global majorant
+    /// (`None`): see [`Medium::with_majorant_bricks`].
+    pub fn with_majorant_bricks(mut self, size: Option<usize>) -> Result<Self> {
+        self.medium = self.medium.with_majorant_bricks(size)?;
+        Ok(self)
+    }
+
+    /// The medium.
+    pub fn medium(&self) -> &Medium {
+        &self.medium
+    }
+
+    /// The detection grid of cells of about `cell_mm` (`None` for 0: full resolution),
+    /// made on first use and kept for later views.
+    pub fn detection_grid(&self, cell_mm: f64) -> Result<Option<Arc<DetectionGrid>>> {
+        if cell_mm == 0.0 {
+            return Ok(None);
+        }
+        let mut made = self.detection.lock().unwrap_or_else(|e| e.into_inner());
+        if let Some((_, g)) = made.iter().find(|(k, _)| *k == cell_mm.to_bits()) {
+            return Ok(Some(g.clone()));
+        }
+        let g = Arc::new(DetectionGrid::new(self.medium.composition(), cell_mm)?);
+        made.push((cell_mm.to_bits(), g.clone()));
+        Ok(Some(g))
+    }
+
+    /// Scatter images of `view` as `model` asks (`None` for [`ScatterModel::None`]).
+    pub fn run(
+        &self,
+        model: &ScatterModel,
+        view: &View,
+        seed: u64,
+    ) -> Result<Option<ScatterImages>> {
+        model.validate()?;
+        let (photons, grid, max_order, smoothing, cell_mm) = match *model {
+            ScatterModel::None => return Ok(None),
+            ScatterModel::Estimate {
+                photons,
+                grid,
+                smoothing,
+                detection_cell_mm,
+            } => (photons, grid, 50, smoothing, detection_cell_mm),
+            ScatterModel::MonteCarlo {
+                photons,
+                grid,
+                max_order,
+                detection_cell_mm,
+            } => (photons, grid, max_order, 0.0, detection_cell_mm),
+        };
+        let detection = self.detection_grid(cell_mm)?;
+        self.simulate_through(
+            view,
+            view,
+            photons,
+            grid,
+            max_order,
+            smoothing,
+            detection.as_deref(),
+            seed,
+        )
+        .map(Some)
+    }
+
+    /// The Monte Carlo: `photons` histories aimed over `aim`'s pixels, scored on a grid of
+    /// at most `grid` × `grid` points of `view` (then interpolated to its pixels), at most
+    /// `max_order` scatters each; the grid smoothed by σ = `smoothing` cells (0: none).
+    /// Forced detection traces through the full-resolution composition.
+    #[allow(clippy::too_many_arguments)]
+    pub fn simulate(
+        &self,
+        aim: &View,
+        view: &View,
+        photons: u64,
+        grid: usize,
+        max_order: u32,
+        smoothing: f64,
+        seed: u64,
+    ) -> Result<ScatterImages> {
+        self.simulate_through(aim, view, photons, grid, max_order, smoothing, None, seed)
+    }
+
+    /// [`ScatterEngine::simulate`] with forced detection traced through `detection`
+    /// (`None`: the full-resolution composition).
+    #[allow(clippy::too_many_arguments)]
+    pub fn simulate_through(
+        &self,
+        aim: &View,
+        view: &View,
+        photons: u64,
+        grid: usize,
+        max_order: u32,
+        smoothing: f64,
+        detection: Option<&DetectionGrid>,
+        seed: u64,
+    ) -> Result<ScatterImages> {
+        aim.validate()?;
+        view.validate()?;
+        let ViewBeam::Cone { source } = aim.beam else {
+            return Err(SimError::InvalidGeometry(
+                "scatter needs a cone beam (a point source); this view is parallel".into(),
+            ));
+        };
+        if !(1..=MAX_PHOTONS).contains(&photons) || !(1..=MAX_GRID).contains(&grid) {
+            return Err(SimError::OutOfRange(format!(
+                "scatter: photons = {photons} (1 to {MAX_PHOTONS}), grid = {grid} (1 to {MAX_GRID})"
+            )));
+        }
+        if max_order == 0 {
+            return Err(SimError::OutOfRange(
+                "scatter: max_order must be ≥ 1".into(),
+            ));
+        }
+        let mut pix_cdf = Vec::with_capacity(aim.rows * aim.cols);
+        let mut f_tot = 0.0;
+        for r in 0..aim.rows {
+            for c in 0..aim.cols {
+                f_tot += pixel_exposure_factor(aim, r, c);
+                pix_cdf.push(f_tot);
+            }
+        }
+        let n_tot = *self.cdf.last().expect("non-empty");
+        let w0 = self.mas * n_tot * f_tot / photons as f64;
+        let sgrid = ScoreGrid::new(view, grid);
+        let channels = self.response.channels();
+        let batches = photons.div_ceil(BATCH);
+        let tallies: Vec<Tally> = (0..batches)
+            .into_par_iter()
+            .map(|b| {
+                let mut rng = ChaCha8Rng::seed_from_u64(frame_seed(seed, b));
+                let mut tally = Tally::new(channels, sgrid.len());
+                let n = BATCH.min(photons - b * BATCH);
+                for _ in 0..n {
+                    let u = rng.random::<f64>() * f_tot;
+                    let p = pix_cdf.partition_point(|&c| c <= u).min(pix_cdf.len() - 1);
+                    let (r, c) = ((p / aim.cols) as f64, (p % aim.cols) as f64);
+                    let target = aim
+                        .pixel_centre(r + rng.random::<f64>() - 0.5, c + rng.random::<f64>() - 0.5);
+                    let u = rng.random::<f64>() * n_tot;
+                    let k = self
+                        .cdf
+                        .partition_point(|&c| c <= u)
+                        .min(self.cdf.len() - 1);
+                    let e = self.energies_kev[k];
+                    self.history(
+                        source,
+                        (target - source).normalize(),
+                        e,
+                        w0,
+                        max_order,
+                        &sgrid,
+                        detection,
+                        &mut tally,
+                        &mut rng,
+                    );
+                }
+                tally
+            })
+            .collect();
+        let mut sum = Tally::new(channels, sgrid.len());
+        for t in &tallies {
+            sum.add(t);
+        }
+        let grid_mean = sum.total0();
+        let grid_standard_error = if tallies.len() < 2 {
+            vec![f64::INFINITY; grid_mean.len()]
+        } else {
+            let nb = tallies.len() as f64;
+            let mut ss = vec![0.0; grid_mean.len()];
+            for t in &tallies {
+                for (s, (x, m)) in ss.iter_mut().zip(t.total0().iter().zip(&grid_mean)) {
+                    *s += (x - m / nb).powi(2);
+                }
+            }
+            ss.iter().map(|s| (s * nb / (nb - 1.0)).sqrt()).collect()
+        };
+        if smoothing > 0.0 {
+            let pts = sgrid.len();
+            for chunk in sum.mean.chunks_mut(pts).chain(sum.second.chunks_mut(pts)) {
+                smooth(chunk, sgrid.rows, sgrid.cols, smoothing);
+            }
+        }
+        let blank = ExpectedImage {
+            rows: view.rows,
+            cols: view.cols,
+            channels,
+            pitch_u_mm: view.u.length(),
+            pitch_v_mm: view.v.length(),
+            mean: vec![0.0; channels * view.rows * view.cols],
+            second_moment: vec![0.0; channels * view.rows * view.cols],
+        };
+        let image = |c: Component| {
+            let mut im = blank.clone();
+            to_image(&sgrid, &sum, c as usize, &mut im);
+            im
+        };
+        Ok(ScatterImages {
+            single_compton: image(Component::SingleCompton),
+            single_rayleigh: image(Component::SingleRayleigh),
+            multiple: image(Component::Multiple),
+            grid: (sgrid.rows, sgrid.cols),
+            grid_mean,
+            grid_standard_error,
+        })
+    }
+
+    /// One history with forced detection at each collision.
+    #[allow(clippy::too_many_arguments)]
+    fn history<R: Rng>(
+        &self,
+        mut p: glam::DVec3,
+        mut d: glam::DVec3,
+        mut e: f64,
+        w0: f64,
+        max_order: u32,
+        grid: &ScoreGrid,
+        detection: Option<&DetectionGrid>,
+        tally: &mut Tally,
+        rng: &mut R,
+    ) {
+        let mut w = w0;
+        let mut order = 0;
+        while order < max_order {
+            let Some(c) = self.medium.fly(p, d, e, rng) else {
+                return;
+            };
+            score(
+                &self.medium,
+                detection,
+                grid,
+                &self.response,
+                self.anti_scatter.as_ref(),
+                &c,
+                d,
+                w,
+                order,
+                tally,
+            );
+            w *= 1.0 - c.p_photo;
+            let (nd, ne, _) = self.medium.scatter(&c, d, rng);
+            order += 1;
+            if ne < E_CUTOFF_KEV {
+                return;
+            }
+            if w < ROULETTE * w0 {
+                if rng.random::<f64>() < 0.5 {
+                    w *= 2.0;
+                } else {
+                    return;
+                }
+            }
+            p = c.position;
+            d = nd;
+            e = ne;
+        }
+    }
+}

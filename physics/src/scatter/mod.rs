@@ -1,0 +1,237 @@
+//! Scattered radiation: Monte Carlo photon transport through the patient's composition with
+//! forced detection, and a fast estimate of it.
+//!
+//! * [`anti_scatter_grid`] — the focused linear grid's transmission for primary and scatter;
+//! * [`cross_sections`] — where a scattered photon goes (KN × S, Thomson × F²);
+//! * [`interaction_table`] — a material's cross sections as the transport reads them
+//!   (log–log between knots at every keV and at the absorption edges);
+//! * [`majorant`] — per-brick majorants for Woodcock tracking;
+//! * [`transport`] — Woodcock tracking and interaction sampling in the voxel composition;
+//! * [`estimator`] — the point-detector (forced detection) estimator on a coarse grid;
+//! * [`engine`] — photons from the source, batches, seeds, the separate images;
+//! * [`field`] — a point source collimated to a rectangular field;
+//! * [`region`] — analytic scoring regions (boxes, cylinders);
+//! * [`energy_imparted`] — the energy-imparted (dose) tally per voxel and region;
+//! * [`dose`] — an acquisition's absorbed dose (Gy), view by view;
+//! * [`estimate`] — the fast estimate (coarse, few photons, smoothed);
+//!
+//! The scatter images are expected detector signal (mean and second moment per channel),
+//! in the same units as the primary's [`crate::detector::ExpectedImage`], so the
+//! acquisition adds them before the detector records (see docs/scatter.md).
+
+pub mod anti_scatter_grid;
+pub mod cross_sections;
+pub mod detection_grid;
+pub mod dose;
+pub mod energy_imparted;
+pub mod engine;
+pub mod estimate;
+pub mod estimator;
+pub mod field;
+pub mod interaction_table;
+pub mod majorant;
+pub mod region;
+pub mod transport;
+
+pub use anti_scatter_grid::AntiScatterGrid;
+pub use engine::{ScatterEngine, ScatterImages};
+
+use serde::{Deserialize, Serialize};
+use tomograf_sim::error::{Result, SimError};
+
+/// How scatter is modelled (a scene's `[scatter]` table, `model = "none" | "estimate" |
+/// "monte-carlo"`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, Default)]
+#[serde(tag = "model", rename_all = "kebab-case", deny_unknown_fields)]
+pub enum ScatterModel {
+    /// No scatter (costs nothing).
+    #[default]
+    None,
+    /// The fast estimate: a coarse Monte Carlo with few photons, smoothed.
+    #[serde(rename_all = "snake_case")]
+    Estimate {
+        /// Photon histories (default 2 000).
+        #[serde(default = "default_estimate_photons")]
+        photons: u64,
+        /// Scoring points per detector side (default 8).
+        #[serde(default = "default_estimate_grid")]
+        grid: usize,
+        /// Gaussian smoothing of the coarse grid, σ in grid cells (default 1).
+        #[serde(default = "default_smoothing")]
+        smoothing: f64,
+        /// Forced detection's paths traced through cells of about this size (mm), the
+        /// volume's voxels merged ([`detection_grid`]; default 8); 0: the full resolution.
+        #[serde(default = "default_estimate_cell")]
+        detection_cell_mm: f64,
+    },
+    /// Full Monte Carlo with forced detection.
+    #[serde(rename_all = "snake_case")]
+    MonteCarlo {
+        /// Photon histories per view (default 100 000).
+        #[serde(default = "default_photons")]
+        photons: u64,
+        /// Scoring points per detector side, interpolated to every pixel (default 16).
+        #[serde(default = "default_grid")]
+        grid: usize,
+        /// Most scatters followed per history (default 50).
+        #[serde(default = "default_max_order")]
+        max_order: u32,
+        /// Forced detection's paths traced through cells of about this size (mm), the
+        /// volume's voxels merged ([`detection_grid`]); 0 (the default): the full
+        /// resolution.
+        #[serde(default)]
+        detection_cell_mm: f64,
+    },
+}
+
+fn default_estimate_photons() -> u64 {
+    2_000
+}
+fn default_estimate_grid() -> usize {
+    8
+}
+fn default_smoothing() -> f64 {
+    1.0
+}
+fn default_estimate_cell() -> f64 {
+    8.0
+}
+fn default_photons() -> u64 {
+    100_000
+}
+fn default_grid() -> usize {
+    16
+}
+fn default_max_order() -> u32 {
+    50
+}
+
+/// Most photons per view a scene may ask for (beyond it a run would take hours).
+pub const MAX_PHOTONS: u64 = 1_000_000_000;
+/// Most scoring points per side.
+pub const MAX_GRID: usize = 512;
+/// Largest cell of the detection grid, mm.
+pub const MAX_DETECTION_CELL_MM: f64 = 100.0;
+
+impl ScatterModel {
+    /// The full Monte Carlo with its default settings (100 000 photons, 16² scoring
+    /// points, 50 orders).
+    pub fn monte_carlo_default() -> Self {
+        ScatterModel::MonteCarlo {
+            photons: default_photons(),
+            grid: default_grid(),
+            max_order: default_max_order(),
+            detection_cell_mm: 0.0,
+        }
+    }
+
+    /// The fast estimate with its default settings (2 000 photons, 8² points, σ 1 cell,
+    /// forced detection through 8 mm cells; chosen on a validation phantom, docs/scatter.md
+    /// "Scatter at data-set speed").
+    pub fn estimate_default() -> Self {
+        ScatterModel::Estimate {
+            photons: default_estimate_photons(),
+            grid: default_estimate_grid(),
+            smoothing: default_smoothing(),
+            detection_cell_mm: default_estimate_cell(),
+        }
+    }
+
+    /// Checks the settings, naming the bad one.
+    pub fn validate(&self) -> Result<()> {
+        let bad = |m: String| Err(SimError::OutOfRange(format!("[scatter] {m}")));
+        let (photons, grid, cell) = match *self {
+            ScatterModel::None => return Ok(()),
+            ScatterModel::Estimate {
+                photons,
+                grid,
+                smoothing,
+                detection_cell_mm,
+            } => {
+                if !(smoothing.is_finite() && (0.0..=100.0).contains(&smoothing)) {
+                    return bad(format!(
+                        "smoothing = {smoothing}; give a σ in grid cells in 0–100"
+                    ));
+                }
+                (photons, grid, detection_cell_mm)
+            }
+            ScatterModel::MonteCarlo {
+                photons,
+                grid,
+                max_order,
+                detection_cell_mm,
+            } => {
+                if max_order == 0 {
+                    return bad("max_order = 0; give ≥ 1 (1: single scatter only)".into());
+                }
+                (photons, grid, detection_cell_mm)
+            }
+        };
+        if !(cell.is_finite() && (0.0..=MAX_DETECTION_CELL_MM).contains(&cell)) {
+            return bad(format!(
+                "detection_cell_mm = {cell}; give a cell size in 0–{MAX_DETECTION_CELL_MM} mm (0: full resolution)"
+            ));
+        }
+        if !(1..=MAX_PHOTONS).contains(&photons) {
+            return bad(format!("photons = {photons}; give 1 to {MAX_PHOTONS}"));
+        }
+        if !(1..=MAX_GRID).contains(&grid) {
+            return bad(format!(
+                "grid = {grid}; give 1 to {MAX_GRID} points per side"
+            ));
+        }
+        Ok(())
+    }
+
+    /// Whether scatter is modelled at all.
+    pub fn is_none(&self) -> bool {
+        matches!(self, ScatterModel::None)
+    }
+
+    /// Photon histories per view (`None` without scatter).
+    pub fn photons(&self) -> Option<u64> {
+        match self {
+            ScatterModel::None => None,
+            ScatterModel::Estimate { photons, .. } | ScatterModel::MonteCarlo { photons, .. } => {
+                Some(*photons)
+            }
+        }
+    }
+
+    /// The same model with `n` photon histories (no change without scatter).
+    pub fn with_photons(mut self, n: u64) -> Self {
+        if let ScatterModel::Estimate { photons, .. } | ScatterModel::MonteCarlo { photons, .. } =
+            &mut self
+        {
+            *photons = n;
+        }
+        self
+    }
+
+    /// Forced detection's cell size, mm (0: full resolution, and without scatter).
+    pub fn detection_cell_mm(&self) -> f64 {
+        match self {
+            ScatterModel::None => 0.0,
+            ScatterModel::Estimate {
+                detection_cell_mm, ..
+            }
+            | ScatterModel::MonteCarlo {
+                detection_cell_mm, ..
+            } => *detection_cell_mm,
+        }
+    }
+
+    /// The same model with forced detection through cells of `mm` (0: full resolution).
+    pub fn with_detection_cell_mm(mut self, mm: f64) -> Self {
+        if let ScatterModel::Estimate {
+            detection_cell_mm, ..
+        }
+        | ScatterModel::MonteCarlo {
+            detection_cell_mm, ..
+        } = &mut self
+        {
+            *detection_cell_mm = mm;
+        }
+        self
+    }
+}
