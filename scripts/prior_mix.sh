@@ -1,0 +1,126 @@
+#!/usr/bin/env bash
+# A prior that transfers to real anatomy, second try (docs/model.md, "On real CTs"): the
+# shipped checkpoint's recipe (`small`, 5000 iterations, 64³, 36 views + AP + lateral, ideal
+# DRRs) trained on a population that spans real chests' shapes — the 32 `lidc` phantoms the
+# shipped checkpoint saw and 32 `full-chest` phantoms (seeds 300000…: arms, neck, the whole
+# chest wall; bodies fill 47–61 % of the grid, a real chest CT's 60.5 % inside that range,
+# docs/real-ct/populations.md) — against the shipped checkpoint, on validation phantoms only:
+#
+#   val-lidc   lidc phantoms (seeds 70000…), the demo's test protocol (kv-flat-panel-120kvp)
+#   val-shape  the same phantoms with shape augmentation (seed 7): rolled, tilted, tapering and
+#              drifting bodies
+#   val-fc     full-chest phantoms (seeds 80000…, none of them trained on)
+#
+# scored from 1 and 2 views; each model's mean volume, SART-TV from it and PCA-MAP from its own
+# training set. The rule, fixed before any score was read: the model with the higher mean
+# TomoGRAF body PSNR over the three sets and both view counts. No real CT is used here.
+#
+#   scripts/prior_mix.sh [OUT] [N]     # N validation phantoms per set (default 6);
+#                                      # ≈ 40 min of training and 60 of scoring on 2 cores
+set -euo pipefail
+cd "$(dirname "$0")/.."
+out=${1:-prior-mix}
+n=${2:-6}
+mkdir -p "$out"
+cargo build --release --quiet
+bin=$PWD/target/release/tomograf
+export MIMALLOC_PURGE_DELAY=-1
+$bin dataset -o "$out/train-lidc" --phantoms 32 --size 64 --views 36 --profile lidc --split train
+$bin dataset -o "$out/train-fc" --phantoms 32 --seed 300000 --size 64 --views 36 \
+    --profile full-chest --split train
+# One training set of both: the full-chest items follow the lidc ones as 00032…00063.
+if [ ! -f "$out/train-mix/manifest.jsonl" ]; then
+    rm -rf "$out/train-mix.partial"
+    python3 - "$out" <<'EOF'
+import json, pathlib, shutil, sys
+out = pathlib.Path(sys.argv[1])
+dst = out / "train-mix.partial"
+dst.mkdir()
+lines = []
+for src in ["train-lidc", "train-fc"]:
+    for line in (out / src / "manifest.jsonl").read_text().splitlines():
+        if not line.strip():
+            continue
+        rec = json.loads(line)
+        new = f"{len(lines):05d}"
+        shutil.copytree(out / src / rec["id"], dst / new)
+        item = json.loads((dst / new / "item.json").read_text())
+        for r in (rec, item):
+            r["id"], r["index"] = new, len(lines)
+        (dst / new / "item.json").write_text(json.dumps(item))
+        lines.append(json.dumps(rec))
+(dst / "manifest.jsonl").write_text("\n".join(lines) + "\n")
+EOF
+    mv "$out/train-mix.partial" "$out/train-mix"
+fi
+$bin train "$out/train-mix" -o "$out/runs/mix" --config small --iterations 5000 --resume
+# Inference as the shipped checkpoint's (its [infer] section: the gate's check interval and
+# the left-out start from two views were chosen on validation for it): the two models then
+# differ only in what they were trained on.
+python3 - "$out/runs/mix/checkpoint/config.toml" model/checkpoints/demo/config.toml <<'EOF2'
+import sys
+mine, shipped = (open(p).read() for p in sys.argv[1:3])
+head = lambda t: t[: t.index("[infer]")]
+assert head(mine) == head(shipped), "the training settings differ from the shipped checkpoint's"
+open(sys.argv[1], "w").write(shipped)
+EOF2
+$bin dataset -o "$out/val-lidc" --phantoms "$n" --seed 70000 --size 64 --views 10 --profile lidc \
+    --split val --preset kv-flat-panel-120kvp
+$bin dataset -o "$out/val-shape" --phantoms "$n" --seed 70000 --size 64 --views 10 --profile lidc \
+    --split val --preset kv-flat-panel-120kvp --augment 7
+$bin dataset -o "$out/val-fc" --phantoms "$n" --seed 80000 --size 64 --views 10 \
+    --profile full-chest --split val --preset kv-flat-panel-120kvp
+for model in shipped mix; do
+    case $model in
+        shipped) ck=model/checkpoints/demo; train=$out/train-lidc ;;
+        mix) ck=$out/runs/mix/checkpoint; train=$out/train-mix ;;
+    esac
+    for v in val-lidc val-shape val-fc; do
+        [ -f "$out/eval-$model-$v/results.csv" ] && continue
+        $bin evaluate "$out/$v" --checkpoint "$ck" --train-data "$train" --views 1,2 \
+            --no-baselines -o "$out/eval-$model-$v"
+    done
+done
+python3 - "$out" <<'EOF'
+import csv, sys, pathlib, statistics
+out = pathlib.Path(sys.argv[1])
+models, sets = ["shipped", "mix"], ["val-lidc", "val-shape", "val-fc"]
+rows = {}
+for model in models:
+    for v in sets:
+        with open(out / f"eval-{model}-{v}" / "results.csv") as f:
+            for r in csv.DictReader(f):
+                rows.setdefault((model, v, r["views"], r["method"]), []).append(r)
+def vals(model, v, views, method, key):
+    return [float(r[key]) for r in rows.get((model, v, views, method), [])]
+def mean(*a):
+    x = vals(*a)
+    return statistics.mean(x) if x else float("nan")
+lines = ["| model | set | views | method | PSNR (dB) | SSIM | body PSNR (dB) | body SSIM |",
+         "|---|---|---:|---|---:|---:|---:|---:|"]
+methods = ["TomoGRAF", "TomoGRAF (network only)", "mean training volume", "SART-TV from the mean",
+           "PCA-MAP prior"]
+for model in models:
+    for v in sets:
+        for views in ["1", "2"]:
+            for m in methods:
+                x = [mean(model, v, views, m, k) for k in ["psnr_db", "ssim", "body_psnr_db", "body_ssim"]]
+                lines.append(f"| {model} | {v} | {views} | {m} | " + " | ".join(
+                    f"{y:.3f}" if k % 2 else f"{y:.2f}" for k, y in enumerate(x)) + " |")
+lines += ["", "Paired difference mix − shipped, TomoGRAF body PSNR (dB, mean ± 95 % t-interval over the phantoms):", ""]
+t95 = {2: 12.71, 3: 4.30, 4: 3.18, 5: 2.78, 6: 2.57, 7: 2.45, 8: 2.36}
+for v in sets:
+    for views in ["1", "2"]:
+        a = {r["item"]: float(r["body_psnr_db"]) for r in rows[("shipped", v, views, "TomoGRAF")]}
+        b = {r["item"]: float(r["body_psnr_db"]) for r in rows[("mix", v, views, "TomoGRAF")]}
+        d = [b[k] - a[k] for k in sorted(a) if k in b]
+        h = t95.get(len(d), 2.0) * statistics.stdev(d) / len(d) ** 0.5 if len(d) > 1 else float("nan")
+        lines.append(f"- {v}, {views} view(s): {statistics.mean(d):+.2f} ± {h:.2f} (n = {len(d)})")
+score = {m: statistics.mean(mean(m, v, views, "TomoGRAF", "body_psnr_db")
+                            for v in sets for views in ["1", "2"]) for m in models}
+lines += ["", "Rule: mean TomoGRAF body PSNR over the three sets, 1 and 2 views: "
+          + ", ".join(f"{m} {s:.2f} dB" for m, s in score.items())
+          + f" → **{max(score, key=score.get)}**."]
+(out / "validation.md").write_text("\n".join(lines) + "\n")
+print("\n".join(lines))
+EOF
