@@ -415,6 +415,10 @@ impl<'a, S: Sums> Renderer<'a, S> {
     /// ([`Renderer::with_column_sheets`], [`Renderer::for_views`]), for other renderers over
     /// the same volume ([`Renderer::with_column_copy`]; e.g. tomograf-physics, where the copy's
     /// holder also owns the volume: `tomograf_physics::acquisition::Prepared`).
+    ///
+    /// Contract: the copy knows its volume by the address and length of its values, so a
+    /// holder must keep that volume alive and unchanged for as long as it hands the copy out
+    /// (a volume dropped and another allocated in its place would pass the check).
     pub fn column_copy(&self) -> Option<ColumnCopy> {
         self.columns.clone().map(ColumnCopy)
     }
