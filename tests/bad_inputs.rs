@@ -472,6 +472,59 @@ impl MapInto for Vec<&str> {
 /// A line detector (1 × N or N × 1) without a pitch is fitted along its long axis and
 /// renders the volume; it was refused with "no ray of any view meets the volume" (issue 51:
 /// its square pitch had been fitted to put the whole volume into one row).
+/// A CT file's item holds about three copies of the full-resolution CT while it is brought
+/// into the patient frame and its body found (`scene::peak::item_peak_bytes`): a CT that
+/// can be read but not worked on is refused after reading, naming the item and its
+/// estimate, and leaves no item behind; with room, the job reports its estimate.
+#[test]
+fn a_ct_item_beyond_memory_is_refused_before_its_copies() {
+    let dir = tempfile::tempdir().unwrap();
+    let ct = dir.path().join("ct.nii.gz");
+    let bin = env!("CARGO_BIN_EXE_tomograf");
+    let ok = Command::new(bin)
+        .args(["phantom", "--dims", "64,64,64", "-o", &s(&ct)])
+        .output()
+        .unwrap();
+    assert!(ok.status.success());
+    let dataset = |limit_gb: &str, out: &Path| {
+        Command::new(bin)
+            .args([
+                "dataset",
+                &s(&ct),
+                "-o",
+                &s(out),
+                "--size",
+                "16",
+                "--views",
+                "4",
+            ])
+            .env("TOMOGRAF_MEMORY_LIMIT_GB", limit_gb)
+            .output()
+            .unwrap()
+    };
+    // 4.3 MB: room to read the 1 MiB CT (and its file), not for the item's ~90 MiB peak.
+    let out = dir.path().join("tight");
+    let r = dataset("0.004", &out);
+    let err = String::from_utf8_lossy(&r.stderr);
+    assert_eq!(r.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains(
+            "item 00000: bringing into the patient frame and finding the body of a 64×64×64 CT"
+        ) && err.contains("estimated peak")
+            && err.contains("MiB that TOMOGRAF_MEMORY_LIMIT_GB allows"),
+        "{err}"
+    );
+    assert!(!out.join("00000").join("item.json").exists());
+    let out = dir.path().join("roomy");
+    let r = dataset("8", &out);
+    let err = String::from_utf8_lossy(&r.stderr);
+    assert!(r.status.success(), "{err}");
+    assert!(
+        err.contains("1 item(s) made (estimated peak memory"),
+        "{err}"
+    );
+}
+
 #[test]
 fn line_detectors_render_without_a_pitch() {
     let dir = tempfile::tempdir().unwrap();

@@ -131,9 +131,16 @@ pub fn body_mask(volume: &Volume, settings: &BodySettings) -> Result<Body> {
     Ok(Body { mask, voxels })
 }
 
-/// The volume with every voxel outside `body` set to [`AIR_HU`].
-pub fn isolate_body(volume: &Volume, body: &Body) -> Result<Volume> {
-    let mut data = volume.data().to_vec();
+/// The volume with every voxel outside `body` set to [`AIR_HU`], in place (the volume is
+/// consumed, not copied).
+pub fn isolate_body(volume: Volume, body: &Body) -> Result<Volume> {
+    let (dims, spacing, origin, direction) = (
+        volume.dims(),
+        volume.spacing(),
+        volume.origin(),
+        volume.direction(),
+    );
+    let mut data = volume.into_data();
     data.par_iter_mut()
         .zip(body.mask.par_iter())
         .for_each(|(v, &m)| {
@@ -141,14 +148,8 @@ pub fn isolate_body(volume: &Volume, body: &Body) -> Result<Volume> {
                 *v = AIR_HU;
             }
         });
-    Volume::new(
-        volume.dims(),
-        volume.spacing(),
-        volume.origin(),
-        volume.direction(),
-        data,
-    )
-    .map_err(|e| DatasetError::Invalid(format!("isolate body: {e}")))
+    Volume::new(dims, spacing, origin, direction, data)
+        .map_err(|e| DatasetError::Invalid(format!("isolate body: {e}")))
 }
 
 /// A min (`keep_all = true`) or max filter over a window of `2r + 1` along in-plane axis

@@ -55,11 +55,13 @@ pub enum Reorientation {
 }
 
 /// Brings `volume` into the patient frame ([`PATIENT_FRAME`]); `fill` (the volume's units,
-/// e.g. −1024 HU) is the value of grid points outside an oblique input.
+/// e.g. −1024 HU) is the value of grid points outside an oblique input. The volume is
+/// consumed: one already in the frame is returned without a copy, and a reordered or
+/// resampled one is freed as soon as its copy is made (a real CT is hundreds of MiB).
 ///
 /// Errors if `fill` is not finite or an oblique volume's axis-aligned box would exceed
 /// [`tomograf_sim::volume::MAX_VOXELS`].
-pub fn to_patient_frame(volume: &Volume, fill: f32) -> Result<(Volume, Reorientation)> {
+pub fn to_patient_frame(volume: Volume, fill: f32) -> Result<(Volume, Reorientation)> {
     if !fill.is_finite() {
         return Err(DatasetError::Invalid(format!(
             "patient frame: fill value {fill} is not finite"
@@ -92,19 +94,14 @@ pub fn to_patient_frame(volume: &Volume, fill: f32) -> Result<(Volume, Reorienta
             src[w] = (a, s);
         }
         if src == [(0, 1.0), (1, 1.0), (2, 1.0)] {
-            let v = Volume::new(
-                volume.dims(),
-                volume.spacing(),
-                volume.origin(),
-                DMat3::IDENTITY,
-                volume.data().to_vec(),
-            )
-            .map_err(|e| DatasetError::Invalid(format!("patient frame: {e}")))?;
+            let (dims, spacing, origin) = (volume.dims(), volume.spacing(), volume.origin());
+            let v = Volume::new(dims, spacing, origin, DMat3::IDENTITY, volume.into_data())
+                .map_err(|e| DatasetError::Invalid(format!("patient frame: {e}")))?;
             return Ok((v, Reorientation::None));
         }
         let axes =
             src.map(|(a, s)| format!("{}{}", if s > 0.0 { '+' } else { '-' }, ['i', 'j', 'k'][a]));
-        return Ok((reorder(volume, src)?, Reorientation::Reordered { axes }));
+        return Ok((reorder(&volume, src)?, Reorientation::Reordered { axes }));
     }
     let obliquity_deg = nearest
         .iter()
@@ -112,7 +109,7 @@ pub fn to_patient_frame(volume: &Volume, fill: f32) -> Result<(Volume, Reorienta
         .fold(0.0, f64::max)
         .max(if is_permutation { 0.0 } else { 45.0 });
     Ok((
-        resample_axis_aligned(volume, fill)?,
+        resample_axis_aligned(&volume, fill)?,
         Reorientation::Resampled { obliquity_deg },
     ))
 }
@@ -236,12 +233,12 @@ mod tests {
     #[test]
     fn identity_is_kept_and_a_flip_reverses_the_axis() {
         let v = ramp([3, 4, 5], DMat3::IDENTITY);
-        let (same, how) = to_patient_frame(&v, -1024.0).unwrap();
+        let (same, how) = to_patient_frame(v.clone(), -1024.0).unwrap();
         assert_eq!(how, Reorientation::None);
         assert_eq!(same, v);
         // j runs anterior (−y): the output's j = 0 is the input's last j.
         let flipped = ramp([3, 4, 5], DMat3::from_diagonal(DVec3::new(1.0, -1.0, 1.0)));
-        let (out, how) = to_patient_frame(&flipped, -1024.0).unwrap();
+        let (out, how) = to_patient_frame(flipped.clone(), -1024.0).unwrap();
         assert_eq!(
             how,
             Reorientation::Reordered {
@@ -271,7 +268,7 @@ mod tests {
             })
             .collect();
         let v = Volume::new(dims, proto.spacing(), proto.origin(), rot, data).unwrap();
-        let (out, how) = to_patient_frame(&v, -1e3).unwrap();
+        let (out, how) = to_patient_frame(v.clone(), -1e3).unwrap();
         assert!(
             matches!(how, Reorientation::Resampled { obliquity_deg } if (obliquity_deg - 30.0).abs() < 1e-6)
         );

@@ -244,6 +244,9 @@ pub struct DatasetSummary {
     pub skipped: usize,
     /// Finished items the rebuilt manifest lists (all shards).
     pub listed: usize,
+    /// The largest estimated peak memory of the items made, bytes
+    /// ([`crate::peak::item_peak_bytes`]); 0 when none was made.
+    pub peak_bytes: u128,
 }
 
 /// The most phantoms one data set holds (a million 64³ items is a terabyte).
@@ -316,9 +319,17 @@ impl DatasetJob {
         progress.finish();
         let summary = summary?;
         let (shard, shards) = self.shard;
+        let peak = if summary.made > 0 {
+            format!(
+                " (estimated peak memory {:.0} MiB)",
+                summary.peak_bytes as f64 / (1u64 << 20) as f64
+            )
+        } else {
+            String::new()
+        };
         progress.note(&format!(
-            "{} item(s) made, {} already finished (shard {shard}/{shards}); manifest lists {} \
-             of {} item(s): {}",
+            "{} item(s) made{peak}, {} already finished (shard {shard}/{shards}); manifest \
+             lists {} of {} item(s): {}",
             summary.made,
             summary.skipped,
             summary.listed,
@@ -342,15 +353,16 @@ impl DatasetJob {
         std::fs::create_dir_all(&self.output)
             .with_context(|| format!("cannot create {}", self.output.display()))?;
         atomic::remove_stale_temporaries(&self.output)?;
-        let (mut made, mut skipped) = (0, 0);
+        let (mut made, mut skipped, mut peak_bytes) = (0, 0, 0);
         for index in self.mine() {
             let dir = self.output.join(format!("{index:05}"));
             let done = is_finished(&dir);
             if done {
                 skipped += 1;
             } else {
-                make_item(&self.settings, index, &self.sources[index], &dir)
+                let peak = make_item(&self.settings, index, &self.sources[index], &dir)
                     .with_context(|| format!("item {index:05}"))?;
+                peak_bytes = peak_bytes.max(peak);
                 made += 1;
             }
             progress(index, !done);
@@ -363,6 +375,7 @@ impl DatasetJob {
             made,
             skipped,
             listed,
+            peak_bytes,
         })
     }
 }
@@ -389,6 +402,9 @@ pub struct ItemScene {
     pub poses: Vec<Pose>,
     /// The views of `poses`, in their order.
     pub views: Vec<View>,
+    /// The item's estimated peak memory, bytes ([`crate::peak::item_peak_bytes`]), checked
+    /// against the memory available once the CT was read.
+    pub peak_bytes: u128,
     sha: String,
     reorientation: serde_json::Value,
     outside_body: String,
@@ -411,6 +427,14 @@ impl ItemScene {
                 (anatomy::generate(spec)?, sha)
             }
         };
+        let from_file = matches!(source, ItemSource::File { .. });
+        let prepare_peak = crate::peak::item_prepare_peak_bytes(from_file, hu.len() as u128);
+        let phase = if from_file {
+            "bringing into the patient frame and finding the body of"
+        } else {
+            "cropping"
+        };
+        check_item_memory(index, hu.dims(), phase, prepare_peak)?;
         let (hu, reorientation, outside_body) = match source {
             ItemSource::File { path } => patient_of(hu, path, settings)?,
             // Generated in the frame, holding what its spec asks for (a table only if asked).
@@ -425,6 +449,15 @@ impl ItemScene {
             None => hu,
         };
         let hu = crop_black_border(&hu, settings.crop_hu)?;
+        let size = settings.size as u128;
+        let render_peak = crate::peak::item_render_peak_bytes(
+            settings.acquisition.is_some(),
+            hu.len() as u128,
+            (settings.views as u128 + 2) * size * size,
+            size * size * size,
+        );
+        check_item_memory(index, hu.dims(), "rendering and writing", render_peak)?;
+        let peak_bytes = crate::peak::item_peak_bytes(prepare_peak, render_peak);
         let mut poses = angles::arc(0.0, 360.0 / settings.views as f64, settings.views, 0.0)?;
         poses.extend([Pose::AP, Pose::LATERAL]);
         let size = settings.size;
@@ -445,6 +478,7 @@ impl ItemScene {
             geometry,
             poses,
             views,
+            peak_bytes,
             sha,
             reorientation,
             outside_body,
@@ -466,18 +500,37 @@ fn ideal_drr(hu: &tomograf_sim::Volume, energy_kev: f64, views: &[View]) -> Resu
     views.iter().map(|v| Ok(renderer.render(v)?.data)).collect()
 }
 
-/// Makes item `index` of a set from `source` into `dir` (created if missing).
+/// Refuses item `index` when `peak` (bytes, estimated for `phase`), beyond what the process
+/// holds now (the CT already read among it: the available memory no longer counts that),
+/// exceeds the memory available.
+fn check_item_memory(index: usize, dims: [usize; 3], phase: &str, peak: u128) -> Result<()> {
+    let held = tomograf_sim::memory::resident_bytes().map_or(0, u128::from);
+    let [nx, ny, nz] = dims;
+    tomograf_sim::memory::check(
+        peak.saturating_sub(held),
+        &format!(
+            "item {index:05}: {phase} a {nx}×{ny}×{nz} CT (estimated peak {:.0} MiB), beyond \
+             what is already held,",
+            peak as f64 / (1u64 << 20) as f64
+        ),
+    )?;
+    Ok(())
+}
+
+/// Makes item `index` of a set from `source` into `dir` (created if missing); returns its
+/// estimated peak memory, bytes.
 pub fn make_item(
     settings: &ItemSettings,
     index: usize,
     source: &ItemSource,
     dir: &Path,
-) -> Result<()> {
+) -> Result<u128> {
     let ItemScene {
         hu: cropped,
         geometry,
         poses,
         views,
+        peak_bytes,
         sha,
         reorientation,
         outside_body,
@@ -554,7 +607,8 @@ pub fn make_item(
             .transpose()?
             .unwrap_or(serde_json::Value::Null),
     };
-    Ok(item::write_record(dir, &record)?)
+    item::write_record(dir, &record)?;
+    Ok(peak_bytes)
 }
 
 /// A CT (HU, read from `path`) in the patient frame and, unless `settings.keep_table`,
@@ -565,7 +619,7 @@ fn patient_of(
     path: &Path,
     settings: &ItemSettings,
 ) -> Result<(tomograf_sim::Volume, serde_json::Value, String)> {
-    let (framed, how) = to_patient_frame(&hu, PADDING_HU)
+    let (framed, how) = to_patient_frame(hu, PADDING_HU)
         .with_context(|| format!("{}: bringing it into the patient frame", path.display()))?;
     let how = serde_json::to_value(how)?;
     if settings.keep_table {
@@ -579,7 +633,7 @@ fn patient_of(
         settings.body.threshold_hu,
         settings.body.opening_mm
     );
-    Ok((body::isolate_body(&framed, &mask)?, how, note))
+    Ok((body::isolate_body(framed, &mask)?, how, note))
 }
 
 /// Value of grid points outside an oblique CT once it is resampled into the patient frame,

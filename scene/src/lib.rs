@@ -15,6 +15,7 @@ pub mod dose;
 pub mod job;
 pub mod outputs;
 pub mod overrides;
+pub mod peak;
 pub mod phantom;
 pub mod physics;
 pub mod prepare;

@@ -58,19 +58,7 @@ pub struct Frame {
     pub parts: Option<Acquired>,
 }
 
-/// Peak resident memory of a `project` job (bytes) for a volume of `voxels` and views of
-/// `pixels` in all: `base + a · 4·voxels + b · 4·pixels` (the f32 volume and images), fitted
-/// to `/usr/bin/time -v` peaks at 96³ and 192³ with 36 and 144 views of 256² for the ideal
-/// DRR and for detector physics (`kv-flat-panel-120kvp`); docs/reliability.md, "Memory
-/// budget".
-pub fn render_peak_bytes(physics: bool, voxels: u128, pixels: u128) -> u128 {
-    let (base_mib, a, b) = if physics {
-        (26.0, 3.3, 3.9)
-    } else {
-        (18.0, 1.9, 3.8)
-    };
-    (base_mib * (1u64 << 20) as f64 + a * 4.0 * voxels as f64 + b * 4.0 * pixels as f64) as u128
-}
+pub use crate::peak::render_peak_bytes;
 
 /// Loads and resolves `scene`: the acquisition it asks for (checked first, so a bad
 /// preset fails before a large volume is read), the volume, the views (refused when none

@@ -104,23 +104,47 @@ fn cgroup_room(max: Option<&str>, current: Option<&str>) -> Option<u64> {
 }
 
 /// Refuses `bytes` for `what` (e.g. "a 2400×2400×2400 volume") when they exceed
-/// [`limit`], naming both in GiB and where the limit comes from.
+/// [`limit`], naming both (in GiB, or MiB below 1 GiB) and where the limit comes from.
 pub fn check(bytes: u128, what: &str) -> Result<()> {
     match limit() {
         Some(l) if bytes > u128::from(l.bytes) => Err(SimError::OutOfRange(format!(
-            "{what} needs {:.1} GiB, more than the {:.1} GiB {} \
-             (TOMOGRAF_MEMORY_LIMIT_GB sets another limit)",
-            bytes as f64 / (1u64 << 30) as f64,
-            l.bytes as f64 / (1u64 << 30) as f64,
+            "{what} needs {}, more than the {} {} (TOMOGRAF_MEMORY_LIMIT_GB sets another limit)",
+            size(bytes as f64),
+            size(l.bytes as f64),
             l.source.words()
         ))),
         _ => Ok(()),
     }
 }
 
+/// `bytes` as "3.2 GiB", or "12.5 MiB" below 1 GiB.
+fn size(bytes: f64) -> String {
+    const GIB: f64 = (1u64 << 30) as f64;
+    if bytes >= GIB {
+        format!("{:.1} GiB", bytes / GIB)
+    } else {
+        format!("{:.1} MiB", bytes / (1u64 << 20) as f64)
+    }
+}
+
+/// The memory this process holds now (its resident set, bytes; `/proc/self/statm`), or
+/// `None` where it cannot be read.
+pub fn resident_bytes() -> Option<u64> {
+    let statm = std::fs::read_to_string("/proc/self/statm").ok()?;
+    let pages: u64 = statm.split_whitespace().nth(1)?.parse().ok()?;
+    Some(pages * 4096)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn sizes_are_named_in_the_unit_that_shows_them() {
+        assert_eq!(size(1.5 * (1u64 << 20) as f64), "1.5 MiB");
+        assert_eq!(size(8.0 * (1u64 << 30) as f64), "8.0 GiB");
+        assert!(resident_bytes().is_some_and(|b| b > 1 << 20));
+    }
 
     #[test]
     fn the_available_memory_and_a_cgroups_room_are_read_from_their_files() {
