@@ -99,8 +99,9 @@ pub fn run(args: ReconstructArgs) -> Result<()> {
     )?;
     write_hu(&item, &rec.volume, &args.output)?;
     eprintln!(
-        "{} iterations, PSNR per view {:?} dB: {}",
+        "{} iterations (estimated peak memory {:.0} MiB), PSNR per view {:?} dB: {}",
         rec.iterations,
+        rec.peak_bytes as f64 / (1u64 << 20) as f64,
         rec.psnr
             .iter()
             .map(|p| (p * 100.0).round() / 100.0)

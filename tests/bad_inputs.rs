@@ -525,6 +525,66 @@ fn a_ct_item_beyond_memory_is_refused_before_its_copies() {
     );
 }
 
+/// Inference holds the field's activations for a patch of rays and the grid
+/// (`model::config::TrainConfig::inference_peak_bytes`): refused before the fit where that
+/// cannot fit, naming the field's sizes; with room, `reconstruct` reports its estimate.
+#[test]
+fn an_inference_beyond_memory_is_refused_before_the_fit() {
+    let dir = tempfile::tempdir().unwrap();
+    let bin = env!("CARGO_BIN_EXE_tomograf");
+    let data = dir.path().join("data");
+    let ok = Command::new(bin)
+        .args([
+            "dataset",
+            "--phantoms",
+            "1",
+            "--size",
+            "64",
+            "--views",
+            "2",
+            "-o",
+            &s(&data),
+        ])
+        .output()
+        .unwrap();
+    assert!(
+        ok.status.success(),
+        "{}",
+        String::from_utf8_lossy(&ok.stderr)
+    );
+    let demo = Path::new(env!("CARGO_MANIFEST_DIR")).join("model/checkpoints/demo");
+    let reconstruct = |limit_gb: &str, out: &Path| {
+        Command::new(bin)
+            .args([
+                "reconstruct",
+                &s(&data.join("00000")),
+                "--checkpoint",
+                &s(&demo),
+            ])
+            .args(["--iterations", "2", "-o", &s(out)])
+            .env("TOMOGRAF_MEMORY_LIMIT_GB", limit_gb)
+            .output()
+            .unwrap()
+    };
+    // 102 MiB: the checkpoint and the item load; the fit's ~270 MiB does not fit.
+    let out = dir.path().join("tight.nii.gz");
+    let r = reconstruct("0.1", &out);
+    let err = String::from_utf8_lossy(&r.stderr);
+    assert_eq!(r.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("inference onto a 64×64×64 grid with the checkpoint's field (hidden 128")
+            && err.contains("MiB that TOMOGRAF_MEMORY_LIMIT_GB allows"),
+        "{err}"
+    );
+    assert!(!out.exists());
+    let out = dir.path().join("roomy.nii.gz");
+    let r = reconstruct("8", &out);
+    let err = String::from_utf8_lossy(&r.stderr);
+    assert!(r.status.success(), "{err}");
+    assert!(err.contains("(estimated peak memory"), "{err}");
+    assert!(out.exists());
+}
+
 #[test]
 fn line_detectors_render_without_a_pitch() {
     let dir = tempfile::tempdir().unwrap();

@@ -359,6 +359,33 @@ impl TrainConfig {
         4.0 * 4.0 * params + 2.0 * 4.0 * points * w * (depth + 1.0)
     }
 
+    /// Estimated peak memory of inference (bytes): a fit, `67 MiB + 1.17 · 8·points·hidden·
+    /// (depth + 1) + 15 · 4·grid_voxels`, where `points` is the larger ray batch of the two
+    /// phases (`code_patch²` and `infer.patch²`, at most the largest view's `view_pixels`, the
+    /// whole image for a patch of 0, times `samples`) whose activations and gradients the backward pass holds, and
+    /// `grid_voxels` the reconstruction grid rendered and swept. Fitted to `/usr/bin/time
+    /// -v` peaks of `reconstruct` at 64³ and 96³ with fields of hidden 64 and 256, ray
+    /// batches of 4 096 and 262 144 points, from 1 and 2 views (docs/reliability.md, "Memory
+    /// budget").
+    /// `infer` is the inference's settings (the configuration's, or with a command's
+    /// overrides).
+    pub fn inference_peak_bytes(
+        &self,
+        infer: &InferConfig,
+        grid_voxels: u128,
+        view_pixels: u128,
+    ) -> f64 {
+        let m = &self.model;
+        // A patch is at most the image.
+        let side = |p: usize| match p {
+            0 => view_pixels as f64,
+            p => ((p * p) as f64).min(view_pixels as f64),
+        };
+        let points = side(infer.patch).max(side(infer.code_patch)) * m.samples as f64;
+        let activations = 8.0 * points * m.hidden as f64 * (m.depth as f64 + 1.0);
+        67.0 * (1u64 << 20) as f64 + 1.17 * activations + 15.0 * 4.0 * grid_voxels as f64
+    }
+
     /// Checks sizes and weights.
     pub fn validate(&self) -> Result<()> {
         let m = &self.model;

@@ -71,6 +71,9 @@ pub struct Reconstruction {
     pub losses: Vec<f64>,
     /// The fitted codes `(z_sh, z_a)` (not whitened).
     pub codes: (Vec<f32>, Vec<f32>),
+    /// The estimated peak memory, bytes ([`crate::config::TrainConfig::inference_peak_bytes`]),
+    /// checked against the memory available before the fit.
+    pub peak_bytes: u128,
 }
 
 /// The network's volume before data-consistency sweeps.
@@ -115,6 +118,41 @@ pub fn check_references(refs: &[Reference]) -> Result<()> {
     Ok(())
 }
 
+/// Refuses an inference whose estimated peak
+/// ([`crate::config::TrainConfig::inference_peak_bytes`]), beyond what the process holds
+/// now, exceeds the memory available; the estimate otherwise.
+fn check_memory(
+    generator: &Generator,
+    infer: &InferConfig,
+    refs: &[Reference],
+    grid: &Volume,
+) -> Result<u128> {
+    let c = &generator.config;
+    let view_pixels = refs
+        .iter()
+        .map(|r| r.view.rows as u128 * r.view.cols as u128)
+        .max()
+        .unwrap_or(0);
+    let peak = c.inference_peak_bytes(infer, grid.len() as u128, view_pixels) as u128;
+    let held = tomograf_sim::memory::resident_bytes().map_or(0, u128::from);
+    let [nx, ny, nz] = grid.dims();
+    tomograf_sim::memory::check(
+        peak.saturating_sub(held),
+        &format!(
+            "inference onto a {nx}×{ny}×{nz} grid with the checkpoint's field (hidden {}, depth \
+             {}, {} samples per ray, infer.patch {}, infer.code_patch {}; estimated peak {:.0} \
+             MiB), beyond what is already held,",
+            c.model.hidden,
+            c.model.depth,
+            c.model.samples,
+            infer.patch,
+            infer.code_patch,
+            peak as f64 / (1u64 << 20) as f64
+        ),
+    )?;
+    Ok(peak)
+}
+
 /// Fits `generator` to `refs` (code first, then — as `infer.tune` says — the generator) and
 /// renders the volume on `grid` (its geometry only); then, when `infer` asks for them and
 /// some view is unexplained, the data-consistency sweeps ([`crate::refine`], and
@@ -130,6 +168,7 @@ pub fn reconstruct(
     mut progress: impl FnMut(usize, f64),
 ) -> Result<Reconstruction> {
     check_references(refs)?;
+    let peak_bytes = check_memory(&generator, infer, refs, grid)?;
     let fit = fit_network(&generator, refs, grid, infer, seed, device, &mut progress)?;
     let Fit {
         tuned,
@@ -179,6 +218,7 @@ pub fn reconstruct(
         volume,
         network,
         iterations,
+        peak_bytes,
         psnr,
         losses,
         codes: (read(z_sh), read(z_a)),
