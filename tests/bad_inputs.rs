@@ -528,8 +528,9 @@ fn a_ct_item_beyond_memory_is_refused_before_its_copies() {
 /// Inference holds the field's activations for a patch of rays and the grid
 /// (`model::config::TrainConfig::inference_peak_bytes`): refused before the fit where that
 /// cannot fit, naming the field's sizes; with room, `reconstruct` reports its estimate.
+/// `evaluate` likewise, with the baselines' data.
 #[test]
-fn an_inference_beyond_memory_is_refused_before_the_fit() {
+fn an_inference_or_evaluation_beyond_memory_is_refused_before_its_work() {
     let dir = tempfile::tempdir().unwrap();
     let bin = env!("CARGO_BIN_EXE_tomograf");
     let data = dir.path().join("data");
@@ -537,7 +538,7 @@ fn an_inference_beyond_memory_is_refused_before_the_fit() {
         .args([
             "dataset",
             "--phantoms",
-            "1",
+            "2",
             "--size",
             "64",
             "--views",
@@ -583,6 +584,39 @@ fn an_inference_beyond_memory_is_refused_before_the_fit() {
     assert!(r.status.success(), "{err}");
     assert!(err.contains("(estimated peak memory"), "{err}");
     assert!(out.exists());
+    // `evaluate` adds PCA-MAP's training set (`eval::peak`): refused before it is loaded
+    // and before the output folder is made.
+    let evaluate = |limit_gb: &str, out: &Path| {
+        Command::new(bin)
+            .args([
+                "evaluate",
+                &s(&data),
+                "--train-data",
+                &s(&data),
+                "--views",
+                "1",
+            ])
+            .args(["--items", "1"])
+            .args(["-o", &s(out)])
+            .env("TOMOGRAF_MEMORY_LIMIT_GB", limit_gb)
+            .output()
+            .unwrap()
+    };
+    let out = dir.path().join("tight-evaluation");
+    let r = evaluate("0.01", &out);
+    let err = String::from_utf8_lossy(&r.stderr);
+    assert_eq!(r.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("evaluating 1 test item(s) with a PCA prior of 2 training items")
+            && err.contains("MiB that TOMOGRAF_MEMORY_LIMIT_GB allows"),
+        "{err}"
+    );
+    assert!(!out.exists());
+    let out = dir.path().join("roomy-evaluation");
+    let r = evaluate("8", &out);
+    let err = String::from_utf8_lossy(&r.stderr);
+    assert!(r.status.success(), "{err}");
+    assert!(err.contains("estimated peak memory"), "{err}");
 }
 
 #[test]

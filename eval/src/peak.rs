@@ -1,0 +1,64 @@
+//! The peak memory of an evaluation (`tomograf evaluate`, and the studies' evaluations),
+//! estimated before the training set is loaded and checked against the memory available
+//! ([`tomograf_sim::memory::check`]; docs/reliability.md, "Memory budget").
+//!
+//! Fitted to `/usr/bin/time -v` peaks at 64³ and 96³ grids with 8 and 24 training items
+//! (`scripts/memory_peaks_evaluate.sh`):
+//!
+//! * the test items, as loaded (their CTs and projections);
+//! * every training item of `--train-data` (PCA-MAP's prior): `3.0 ×` its f32 CT (the CT
+//!   loaded, its centred copy, one principal component) plus its projections;
+//! * the larger of the baselines' work, `23 MiB + 3.45 ×` the f32 grid (SART-TV's sweeps),
+//!   and TomoGRAF's inference ([`tomograf_model::config::TrainConfig::inference_peak_bytes`]).
+
+const MIB: f64 = (1u64 << 20) as f64;
+
+/// What an evaluation holds besides its work: the test items loaded, and the training set
+/// that PCA-MAP's prior is built from (none without `--train-data`).
+#[derive(Debug, Clone, Copy, Default)]
+pub struct Held {
+    /// Bytes of the test items' CTs and projections (f32).
+    pub test_bytes: u128,
+    /// Training items.
+    pub train_items: u128,
+    /// Voxels of one training item's CT.
+    pub train_voxels: u128,
+    /// Projection pixels of one training item (all its views).
+    pub train_pixels: u128,
+}
+
+/// Estimated peak memory of an evaluation on a grid of `grid_voxels`, bytes, holding
+/// `held`; `inference` is TomoGRAF's estimated peak when a checkpoint is scored.
+pub fn evaluation_peak_bytes(grid_voxels: u128, held: Held, inference: Option<f64>) -> u128 {
+    let baselines = 23.0 * MIB + 3.45 * 4.0 * grid_voxels as f64;
+    let work = inference.map_or(baselines, |i| i.max(baselines));
+    let train = held.train_items as f64
+        * (3.0 * 4.0 * held.train_voxels as f64 + 4.0 * held.train_pixels as f64);
+    (work + held.test_bytes as f64 + train) as u128
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_training_set_of_pca_map_dominates_a_large_evaluation() {
+        let grid = 96u128.pow(3);
+        let held = |n| Held {
+            test_bytes: 0,
+            train_items: n,
+            train_voxels: grid,
+            train_pixels: 12 * 96 * 96,
+        };
+        let (small, large) = (
+            evaluation_peak_bytes(grid, held(8), None),
+            evaluation_peak_bytes(grid, held(24), None),
+        );
+        // 16 items more hold 16 × (3 CTs + their projections) more.
+        let per_item = (large - small) as f64 / 16.0 / (4 * grid) as f64;
+        assert!((per_item - 3.12).abs() < 0.01, "{per_item}");
+        // A checkpoint's inference counts only when it outgrows the baselines.
+        assert_eq!(evaluation_peak_bytes(grid, held(8), Some(1.0)), small);
+        assert!(evaluation_peak_bytes(grid, held(8), Some(1e10)) > small);
+    }
+}
