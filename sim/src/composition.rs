@@ -15,8 +15,8 @@
 //! clipping to the occupied box still applies.
 
 use crate::error::{Result, SimError};
+use crate::grid_box::GridBox;
 use crate::occupancy::RowExtents;
-use crate::ray::GridBox;
 use crate::volume::Volume;
 use rayon::prelude::*;
 use std::sync::Arc;

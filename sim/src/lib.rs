@@ -14,6 +14,7 @@ pub mod attenuation;
 pub mod composition;
 pub mod error;
 pub mod geometry;
+pub mod grid_box;
 pub mod material;
 pub mod memory;
 pub mod mesh;

@@ -1,13 +1,20 @@
 //! Where a volume's non-zero values lie, row by row: for each row of voxels along the grid's
 //! i axis (fixed j and k), its first and last non-zero voxel. Exact Siddon adds nothing
 //! over zeros, so the renderer clips rays to the rows' bounding box ([`RowExtents::bounding_box`],
-//! [`crate::volume::Volume::occupied`]) and the ray-sheet kernels skip groups of rays over
+//! [`occupied`]) and the ray-sheet kernels skip groups of rays over
 //! blocks of rows where every voxel they can meet is zero ([`crate::trace::sheet`]): in a
 //! real CT, the air below −1000 HU (mu exactly 0) outside the body and the scanner's field
 //! of view.
 
-use crate::ray::GridBox;
+use crate::grid_box::GridBox;
 use crate::volume::Volume;
+
+/// The smallest box of voxels of `volume` holding every non-zero value, or `None` if all
+/// are zero. Tracers that integrate the values may clip rays to it: outside it they add
+/// nothing.
+pub fn occupied(volume: &Volume) -> Option<GridBox> {
+    RowExtents::of(volume).bounding_box()
+}
 
 /// Per row `j + ny·k` of a volume, the first and last non-zero voxel along i.
 #[derive(Debug, Clone)]

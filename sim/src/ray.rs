@@ -1,5 +1,6 @@
 //! Rays in the world frame and their clipping to a volume's grid.
 
+use crate::grid_box::GridBox;
 use crate::volume::Volume;
 use glam::DVec3;
 
@@ -31,32 +32,6 @@ impl Ray {
             t_min: 0.0,
             t_max: len,
         }
-    }
-}
-
-/// A box of whole voxels `[lo, hi)` per axis, in grid coordinates (voxel indices).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct GridBox {
-    /// First voxel index per axis.
-    pub lo: [usize; 3],
-    /// One past the last voxel index per axis.
-    pub hi: [usize; 3],
-}
-
-impl GridBox {
-    /// The whole grid of `dims` voxels.
-    pub fn whole(dims: [usize; 3]) -> Self {
-        Self {
-            lo: [0; 3],
-            hi: dims,
-        }
-    }
-
-    /// The voxels in both boxes (`None`: none).
-    pub fn intersect(&self, other: &GridBox) -> Option<GridBox> {
-        let lo = std::array::from_fn(|a| self.lo[a].max(other.lo[a]));
-        let hi = std::array::from_fn(|a| self.hi[a].min(other.hi[a]));
-        (0..3).all(|a| lo[a] < hi[a]).then_some(GridBox { lo, hi })
     }
 }
 
@@ -110,7 +85,7 @@ impl GridRay {
     }
 
     /// Clips `ray` to a sub-box of `volume`'s grid (e.g. the part holding non-zero values,
-    /// [`crate::volume::Volume::occupied`]).
+    /// [`crate::occupancy::occupied`]).
     pub fn clip_to(volume: &Volume, ray: &Ray, bounds: &GridBox) -> Option<Self> {
         Self::clip_box(
             bounds,

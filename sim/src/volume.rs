@@ -28,7 +28,6 @@
 //! with the **same** parameter `t`, so segment lengths measured in `t` are millimetres.
 
 use crate::error::{Result, SimError};
-use crate::ray::GridBox;
 use glam::{DMat3, DVec3};
 
 /// A scalar field sampled on a regular grid placed in the LPS world frame.
@@ -253,12 +252,6 @@ impl Volume {
             self.index_to_world(g - 0.5)
         })
     }
-    /// The smallest box of voxels holding every non-zero value, or `None` if all are zero.
-    /// Tracers that integrate the values may clip rays to it: outside it they add nothing.
-    pub fn occupied(&self) -> Option<GridBox> {
-        crate::occupancy::RowExtents::of(self).bounding_box()
-    }
-
     /// Smallest and largest value.
     pub fn min_max(&self) -> (f32, f32) {
         self.data

@@ -9,7 +9,7 @@ use common::*;
 use glam::DVec3;
 use tomograf_sim::trace::{packet, sheet::Sheet};
 use tomograf_sim::{
-    Beam, Detector, Geometry, GridRay, Pose, Projector, Ray, Renderer, Volume, ray::GridBox,
+    Beam, Detector, Geometry, GridRay, Pose, Projector, Ray, Renderer, Volume, grid_box::GridBox,
 };
 
 /// The rays of row `row` of `view`, clipped to the whole grid.

@@ -276,8 +276,8 @@ fn rays_clipped_to_the_occupied_box_match_the_whole_grid_reference() {
         )
         .unwrap();
         assert_eq!(
-            vol.occupied().unwrap(),
-            tomograf_sim::ray::GridBox { lo, hi }
+            tomograf_sim::occupancy::occupied(&vol).unwrap(),
+            tomograf_sim::grid_box::GridBox { lo, hi }
         );
         for _ in 0..100 {
             let a = random_point_near(&vol, &mut r, 10.0);
@@ -287,7 +287,7 @@ fn rays_clipped_to_the_occupied_box_match_the_whole_grid_reference() {
     }
     // All air: every line integral is zero.
     let air = Volume::centred([4, 4, 4], DVec3::ONE, DVec3::ZERO, vec![0.0; 64]).unwrap();
-    assert_eq!(air.occupied(), None);
+    assert_eq!(tomograf_sim::occupancy::occupied(&air), None);
     assert_eq!(
         siddon(&air, &Ray::segment(DVec3::splat(-9.0), DVec3::splat(9.0))),
         0.0

@@ -12,7 +12,7 @@
 //! material m" with the same code.
 
 use crate::error::{Result, SimError};
-use crate::ray::GridBox;
+use crate::grid_box::GridBox;
 use crate::volume::Volume;
 use rayon::prelude::*;
 

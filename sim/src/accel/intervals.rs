@@ -14,7 +14,8 @@
 //! restarted at an interval start sees the same crossing times as the uninterrupted walk.
 
 use super::bricks::BrickMap;
-use crate::ray::{GridBox, GridRay, plane_t};
+use crate::grid_box::GridBox;
+use crate::ray::{GridRay, plane_t};
 use crate::trace::siddon::agree_with_crossings;
 use glam::Vec3A;
 use obvhs::BvhBuildParams;

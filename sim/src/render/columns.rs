@@ -13,7 +13,8 @@
 
 use super::{Renderer, Sums};
 use crate::geometry::View;
-use crate::ray::{GridBox, GridRay};
+use crate::grid_box::GridBox;
+use crate::ray::GridRay;
 use crate::trace::sheet::Sheet;
 use crate::volume::Volume;
 use rayon::prelude::*;

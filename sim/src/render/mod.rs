@@ -18,9 +18,10 @@ use crate::accel::{EmptySpace, SkipOptions};
 use crate::composition::Composition;
 use crate::error::{Result, SimError};
 use crate::geometry::View;
+use crate::grid_box::GridBox;
 use crate::mesh::MeshScene;
 use crate::occupancy::RowExtents;
-use crate::ray::{GridBox, GridRay, Ray};
+use crate::ray::{GridRay, Ray};
 use crate::trace::{LineIntegral, MaterialPaths, packet, siddon, trilinear};
 use crate::volume::Volume;
 use columns::KFastest;
@@ -226,7 +227,7 @@ impl<'a> Renderer<'a, LineIntegrals> {
             let bricks = self.skip.as_deref().map(|s| s.map().occupied_box());
             let occupied = match self.rows.as_deref() {
                 Some(rows) => rows.bounding_box(),
-                None => self.mu.occupied(),
+                None => crate::occupancy::occupied(self.mu),
             };
             self.bounds = match (occupied, bricks) {
                 (b, None) => b,

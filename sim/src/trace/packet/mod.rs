@@ -342,7 +342,7 @@ mod avx512;
 #[cfg(all(test, target_arch = "x86_64"))]
 mod tests {
     use super::*;
-    use crate::ray::GridBox;
+    use crate::grid_box::GridBox;
     use rand::{Rng, SeedableRng};
 
     /// Each kernel's two ways of reading voxels (a gather, or scalar loads) give the same

@@ -47,8 +47,9 @@ use materials::MaterialSums;
 use rays::{Block, Pass, Rays};
 use walk::walk;
 
+use crate::grid_box::GridBox;
 use crate::occupancy::RowExtents;
-use crate::ray::{GridBox, GridRay};
+use crate::ray::GridRay;
 use crate::trace::packet::{self, Kernel as Simd};
 
 /// Segments handled together per group of rays in the SIMD kernels: the group's rays stay

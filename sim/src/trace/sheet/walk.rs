@@ -1,7 +1,7 @@
 //! The shared line of a sheet cut into segments by the grid planes of `b` and `c`.
 
 use super::Segment;
-use crate::ray::GridBox;
+use crate::grid_box::GridBox;
 
 /// The segments of the line `c = c0 + mc·b` for `b ∈ [lo, hi]` between consecutive planes
 /// of `b` and `c`, each with the linear index of its voxel line's `a = 0` voxel.
