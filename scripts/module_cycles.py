@@ -3,7 +3,8 @@
 
 A module is a file under a crate's src/ (mod.rs stands for its folder); module A uses B
 when A's code names `crate::B…` (in `use` lines or paths, comments excluded) or `super::B`.
-Prints each cycle (a strongly connected component of more than one module) per crate.
+Prints each cycle (a strongly connected component of more than one module) per crate, and
+exits 1 when there is one (scripts/test.sh runs it beside clippy).
 Usage: scripts/module_cycles.py [CRATE_DIR ...]   (default: every workspace crate)
 """
 import os, re, sys
@@ -96,3 +97,4 @@ for crate in sys.argv[1:] or crates():
         total += 1
         print(f"{os.path.basename(crate)}: {' <-> '.join(comp)}")
 print(f"{total} cycle(s)")
+sys.exit(1 if total else 0)

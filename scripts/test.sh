@@ -9,6 +9,7 @@ phase() { echo "scripts/test.sh: $1 took $((SECONDS - start)) s" >&2; start=$SEC
 start=$SECONDS
 cargo fmt --all -- --check
 cargo clippy --workspace --all-targets --release --quiet -- -D warnings
+python3 scripts/module_cycles.py # no module imports itself through others (docs/architecture.md)
 phase "fmt + clippy"
 # Examples are user commands (docs name them), not tests: clippy --all-targets above checks
 # they compile, so they are not linked again here (≈ 25 CPU-s, 22 binaries).

@@ -4,7 +4,7 @@
 //! same view), medians of repeated renders.
 
 use crate::Options;
-use crate::projector::{thorax_mu, view};
+use crate::fixtures::{thorax_mu, view};
 use anyhow::Result;
 use std::fmt::Write as _;
 use std::time::Instant;

@@ -14,6 +14,7 @@
 
 pub mod accel;
 pub mod backend;
+pub mod fixtures;
 pub mod model;
 pub mod physics;
 pub mod projector;

@@ -5,17 +5,13 @@
 //! with a counting accumulator (not timed).
 
 use anyhow::Result;
-use glam::DVec3;
 use std::fmt::Write as _;
 use std::time::Instant;
-use tomograf_sim::attenuation::Attenuation;
-use tomograf_sim::phantom::Phantom;
 use tomograf_sim::trace::{PathAccumulator, siddon};
-use tomograf_sim::{
-    Beam, Detector, Geometry, GridRay, Pose, Projection, Projector, Renderer, View, Volume,
-};
+use tomograf_sim::{GridRay, Pose, Projection, Projector, Renderer, View, Volume};
 
 use crate::Options;
+use crate::fixtures::{thorax_mu, view};
 
 /// Counts voxels with positive path length.
 struct StepCount(u64);
@@ -26,25 +22,6 @@ impl PathAccumulator for StepCount {
     fn run(&mut self, _: usize, _: usize, count: usize, _: f64) {
         self.0 += count as u64;
     }
-}
-
-pub fn thorax_mu(dims: [usize; 3], spacing: [f64; 3]) -> Result<Volume> {
-    let hu = Phantom::thorax().voxelize(dims, DVec3::from(spacing), DVec3::ZERO)?;
-    Ok(Attenuation::hounsfield_at_kev(60.0)?.to_mu(hu)?)
-}
-
-/// A cone-beam view (SAD 1000, SID 1500) whose panel just covers a 360 mm field.
-pub fn view(n: usize, pose: Pose) -> Result<View> {
-    let pitch = 360.0 * 1.5 * 1.1 / n as f64;
-    Ok(Geometry {
-        beam: Beam::Cone {
-            sad_mm: 1000.0,
-            sid_mm: 1500.0,
-        },
-        detector: Detector::new(n, n, pitch),
-        isocentre: DVec3::ZERO,
-    }
-    .view(pose)?)
 }
 
 fn median_ms(

@@ -4,6 +4,7 @@
 
 use crate::figures::{Axes, plot_deviations, plot_points};
 use crate::validation::tg195::{self, Beam, Comparison};
+use crate::validation::tg195_case3;
 use anyhow::{Context, Result};
 use std::fmt::Write as _;
 use std::io::Write as _;
@@ -110,7 +111,7 @@ pub fn validate(args: &Validation, progress: &dyn Progress) -> Result<()> {
                         if tomo { "tomosynthesis" } else { "radiography" },
                         beam.label()
                     ),
-                    Box::new(move || tg195::case3(beam, tomo, n, seed)),
+                    Box::new(move || tg195_case3::case3(beam, tomo, n, seed)),
                 ));
             }
         }

@@ -3,7 +3,7 @@
 
 use crate::error::{ModelError, Result, ensure};
 pub use crate::prior::MeanVolume;
-use crate::reconstruct::Reference;
+use crate::reference::Reference;
 use crate::render::DensityScale;
 use serde::{Deserialize, Serialize};
 use tomograf_recon::{FdkOptions, SartOptions, TvOptions, Window, fdk, sart_tv_from};

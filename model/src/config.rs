@@ -201,7 +201,8 @@ fn default_refine_iterations() -> usize {
     20
 }
 fn default_refine_tv_step() -> f64 {
-    crate::baseline::SartTvSettings::default().tv_step
+    // SART-TV's own default (`SartTvSettings::default`).
+    tomograf_recon::TvOptions::default().step
 }
 fn default_refine_below_db() -> f64 {
     30.0
@@ -353,7 +354,7 @@ impl TrainConfig {
     pub fn memory_floor_bytes(&self) -> f64 {
         let m = &self.model;
         let (w, depth) = (m.hidden as f64, m.depth as f64);
-        let inp = (crate::field::encoded_dims(3, m.freq_x) + m.z_shape) as f64;
+        let inp = (encoded_dims(3, m.freq_x) + m.z_shape) as f64;
         let params = inp * w + (depth - 1.0).max(0.0) * w * w + (w + m.z_app as f64) * w / 2.0;
         let points = self.batch as f64 * (m.patch as f64).powi(2) * m.samples as f64;
         4.0 * 4.0 * params + 2.0 * 4.0 * points * w * (depth + 1.0)
@@ -504,6 +505,12 @@ impl TrainConfig {
     pub fn to_toml(&self) -> String {
         toml::to_string(self).expect("config serialises")
     }
+}
+
+/// Encoded width of `d` coordinates with `freqs` frequencies (the positional encoding
+/// γ: each coordinate and a sine and cosine per frequency), the field's input width.
+pub fn encoded_dims(d: usize, freqs: usize) -> usize {
+    d * (1 + 2 * freqs)
 }
 
 #[cfg(test)]

@@ -30,10 +30,7 @@ pub fn encode(p: Tensor<2>, freqs: usize) -> Tensor<2> {
     Tensor::cat(vec![p, sin, cos], 1)
 }
 
-/// Encoded width of `d` coordinates with `freqs` frequencies.
-pub fn encoded_dims(d: usize, freqs: usize) -> usize {
-    d * (1 + 2 * freqs)
-}
+pub use crate::config::encoded_dims;
 
 /// The conditional radiance field (generator network).
 #[derive(Module, Debug)]

@@ -15,7 +15,8 @@
 use crate::checkpoint::Generator;
 use crate::config::InferConfig;
 use crate::error::{Result, ensure};
-use crate::reconstruct::{Reference, fit_network, projection_sq_err};
+use crate::fit::{fit_network, projection_sq_err};
+use crate::reference::Reference;
 use crate::refine::{StartWeights, configured_weights, sweep_from};
 use burn::tensor::Device;
 use tomograf_sim::Volume;

@@ -387,7 +387,7 @@ mod tests {
         let truth = make(0.7, -0.3);
         let scale = DensityScale::from_window(-1024.0, 2048.0, 0.02).unwrap();
         let mu = truth.map(|d| scale.mu_scalar(f64::from(d)) as f32).unwrap();
-        let refs = crate::reconstruct::test_references(&mu);
+        let refs = crate::reference::test_references(&mu);
         let v = pca.reconstruct(&refs, &truth, &scale).unwrap();
         let err = v
             .data()

@@ -15,7 +15,7 @@ use crate::baseline::{SartTvSettings, sart_tv_density};
 use crate::config::{InferConfig, RefineStart};
 use crate::error::{Result, ensure};
 use crate::prior::MeanVolume;
-use crate::reconstruct::Reference;
+use crate::reference::Reference;
 use crate::render::DensityScale;
 use tomograf_sim::{Projector, Renderer, Volume};
 
@@ -240,7 +240,7 @@ mod tests {
                 .collect(),
         )
         .unwrap();
-        let refs = crate::reconstruct::test_references(&truth);
+        let refs = crate::reference::test_references(&truth);
         let w = fitted_weights(&refs, &ball, slab.data(), &scale).unwrap();
         assert!(
             (w.network - 0.3).abs() < 1e-4 && (w.mean - 0.6).abs() < 1e-4,

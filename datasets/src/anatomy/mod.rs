@@ -90,8 +90,10 @@
 
 mod body;
 mod devices;
+mod great_vessels;
 mod heart;
 mod lungs;
+mod mediastinum;
 mod patient;
 mod raster;
 mod scene;
@@ -159,7 +161,7 @@ fn build(
         lungs.side_of(q) == Some(side) && !blockers.iter().any(|b| b.contains(q))
     };
     let airways = trees::Airways::new(&p, &heart, &free);
-    heart::great_vessels(&mut sc, &p, &heart, &airways);
+    great_vessels::great_vessels(&mut sc, &p, &heart, &airways);
     airways.paint_vessels(&mut sc);
     airways.paint_walls(&mut sc);
     let nodules = lungs::nodules(&mut sc, &p, spec.seed, &free);

@@ -11,6 +11,7 @@
 //! terminal branches. A branch whose end leaves the lung is halved, then dropped.
 
 use super::heart::Heart;
+use super::mediastinum::{trachea_radius, trachea_y, z_carina};
 use super::patient::{Params, rng, stream};
 use super::shapes::Shape;
 use super::{Scene, Structure, Tissue};
@@ -211,29 +212,6 @@ fn partition(v: &mut [DVec3], pred: impl Fn(&DVec3) -> bool) -> usize {
 
 /// Smallest bronchus drawn (outer radius, mm).
 const AIRWAY_MIN_RADIUS: f64 = 1.0;
-
-/// Outer radius of the trachea and oesophagus.
-pub(crate) fn trachea_radius(p: &Params) -> f64 {
-    9.5 * p.sv
-}
-pub(crate) fn esophagus_radius(p: &Params) -> f64 {
-    7.0 * p.s
-}
-
-/// Centre y of the oesophagus (just in front of the spine) at height z.
-pub(crate) fn esophagus_y(p: &Params, z: f64) -> f64 {
-    p.spine_y(z) - p.vertebra(z).1 - esophagus_radius(p) - 2.0
-}
-
-/// Centre y of the trachea (in front of the oesophagus) at height z.
-pub(crate) fn trachea_y(p: &Params, z: f64) -> f64 {
-    esophagus_y(p, z) - esophagus_radius(p) - 3.0 - trachea_radius(p)
-}
-
-/// Height of the carina.
-pub(crate) fn z_carina(p: &Params) -> f64 {
-    p.z_thoracic(4.6)
-}
 
 /// Airways and the pulmonary vessel trees.
 pub(crate) struct Airways {

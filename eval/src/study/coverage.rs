@@ -5,7 +5,6 @@
 
 use super::Study;
 use super::render::Block;
-use super::report::cell_name;
 use crate::evaluation::Row;
 use std::collections::BTreeSet;
 
@@ -143,4 +142,9 @@ impl Coverage {
         text += " Run the evaluate stage on the remaining shards to complete it.";
         Some(Block::Para(text))
     }
+}
+
+/// How a cell is named in the report: its model, or the classical baselines.
+fn cell_name(train: Option<&str>) -> String {
+    train.map_or_else(|| "classical baselines".into(), |t| format!("model `{t}`"))
 }

@@ -627,11 +627,6 @@ fn row_keys(study: &Study) -> Vec<(Option<String>, String, String)> {
     keys
 }
 
-/// How a cell is named in the report: its model, or the classical baselines.
-pub(super) fn cell_name(train: Option<&str>) -> String {
-    train.map_or_else(|| "classical baselines".into(), |t| format!("model `{t}`"))
-}
-
 fn find<'a>(
     stats: &'a [Stat],
     train: Option<&str>,

@@ -12,7 +12,6 @@
 //! The search never touches a test set: it reads the data set it is given, which should be
 //! a validation split (disjoint seeds from training and test).
 
-use crate::evaluation::{Scores, score};
 use crate::protocol::{correct_scatter, load_items, paper_poses, references, run_one};
 use anyhow::{Context, Result, bail};
 use serde::{Deserialize, Serialize};
@@ -23,6 +22,7 @@ use tomograf_datasets::atomic::write_atomic;
 use tomograf_model::baseline::{Baseline, Fdk, SartTv, SartTvSettings};
 use tomograf_model::config::InferConfig;
 use tomograf_model::data::Item;
+use tomograf_model::metrics::{Scores, score};
 use tomograf_model::pca::{PcaMap, PcaSettings};
 use tomograf_model::prior::MeanVolume;
 use tomograf_model::reconstruct::{NetworkVolume, Reference};

@@ -71,7 +71,7 @@ mod tg195_reduced {
         // outside the tolerance of ≈ 1 %), and VOIs 1 and 5, which
         // the turn makes differ by 20 % (a turn the wrong way swaps them: 3 eV, twice the
         // tolerance). 10⁶ photons.
-        let rows = tg195::case3(Beam::Mono(16.8), true, 1_000_000, 4).unwrap();
+        let rows = super::super::tg195_case3::case3(Beam::Mono(16.8), true, 1_000_000, 4).unwrap();
         check(&only(rows, &["Total body", "VOI 1", "VOI 5"]));
     }
 

@@ -33,7 +33,6 @@
 //! fluorescence, Compton with S, Rayleigh with F², Elam/xraydb cross sections).
 
 use super::reference::{self, CODES, Reference};
-pub use super::tg195_case3::case3;
 use glam::{DMat3, DVec3};
 use std::sync::Arc;
 use tomograf_physics::scatter::energy_imparted::{

@@ -4,7 +4,7 @@
 //! portable form needs five) and the optical depth of a block of 16 bins kept in a
 //! register from the first material to its exponential.
 
-use super::kernel::EXP2_TAYLOR;
+use super::exp2::EXP2_TAYLOR;
 use std::arch::x86_64::*;
 
 /// Lanes of one register of f32.

@@ -5,6 +5,7 @@
 
 #[cfg(target_arch = "x86_64")]
 use super::avx512;
+use super::exp2::EXP2_TAYLOR;
 use super::{BIN_BLOCK, SpectralIntegrator};
 
 /// One image row being filled: per channel, the row of means and of second moments.
@@ -179,19 +180,6 @@ fn lane_sum(s: &[f32; BIN_BLOCK]) -> f64 {
     }
     h[0]
 }
-
-/// Coefficients of the Taylor series of 2^f = e^(f·ln 2) to degree 7: (ln 2)ⁿ/n!.
-/// Truncation on f ∈ [−½, ½]: < 6e-9 relative, below f32 rounding.
-pub(super) const EXP2_TAYLOR: [f32; 8] = {
-    let mut c = [0.0f32; 8];
-    let (mut term, mut n) = (1.0f64, 0);
-    while n < 8 {
-        c[n] = term as f32;
-        n += 1;
-        term *= std::f64::consts::LN_2 / n as f64;
-    }
-    c
-};
 
 /// e^(−x) for x ≥ 0 in f32, branch-free so that loops over it vectorise: x·log₂e split
 /// into the nearest integer k and a remainder f in [−½, ½], 2^f from its Taylor series

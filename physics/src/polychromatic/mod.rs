@@ -24,6 +24,7 @@ use tomograf_sim::render::MassThickness;
 
 #[cfg(target_arch = "x86_64")]
 mod avx512;
+mod exp2;
 mod kernel;
 use kernel::{RowOut, row_kernel};
 
