@@ -99,13 +99,13 @@ pub fn run(args: ReconstructArgs) -> Result<()> {
     )?;
     write_hu(&item, &rec.volume, &args.output)?;
     eprintln!(
-        "{} iterations (estimated peak memory {:.0} MiB), PSNR per view {:?} dB: {}",
+        "{} iterations, PSNR per view {:?} dB (estimated peak memory {:.0} MiB): {}",
         rec.iterations,
-        rec.peak_bytes as f64 / (1u64 << 20) as f64,
         rec.psnr
             .iter()
             .map(|p| (p * 100.0).round() / 100.0)
             .collect::<Vec<_>>(),
+        rec.peak_bytes as f64 / (1u64 << 20) as f64,
         args.output.display()
     );
     Ok(())

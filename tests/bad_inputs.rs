@@ -520,7 +520,7 @@ fn a_ct_item_beyond_memory_is_refused_before_its_copies() {
     let err = String::from_utf8_lossy(&r.stderr);
     assert!(r.status.success(), "{err}");
     assert!(
-        err.contains("1 item(s) made (estimated peak memory"),
+        err.contains("estimated peak memory") && err.contains("1 item(s) made, 0 already finished"),
         "{err}"
     );
 }

@@ -319,17 +319,15 @@ impl DatasetJob {
         progress.finish();
         let summary = summary?;
         let (shard, shards) = self.shard;
-        let peak = if summary.made > 0 {
-            format!(
-                " (estimated peak memory {:.0} MiB)",
+        if summary.made > 0 {
+            progress.note(&format!(
+                "estimated peak memory {:.0} MiB (the largest item's)",
                 summary.peak_bytes as f64 / (1u64 << 20) as f64
-            )
-        } else {
-            String::new()
-        };
+            ));
+        }
         progress.note(&format!(
-            "{} item(s) made{peak}, {} already finished (shard {shard}/{shards}); manifest \
-             lists {} of {} item(s): {}",
+            "{} item(s) made, {} already finished (shard {shard}/{shards}); manifest lists {} \
+             of {} item(s): {}",
             summary.made,
             summary.skipped,
             summary.listed,
