@@ -189,13 +189,13 @@ pub fn evaluate(e: &Evaluation) -> Result<usize> {
             let generator = checkpoint::load_generator(ck, &device)
                 .with_context(|| format!("checkpoint {}", ck.display()))?;
             let infer = generator.config.infer.overridden(&e.infer)?;
-            let (grid, pixels) = largest(&items);
+            let (grid, pixels) = crate::peak::largest(&items);
             inference_peak = Some(generator.config.inference_peak_bytes(&infer, grid, pixels));
             Some((ck, infer, generator.prior, generator.state.proj_scale))
         }
         None => None,
     };
-    check_memory(e, &items, inference_peak)?;
+    crate::peak::check_evaluation(&items, e.train_data, inference_peak, e.progress)?;
     std::fs::create_dir_all(e.output.join("items"))
         .with_context(|| format!("cannot create {}", e.output.display()))?;
     tomograf_datasets::atomic::remove_stale_temporaries(e.output)?;
@@ -411,61 +411,6 @@ fn correct_views(item: &Item, e: &Evaluation, prior: Option<&MeanVolume>) -> Res
         e.seed,
         e.progress,
     )
-}
-
-/// The largest test item's grid voxels and detector pixels.
-fn largest(items: &[Item]) -> (u128, u128) {
-    items.iter().fold((0, 0), |(g, p), i| {
-        let voxels = i.ct.as_ref().map_or(0, |c| c.len() as u128);
-        (g.max(voxels), p.max(i.rows as u128 * i.cols as u128))
-    })
-}
-
-/// Refuses an evaluation whose estimated peak ([`crate::peak::evaluation_peak_bytes`]:
-/// the test items held, PCA-MAP's training set when given, the larger of the baselines'
-/// and TomoGRAF's work), beyond what the process holds now, exceeds the memory available;
-/// read before the training set is loaded (from its manifest) and noted.
-fn check_memory(e: &Evaluation, items: &[Item], inference: Option<f64>) -> Result<()> {
-    let mut held = crate::peak::Held {
-        test_bytes: items
-            .iter()
-            .map(|i| 4 * (i.ct.as_ref().map_or(0, |c| c.len()) + i.projections.len()) as u128)
-            .sum(),
-        ..Default::default()
-    };
-    if let Some(dir) = e.train_data {
-        let records = tomograf_datasets::item::read_manifest(dir, None)
-            .with_context(|| format!("the PCA prior's training set {}", dir.display()))?;
-        held.train_items = records.len() as u128;
-        for r in &records {
-            let [nx, ny, nz] = r.ct_dims;
-            held.train_voxels = held.train_voxels.max((nx * ny * nz) as u128);
-            held.train_pixels = held
-                .train_pixels
-                .max((r.angles_deg.len() * nx * ny) as u128);
-        }
-    }
-    let peak = crate::peak::evaluation_peak_bytes(largest(items).0, held, inference);
-    let resident = tomograf_sim::memory::resident_bytes().map_or(0, u128::from);
-    tomograf_sim::memory::check(
-        peak.saturating_sub(resident),
-        &format!(
-            "evaluating {} test item(s){} (estimated peak {:.0} MiB), beyond what is already \
-             held,",
-            items.len(),
-            if held.train_items > 0 {
-                format!(" with a PCA prior of {} training items", held.train_items)
-            } else {
-                String::new()
-            },
-            peak as f64 / (1u64 << 20) as f64
-        ),
-    )?;
-    e.progress.note(&format!(
-        "estimated peak memory {:.0} MiB",
-        peak as f64 / (1u64 << 20) as f64
-    ));
-    Ok(())
 }
 
 fn item_path(output: &Path, id: &str) -> PathBuf {

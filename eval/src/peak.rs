@@ -11,6 +11,11 @@
 //! * the larger of the baselines' work, `23 MiB + 3.45 ×` the f32 grid (SART-TV's sweeps),
 //!   and TomoGRAF's inference ([`tomograf_model::config::TrainConfig::inference_peak_bytes`]).
 
+use anyhow::{Context, Result};
+use std::path::Path;
+use tomograf_model::data::Item;
+use tomograf_scene::Progress;
+
 const MIB: f64 = (1u64 << 20) as f64;
 
 /// What an evaluation holds besides its work: the test items loaded, and the training set
@@ -35,6 +40,66 @@ pub fn evaluation_peak_bytes(grid_voxels: u128, held: Held, inference: Option<f6
     let train = held.train_items as f64
         * (3.0 * 4.0 * held.train_voxels as f64 + 4.0 * held.train_pixels as f64);
     (work + held.test_bytes as f64 + train) as u128
+}
+
+/// The largest test item's grid voxels and detector pixels.
+pub fn largest(items: &[Item]) -> (u128, u128) {
+    items.iter().fold((0, 0), |(g, p), i| {
+        let voxels = i.ct.as_ref().map_or(0, |c| c.len() as u128);
+        (g.max(voxels), p.max(i.rows as u128 * i.cols as u128))
+    })
+}
+
+/// Refuses an evaluation whose estimated peak ([`crate::peak::evaluation_peak_bytes`]:
+/// the test items held, PCA-MAP's training set when given, the larger of the baselines'
+/// and TomoGRAF's work), beyond what the process holds now, exceeds the memory available;
+/// read before the training set is loaded (from its manifest) and noted.
+pub fn check_evaluation(
+    items: &[Item],
+    train_data: Option<&Path>,
+    inference: Option<f64>,
+    progress: &dyn Progress,
+) -> Result<()> {
+    let mut held = Held {
+        test_bytes: items
+            .iter()
+            .map(|i| 4 * (i.ct.as_ref().map_or(0, |c| c.len()) + i.projections.len()) as u128)
+            .sum(),
+        ..Default::default()
+    };
+    if let Some(dir) = train_data {
+        let records = tomograf_datasets::item::read_manifest(dir, None)
+            .with_context(|| format!("the PCA prior's training set {}", dir.display()))?;
+        held.train_items = records.len() as u128;
+        for r in &records {
+            let [nx, ny, nz] = r.ct_dims;
+            held.train_voxels = held.train_voxels.max((nx * ny * nz) as u128);
+            held.train_pixels = held
+                .train_pixels
+                .max((r.angles_deg.len() * nx * ny) as u128);
+        }
+    }
+    let peak = evaluation_peak_bytes(largest(items).0, held, inference);
+    let resident = tomograf_sim::memory::resident_bytes().map_or(0, u128::from);
+    tomograf_sim::memory::check(
+        peak.saturating_sub(resident),
+        &format!(
+            "evaluating {} test item(s){} (estimated peak {:.0} MiB), beyond what is already \
+             held,",
+            items.len(),
+            if held.train_items > 0 {
+                format!(" with a PCA prior of {} training items", held.train_items)
+            } else {
+                String::new()
+            },
+            peak as f64 / (1u64 << 20) as f64
+        ),
+    )?;
+    progress.note(&format!(
+        "estimated peak memory {:.0} MiB",
+        peak as f64 / (1u64 << 20) as f64
+    ));
+    Ok(())
 }
 
 #[cfg(test)]

@@ -432,7 +432,7 @@ impl ItemScene {
         } else {
             "cropping"
         };
-        check_item_memory(index, hu.dims(), phase, prepare_peak)?;
+        crate::peak::check_item(index, hu.dims(), phase, prepare_peak)?;
         let (hu, reorientation, outside_body) = match source {
             ItemSource::File { path } => patient_of(hu, path, settings)?,
             // Generated in the frame, holding what its spec asks for (a table only if asked).
@@ -454,7 +454,7 @@ impl ItemScene {
             (settings.views as u128 + 2) * size * size,
             size * size * size,
         );
-        check_item_memory(index, hu.dims(), "rendering and writing", render_peak)?;
+        crate::peak::check_item(index, hu.dims(), "rendering and writing", render_peak)?;
         let peak_bytes = crate::peak::item_peak_bytes(prepare_peak, render_peak);
         let mut poses = angles::arc(0.0, 360.0 / settings.views as f64, settings.views, 0.0)?;
         poses.extend([Pose::AP, Pose::LATERAL]);
@@ -496,23 +496,6 @@ fn ideal_drr(hu: &tomograf_sim::Volume, energy_kev: f64, views: &[View]) -> Resu
     let mu = Attenuation::hounsfield_at_kev(energy_kev)?.to_mu(hu.clone())?;
     let renderer = Renderer::new(&mu, Projector::Siddon)?.for_views(views);
     views.iter().map(|v| Ok(renderer.render(v)?.data)).collect()
-}
-
-/// Refuses item `index` when `peak` (bytes, estimated for `phase`), beyond what the process
-/// holds now (the CT already read among it: the available memory no longer counts that),
-/// exceeds the memory available.
-fn check_item_memory(index: usize, dims: [usize; 3], phase: &str, peak: u128) -> Result<()> {
-    let held = tomograf_sim::memory::resident_bytes().map_or(0, u128::from);
-    let [nx, ny, nz] = dims;
-    tomograf_sim::memory::check(
-        peak.saturating_sub(held),
-        &format!(
-            "item {index:05}: {phase} a {nx}×{ny}×{nz} CT (estimated peak {:.0} MiB), beyond \
-             what is already held,",
-            peak as f64 / (1u64 << 20) as f64
-        ),
-    )?;
-    Ok(())
 }
 
 /// Makes item `index` of a set from `source` into `dir` (created if missing); returns its

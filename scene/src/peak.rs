@@ -61,6 +61,23 @@ pub fn item_render_peak_bytes(
     fit(30.0, &[(copies, voxels), (1.0, pixels), (4.3, grid_voxels)])
 }
 
+/// Refuses item `index` when `peak` (bytes, estimated for `phase`), beyond what the process
+/// holds now (the CT already read among it: the available memory no longer counts that),
+/// exceeds the memory available.
+pub fn check_item(index: usize, dims: [usize; 3], phase: &str, peak: u128) -> anyhow::Result<()> {
+    let held = tomograf_sim::memory::resident_bytes().map_or(0, u128::from);
+    let [nx, ny, nz] = dims;
+    tomograf_sim::memory::check(
+        peak.saturating_sub(held),
+        &format!(
+            "item {index:05}: {phase} a {nx}×{ny}×{nz} CT (estimated peak {:.0} MiB), beyond \
+             what is already held,",
+            peak as f64 / (1u64 << 20) as f64
+        ),
+    )?;
+    Ok(())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
