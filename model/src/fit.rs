@@ -38,8 +38,9 @@ pub struct Fit {
     pub psnr: Vec<f64>,
 }
 
-/// The network part of [`crate::reconstruct::reconstruct`]: `generator` (left as it is: its field is copied)
-/// fitted to `refs`, code first, then as `infer.tune` says, and its volume on `grid`.
+/// The network part of [`crate::reconstruct::reconstruct`]: `generator` (left as it is:
+/// its field is copied) fitted to `refs`, code first, then as `infer.tune` says, and its
+/// volume on `grid`.
 pub fn fit_network(
     generator: &Generator,
     refs: &[Reference],
