@@ -745,7 +745,19 @@ fn plots(study: &Study, stats: &[Stat]) -> Result<Vec<Block>> {
             .filter_map(|(i, t)| f(t).map(|(y, e)| (i as f64, y, e)))
             .collect::<Vec<_>>()
     };
-    let last = s.test_sets.last().context("no test sets")?;
+    // The plots over the view counts show the last test set with scores (a partial report
+    // may have none yet for the last sets).
+    let last = s
+        .test_sets
+        .iter()
+        .rev()
+        .find(|t| {
+            stats
+                .iter()
+                .any(|st| st.test == **t && !st.scores.is_empty())
+        })
+        .or(s.test_sets.last())
+        .context("no test sets")?;
     for m in Metric::ALL {
         let mut series: Series = Vec::new();
         let caption = match s.kind {
