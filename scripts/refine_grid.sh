@@ -19,6 +19,8 @@
 #   fit-N    A and B fitted to the views by least squares (refine_start = "fitted")
 #   held-N   chosen among the configured start, ½ + ½ and the mean alone by views left out
 #            of the network's fit (refine_start = "held-out"; one view: the configured start)
+#   ...-always  any of the above with the gate open: the sweeps run whatever the views'
+#            projection PSNR (refine_below_db = inf), so the start weights always apply
 # (the start weights apply when no view is explained; see model/src/refine.rs).
 # TOMOGRAF: the binary (default target/release/tomograf).
 set -euo pipefail
@@ -29,7 +31,10 @@ mkdir -p "$out"
 first=1
 cmds=()
 for s in $settings; do
-  start=${s%-*} n=${s#*-}
+  core=${s%-always} gate=
+  [ "$core" != "$s" ] && gate="
+refine_below_db = inf"
+  start=${core%-*} n=${core#*-}
   case $start in
     fit) conf='refine_start = "fitted"' ;;
     held) conf='refine_start = "held-out"' ;;
@@ -37,11 +42,12 @@ for s in $settings; do
 refine_start_mean_weight = ${start#*+}" ;;
     *) conf="refine_start_weight = $start" ;;
   esac
-  copy="$out/checkpoint-$start"
+  conf="$conf$gate"
+  copy="$out/checkpoint-$start${gate:+-always}"
   if [ ! -d "$copy" ]; then
     cp -r "$ck" "$copy.tmp"
     # Drop any start setting the checkpoint holds, then append this one to [infer] (last).
-    sed -i '/^refine_start/d' "$copy.tmp/config.toml"
+    sed -i '/^refine_start/d; /^refine_below_db/d' "$copy.tmp/config.toml"
     python3 - "$copy.tmp/config.toml" "$conf" <<'PY'
 import sys
 path, conf = sys.argv[1], sys.argv[2]
@@ -88,19 +94,19 @@ for (name, v, m), x in sorted(rows.items()):
 # Paired differences from the first setting, over the items both scored.
 T95 = {1: 12.71, 2: 4.30, 3: 3.18, 4: 2.78, 5: 2.57, 6: 2.45, 7: 2.36, 8: 2.31, 9: 2.26,
        10: 2.23, 11: 2.20, 12: 2.18, 13: 2.16, 14: 2.14, 15: 2.13}
-def ci(d):
+def ci(d, p=2):
     if len(d) < 2:
-        return f"{d[0]:+.2f}" if d else "–"
+        return f"{d[0]:+.{p}f}" if d else "–"
     h = T95.get(len(d) - 1, 2.0) * st.stdev(d) / math.sqrt(len(d))
     mark = " (resolved)" if abs(st.mean(d)) > h else ""
-    return f"{st.mean(d):+.2f} ± {h:.2f}{mark}"
+    return f"{st.mean(d):+.{p}f} ± {h:.{p}f}{mark}"
 print(f"\nPaired difference from TomoGRAF {settings[0]} (dB, mean ± 95 % t-interval over items):\n")
-print("| set | views | setting | PSNR | body PSNR |\n|---|---:|---|---:|---:|")
+print("| set | views | setting | PSNR | SSIM | body PSNR | body SSIM |\n|---|---:|---|---:|---:|---:|---:|")
 for (name, v, m), x in sorted(rows.items()):
     if not m.startswith("TomoGRAF ") or m.startswith("TomoGRAF (") or m == f"TomoGRAF {settings[0]}":
         continue
     base = rows[(name, v, f"TomoGRAF {settings[0]}")]
     common = sorted(set(x) & set(base))
-    print(f"| {name} | {v} | {m[9:]} | {ci([x[k][0] - base[k][0] for k in common])} | "
-          f"{ci([x[k][2] - base[k][2] for k in common])} |")
+    print(f"| {name} | {v} | {m[9:]} | " + " | ".join(
+        ci([x[k][c] - base[k][c] for k in common], 2 if c % 2 == 0 else 3) for c in range(4)) + " |")
 PY

@@ -530,7 +530,7 @@ fn a_ct_item_beyond_memory_is_refused_before_its_copies() {
 /// cannot fit, naming the field's sizes; with room, `reconstruct` reports its estimate.
 /// `evaluate` likewise, with the baselines' data.
 #[test]
-fn an_inference_or_evaluation_beyond_memory_is_refused_before_its_work() {
+fn an_inference_evaluation_or_training_beyond_memory_is_refused_before_its_work() {
     let dir = tempfile::tempdir().unwrap();
     let bin = env!("CARGO_BIN_EXE_tomograf");
     let data = dir.path().join("data");
@@ -617,6 +617,33 @@ fn an_inference_or_evaluation_beyond_memory_is_refused_before_its_work() {
     let err = String::from_utf8_lossy(&r.stderr);
     assert!(r.status.success(), "{err}");
     assert!(err.contains("estimated peak memory"), "{err}");
+    // `train` (`eval::peak::check_training`): `small`'s step (~230 MiB with its items) is
+    // refused under 184 MiB before the items are loaded, although the floor checked when
+    // the networks are made (160 MiB) fits; nothing is written.
+    let train = |limit_gb: &str, out: &Path| {
+        Command::new(bin)
+            .args(["train", &s(&data), "--config", "small", "--iterations", "1"])
+            .args(["-o", &s(out)])
+            .env("TOMOGRAF_MEMORY_LIMIT_GB", limit_gb)
+            .output()
+            .unwrap()
+    };
+    let out = dir.path().join("tight-training");
+    let r = train("0.18", &out);
+    let err = String::from_utf8_lossy(&r.stderr);
+    assert_eq!(r.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("training 'small' (batch 4, patch 16², samples 32, hidden 128, depth 4")
+            && err.contains("MiB that TOMOGRAF_MEMORY_LIMIT_GB allows"),
+        "{err}"
+    );
+    assert!(!out.exists());
+    let out = dir.path().join("roomy-training");
+    let r = train("8", &out);
+    let err = String::from_utf8_lossy(&r.stderr);
+    assert!(r.status.success(), "{err}");
+    assert!(err.contains("estimated peak memory"), "{err}");
+    assert!(out.join("checkpoint").is_dir());
 }
 
 #[test]

@@ -115,6 +115,15 @@ pub fn write_npy(path: &Path, data: &[f32], shape: &[usize]) -> Result<()> {
     })
 }
 
+/// The shape a NumPy `.npy` file's header declares, reading the header only (for sizing a
+/// job before its data are loaded; [`read_npy`] checks the values).
+pub fn npy_shape(path: &Path) -> Result<Vec<u64>> {
+    let file = std::fs::File::open(path).map_err(|e| DatasetError::io(path, "reading", e))?;
+    let npy = npyz::NpyFile::new(std::io::BufReader::new(file))
+        .map_err(|e| DatasetError::corrupt(path, format!("not a .npy array: {e}")))?;
+    Ok(npy.shape().to_vec())
+}
+
 /// Reads a NumPy `.npy` array of float32 (either byte order) in C order: `(values,
 /// shape)`. The shape must hold exactly the stored values; errors name the file.
 pub fn read_npy(path: &Path) -> Result<(Vec<f32>, Vec<usize>)> {

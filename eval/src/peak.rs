@@ -10,9 +10,15 @@
 //!   loaded, its centred copy, one principal component) plus its projections;
 //! * the larger of the baselines' work, `23 MiB + 3.45 ×` the f32 grid (SART-TV's sweeps),
 //!   and TomoGRAF's inference ([`tomograf_model::config::TrainConfig::inference_peak_bytes`]).
+//!
+//! And of a training run (`tomograf train`, the studies' training): its items as loaded and
+//! a step's work ([`tomograf_model::config::TrainConfig::training_peak_bytes`]), checked
+//! before the data set is loaded ([`check_training`]).
 
 use anyhow::{Context, Result};
 use std::path::Path;
+use tomograf_datasets::item::ItemRecord;
+use tomograf_model::config::TrainConfig;
 use tomograf_model::data::Item;
 use tomograf_scene::Progress;
 
@@ -99,6 +105,58 @@ pub fn check_evaluation(
         "estimated peak memory {:.0} MiB",
         peak as f64 / (1u64 << 20) as f64
     ));
+    Ok(())
+}
+
+/// Bytes of a data set's items as loaded (f32): each CT's voxels (`ct_dims`) and its
+/// projections, whose shape is read from the header of each item's projections file (where
+/// that cannot be read, one view per angle of a detector the size of the CT's first two
+/// sides, as `tomograf dataset` makes them; the loader names the file's problem later).
+pub fn items_bytes(dir: &Path, records: &[ItemRecord]) -> u128 {
+    records
+        .iter()
+        .map(|r| {
+            let [nx, ny, nz] = r.ct_dims.map(|n| n as u128);
+            let path = dir.join(&r.id).join(&r.projections);
+            let pixels = tomograf_datasets::image::npy_shape(&path)
+                .map(|s| s.iter().map(|&n| u128::from(n)).product())
+                .unwrap_or(r.angles_deg.len() as u128 * nx * ny);
+            4 * (nx * ny * nz + pixels)
+        })
+        .sum()
+}
+
+/// Refuses a training run of `config` on the items of `records` (in the data set `dir`)
+/// whose estimated peak ([`TrainConfig::training_peak_bytes`]), beyond what the process
+/// holds now, exceeds the memory available; read before the items are loaded, and noted.
+pub fn check_training(
+    config: &TrainConfig,
+    dir: &Path,
+    records: &[ItemRecord],
+    progress: &dyn Progress,
+) -> Result<()> {
+    let data = items_bytes(dir, records);
+    let peak = config.training_peak_bytes(data);
+    let resident = tomograf_sim::memory::resident_bytes().map_or(0, u128::from);
+    let m = &config.model;
+    tomograf_sim::memory::check(
+        (peak as u128).saturating_sub(resident),
+        &format!(
+            "training '{}' (batch {}, patch {}², samples {}, hidden {}, depth {}: lower these in \
+             the config) on {} item(s) of {:.0} MiB (estimated peak {:.0} MiB), beyond what is \
+             already held,",
+            config.name,
+            config.batch,
+            m.patch,
+            m.samples,
+            m.hidden,
+            m.depth,
+            records.len(),
+            data as f64 / MIB,
+            peak / MIB
+        ),
+    )?;
+    progress.note(&format!("estimated peak memory {:.0} MiB", peak / MIB));
     Ok(())
 }
 

@@ -40,14 +40,10 @@ pub struct Training<'a> {
 /// atomically.
 pub fn train(args: &Training, progress: &dyn Progress) -> Result<()> {
     let device = backend::device(args.backend.unwrap_or(backend::default_name()))?;
-    let items = data::load_dataset(args.data, args.split)
+    let records = tomograf_datasets::item::read_manifest(args.data, args.split)
         .with_context(|| format!("loading the data set {}", args.data.display()))?;
-    let scale = items[0].scale;
-    let population = Population::of(&tomograf_datasets::item::read_manifest(
-        args.data, args.split,
-    )?);
+    let population = Population::of(&records);
     let ck = args.output.join("checkpoint");
-    let ids: Vec<String> = items.iter().map(|i| i.id.clone()).collect();
     if args.output.is_dir() {
         let stale = tomograf_datasets::atomic::remove_stale_temporaries(args.output)?;
         if stale > 0 {
@@ -63,22 +59,34 @@ pub fn train(args: &Training, progress: &dyn Progress) -> Result<()> {
             args.output.display()
         ));
     }
+    if !resumable && ck.exists() {
+        bail!(
+            "{} already holds a checkpoint: pass --resume to continue it or choose another --output",
+            ck.display()
+        );
+    }
+    // The run's configuration (the checkpoint's when resuming) sizes its peak, checked
+    // before the items are loaded.
+    let config = if resumable {
+        checkpoint::read_config(&ck).with_context(|| format!("resuming from {}", ck.display()))?
+    } else {
+        let mut config = TrainConfig::load(args.config)?;
+        if let Some(s) = args.seed {
+            config.seed = s;
+        }
+        config
+    };
+    crate::peak::check_training(&config, args.data, &records, progress)?;
+    let items = data::load_dataset(args.data, args.split)
+        .with_context(|| format!("loading the data set {}", args.data.display()))?;
+    let scale = items[0].scale;
+    let ids: Vec<String> = items.iter().map(|i| i.id.clone()).collect();
     let mut trainer = if resumable {
         let (t, state) = checkpoint::load_trainer(&ck, &device)
             .with_context(|| format!("resuming from {}", ck.display()))?;
         progress.note(&format!("resuming at iteration {}", state.iteration));
         t
     } else {
-        if ck.exists() {
-            bail!(
-                "{} already holds a checkpoint: pass --resume to continue it or choose another --output",
-                ck.display()
-            );
-        }
-        let mut config = TrainConfig::load(args.config)?;
-        if let Some(s) = args.seed {
-            config.seed = s;
-        }
         let mean = MeanVolume::from_volumes(items.iter().filter_map(|i| i.ct.as_ref()))?;
         Trainer::new(config, projection_scale(&items)?, mean, ids, &device)?
     };

@@ -216,7 +216,8 @@ pub fn recover(dir: &Path) -> Result<bool> {
     Ok(dir.exists())
 }
 
-fn read_meta(dir: &Path) -> Result<(TrainConfig, State)> {
+/// The configuration a checkpoint folder holds (`config.toml`), checked.
+pub fn read_config(dir: &Path) -> Result<TrainConfig> {
     let cp = dir.join("config.toml");
     let text = std::fs::read_to_string(&cp).map_err(|e| {
         err(
@@ -233,6 +234,11 @@ fn read_meta(dir: &Path) -> Result<(TrainConfig, State)> {
         };
         err(&cp, format!("{e}{hint}"))
     })?;
+    Ok(config)
+}
+
+fn read_meta(dir: &Path) -> Result<(TrainConfig, State)> {
+    let config = read_config(dir)?;
     let sp = dir.join("state.json");
     let bytes = std::fs::read(&sp).map_err(|e| err(&sp, e))?;
     let state: State = serde_json::from_slice(&bytes).map_err(|e| err(&sp, e))?;

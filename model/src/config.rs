@@ -360,6 +360,29 @@ impl TrainConfig {
         4.0 * 4.0 * params + 2.0 * 4.0 * points * w * (depth + 1.0)
     }
 
+    /// Bytes of one training step's activations and their gradients:
+    /// `8 · batch · patch² · samples · hidden · (depth + 1)` (one f32 activation and its
+    /// gradient per hidden unit per layer for every sample point of the batch).
+    pub fn step_activation_bytes(&self) -> f64 {
+        let m = &self.model;
+        let points = self.batch as f64 * (m.patch as f64).powi(2) * m.samples as f64;
+        8.0 * points * m.hidden as f64 * (m.depth as f64 + 1.0)
+    }
+
+    /// Estimated peak memory of training (bytes) on items whose f32 CTs and projections
+    /// take `data_bytes`: `48 MiB + (1.14 + 0.25 · [adversarial]) ·`
+    /// [`Self::step_activation_bytes`] `+ 1.43 · data_bytes`, the `0.25` when the
+    /// discriminators train (`w_adversarial > 0`). Fitted to `/usr/bin/time -v` peaks of
+    /// `train` (2 iterations, one thread) with fields of hidden 64–256, 16–64 samples and
+    /// batches of 4–8 on 8 items of 64³ and 32 of 96³ (docs/reliability.md, "Memory
+    /// budget"; `scripts/memory_peaks_train.sh`).
+    pub fn training_peak_bytes(&self, data_bytes: u128) -> f64 {
+        let adversarial = if self.w_adversarial > 0.0 { 0.25 } else { 0.0 };
+        48.0 * (1u64 << 20) as f64
+            + (1.14 + adversarial) * self.step_activation_bytes()
+            + 1.43 * data_bytes as f64
+    }
+
     /// Estimated peak memory of inference (bytes): a fit, `67 MiB + 1.17 · 8·points·hidden·
     /// (depth + 1) + 15 · 4·grid_voxels`, where `points` is the larger ray batch of the two
     /// phases (`code_patch²` and `infer.patch²`, at most the largest view's `view_pixels`, the
