@@ -387,6 +387,9 @@ fn intro(study: &Study) -> Vec<Block> {
 
 /// The baselines TomoGRAF is compared with: those of its model's cell (made from its
 /// training set), then the classical ones.
+/// The baseline that starts from the model's mean training volume.
+const MEAN_SART: &str = "SART-TV from the mean";
+
 const BASELINES: [(&str, bool); 5] = [
     ("mean training volume", true),
     ("PCA-MAP prior", true),
@@ -768,6 +771,12 @@ fn plots(study: &Study, stats: &[Stat]) -> Result<Vec<Block>> {
                         vs_views(Some(t), last, "TomoGRAF", m),
                     ));
                 }
+                // The strongest baseline, from the first model's mean volume.
+                let first = &s.train_sets[0];
+                series.push((
+                    format!("{MEAN_SART} ← {first}"),
+                    vs_views(Some(first), last, MEAN_SART, m),
+                ));
                 for c in ["FDK", "SART-TV"] {
                     series.push((c.into(), vs_views(None, last, c, m)));
                 }
@@ -823,6 +832,10 @@ fn plots(study: &Study, stats: &[Stat]) -> Result<Vec<Block>> {
                             .then(|| point(Some(t), t, 1, "TomoGRAF", m))
                             .flatten()
                     }),
+                ));
+                series.push((
+                    format!("{MEAN_SART} ← {first}"),
+                    across(&|t| point(Some(first), t, 1, MEAN_SART, m)),
                 ));
                 for c in ["FDK", "SART-TV"] {
                     series.push((c.into(), across(&|t| point(None, t, 1, c, m))));
