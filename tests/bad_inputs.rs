@@ -389,7 +389,7 @@ fn every_bad_input_ends_in_a_clear_error() {
         (vec!["train", &out("data"), "-o", &under_file, "--config", "tiny", "--iterations", "1"].map_into(), "cannot create the output folder"),
         // Evaluation and inference.
         (vec!["evaluate", &out("data"), "--items", "0", "-o", &out("ev")].map_into(), "--items 0 scores nothing"),
-        (vec!["train", &out("data"), "-o", &out("tr-big"), "--config", &big_batch, "--iterations", "1"].map_into(), "at the least, a training step of 'tiny' (batch 100000000, patch 8², samples 8, hidden 32, depth 2) needs"),
+        (vec!["train", &out("data"), "-o", &out("tr-big"), "--config", &big_batch, "--iterations", "1"].map_into(), "training 'tiny' (batch 100000000, patch 8², samples 8, hidden 32, depth 2: lower these in the config) on 1 item(s) of 0.0 MiB (estimated peak 49.7 TiB), beyond what is already held, needs"),
         (vec!["train", &out("data-dup"), "-o", &out("tr-dup"), "--config", "tiny", "--iterations", "1"].map_into(), "line 2: item '00000' is listed twice (also on line 1)"),
         (vec!["train", &out("data-air"), "-o", &out("tr-air"), "--config", "tiny", "--iterations", "1"].map_into(), "every projection value is 0"),
         (vec!["evaluate", &out("data"), "--scatter-correction", "prior", "-o", &out("ev-sc")].map_into(), "give --checkpoint or --train-data"),
@@ -644,6 +644,58 @@ fn an_inference_evaluation_or_training_beyond_memory_is_refused_before_its_work(
     assert!(r.status.success(), "{err}");
     assert!(err.contains("estimated peak memory"), "{err}");
     assert!(out.join("checkpoint").is_dir());
+}
+
+/// `validate tg195` holds its case's voxel medium (`eval::validation::tg195::medium`, Case 3's
+/// 310×312×387 voxels about 470 MiB): refused before it is filled where that cannot fit;
+/// `tradeoff` likewise before its ladder.
+#[test]
+fn a_validation_case_or_tradeoff_beyond_memory_is_refused_before_its_work() {
+    let dir = tempfile::tempdir().unwrap();
+    let r = Command::new(env!("CARGO_BIN_EXE_tomograf"))
+        .args([
+            "validate",
+            "tg195",
+            "--cases",
+            "3",
+            "--photons-case3",
+            "1000",
+        ])
+        .args(["-o", &s(dir.path())])
+        .env("TOMOGRAF_MEMORY_LIMIT_GB", "0.2")
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&r.stderr);
+    assert_eq!(r.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("the TG-195 case's voxel medium of 310×312×387 voxels needs")
+            && err.contains("MiB that TOMOGRAF_MEMORY_LIMIT_GB allows"),
+        "{err}"
+    );
+    assert!(!dir.path().join("tg195.csv").exists());
+    // `tradeoff` (`eval::tradeoff::peak_bytes`): the built-in phantom's 33 MiB volume is
+    // read under 51 MiB, but detector physics' ladder (~106 MiB) is refused before it runs.
+    let out = dir.path().join("tradeoff");
+    let r = Command::new(env!("CARGO_BIN_EXE_tomograf"))
+        .args([
+            "tradeoff",
+            "--preset",
+            "kv-flat-panel-120kvp",
+            "-o",
+            &s(&out),
+        ])
+        .env("TOMOGRAF_MEMORY_LIMIT_GB", "0.05")
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&r.stderr);
+    assert_eq!(r.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains(
+            "the trade-off ladder on a 256×256×133 volume (detector physics; estimated peak"
+        ) && err.contains("MiB that TOMOGRAF_MEMORY_LIMIT_GB allows"),
+        "{err}"
+    );
+    assert!(!out.exists());
 }
 
 #[test]

@@ -143,8 +143,7 @@ pub fn check_training(
         (peak as u128).saturating_sub(resident),
         &format!(
             "training '{}' (batch {}, patch {}², samples {}, hidden {}, depth {}: lower these in \
-             the config) on {} item(s) of {:.0} MiB (estimated peak {:.0} MiB), beyond what is \
-             already held,",
+             the config) on {} item(s) of {} (estimated peak {}), beyond what is already held,",
             config.name,
             config.batch,
             m.patch,
@@ -152,12 +151,24 @@ pub fn check_training(
             m.hidden,
             m.depth,
             records.len(),
-            data as f64 / MIB,
-            peak / MIB
+            size(data as f64),
+            size(peak)
         ),
     )?;
     progress.note(&format!("estimated peak memory {:.0} MiB", peak / MIB));
     Ok(())
+}
+
+/// `bytes` as "12.5 MiB", "3.2 GiB" or "49.7 TiB".
+fn size(bytes: f64) -> String {
+    let gib = MIB * 1024.0;
+    if bytes >= gib * 1024.0 {
+        format!("{:.1} TiB", bytes / (gib * 1024.0))
+    } else if bytes >= gib {
+        format!("{:.1} GiB", bytes / gib)
+    } else {
+        format!("{:.1} MiB", bytes / MIB)
+    }
 }
 
 #[cfg(test)]

@@ -98,6 +98,36 @@ pub fn tradeoff(scene: &Scene, t: &Tradeoff, progress: &dyn Progress) -> Result<
         }
     };
     let view = job.views.first().context("the scene has no view")?;
+    let physics = match &acquisition {
+        None => Physics::IdealDrr,
+        Some((acq, _)) if acq.scatter != tomograf_physics::scatter::ScatterModel::None => {
+            Physics::Scatter
+        }
+        Some(_) => Physics::Detector,
+    };
+    let file_bytes = scene
+        .volume
+        .path
+        .as_deref()
+        .filter(|p| p.is_file())
+        .and_then(|p| std::fs::metadata(p).ok())
+        .map_or(0, |m| u128::from(m.len()));
+    let peak = peak_bytes(physics, vol.len() as u128, file_bytes);
+    let resident = tomograf_sim::memory::resident_bytes().map_or(0, u128::from);
+    let [nx, ny, nz] = vol.dims();
+    tomograf_sim::memory::check(
+        peak.saturating_sub(resident),
+        &format!(
+            "the trade-off ladder on a {nx}×{ny}×{nz} volume ({}; estimated peak {:.0} MiB), \
+             beyond what is already held,",
+            physics.words(),
+            peak as f64 / MIB
+        ),
+    )?;
+    progress.note(&format!(
+        "estimated peak memory {:.0} MiB",
+        peak as f64 / MIB
+    ));
     let chain = match &acquisition {
         None => Chain::Ideal {
             mu: &vol,
@@ -143,6 +173,49 @@ pub fn tradeoff(scene: &Scene, t: &Tradeoff, progress: &dyn Progress) -> Result<
         t.report.display()
     ));
     Ok(md)
+}
+
+const MIB: f64 = (1u64 << 20) as f64;
+
+/// What the ladder's renders hold beside the volume.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Physics {
+    /// The ideal DRR (μ only).
+    IdealDrr,
+    /// Detector physics: the material composition and its mass thicknesses.
+    Detector,
+    /// Detector physics with scatter: the scatter medium too.
+    Scatter,
+}
+
+impl Physics {
+    fn words(self) -> &'static str {
+        match self {
+            Self::IdealDrr => "ideal DRR",
+            Self::Detector => "detector physics",
+            Self::Scatter => "detector physics and scatter",
+        }
+    }
+}
+
+/// Estimated peak memory of a trade-off (bytes) on a volume of `voxels` read from a file of
+/// `file_bytes` (0 for a phantom or a DICOM folder): the larger of reading it, `13 MiB +
+/// file_bytes + 4·voxels` (a .nii.gz is held compressed while it is inflated into the
+/// volume's buffer), and the ladder's renders beside the f32 volume, `4·voxels + 15 MiB` for
+/// the ideal DRR, `+ 43 MiB + 0.9 · 4·voxels` with detector physics, `+ 54 MiB + 1.97 ·
+/// 4·voxels` with scatter. Fitted to `/usr/bin/time -v` peaks on CTs of 8.7·10⁶ to
+/// 34.9·10⁶ voxels (`scripts/memory_peaks_tradeoff.sh`; docs/reliability.md, "Memory
+/// budget").
+pub fn peak_bytes(physics: Physics, voxels: u128, file_bytes: u128) -> u128 {
+    let volume = 4.0 * voxels as f64;
+    let read = 13.0 * MIB + file_bytes as f64 + volume;
+    let (base_mib, factor) = match physics {
+        Physics::IdealDrr => (15.0, 0.0),
+        Physics::Detector => (43.0, 0.9),
+        Physics::Scatter => (54.0, 1.97),
+    };
+    let render = volume + base_mib * MIB + factor * volume;
+    read.max(render) as u128
 }
 
 fn write(path: &std::path::Path, text: &str) -> Result<()> {

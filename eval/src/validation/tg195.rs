@@ -169,6 +169,17 @@ pub(super) fn medium(
 ) -> Result<Medium> {
     use rayon::prelude::*;
     let n = dims[0] * dims[1] * dims[2];
+    // The case's peak: this medium's density and label grids (8 bytes a voxel) and the
+    // composition and transport medium made from them, `25 MiB + 12.5 B` a voxel, fitted
+    // to `/usr/bin/time -v` peaks of `validate tg195 --cases 2 | 3 | 4.2` (docs/reliability.md,
+    // "Memory budget"); checked before any of it is allocated.
+    tomograf_sim::memory::check(
+        25 * (1 << 20) + n as u128 * 25 / 2,
+        &format!(
+            "the TG-195 case's voxel medium of {}×{}×{} voxels",
+            dims[0], dims[1], dims[2]
+        ),
+    )?;
     let (rho, label): (Vec<f32>, Vec<f32>) = (0..n)
         .into_par_iter()
         .map(|v| {
