@@ -294,6 +294,75 @@ fn empty_space_skipping_from_the_command_line() {
     }
 }
 
+/// `--tracer` (`[projector] tracer`): each named tracer renders the default's image to
+/// rounding, with detector physics too; the sidecar records a tracer other than `auto`
+/// (absent: auto, so default runs keep their bytes); an unknown name and a tracer for the
+/// trilinear projector are clear errors.
+#[test]
+fn the_tracer_is_chosen_by_name() {
+    let dir = tempfile::tempdir().unwrap();
+    let run = |name: &str, extra: &[&str]| {
+        let out = dir.path().join(name);
+        let mut args = vec![
+            "project",
+            "-o",
+            out.to_str().unwrap(),
+            "--format",
+            "npy",
+            "--arc",
+            "0:40:9",
+        ];
+        args.extend(SMALL);
+        args.extend(extra);
+        ok(&tomograf(&args));
+        out
+    };
+    for physics in [
+        &[][..],
+        &[
+            "--preset",
+            "kv-flat-panel-120kvp",
+            "--detector-model",
+            "noiseless-csi",
+        ][..],
+    ] {
+        let plain = run("plain", physics);
+        let a = read_npy(&plain.join("drr.npy")).1;
+        assert!(a.iter().any(|&v| v > 0.5), "the views see the phantom");
+        let sidecar = std::fs::read_to_string(plain.join("drr.json")).unwrap();
+        assert!(!sidecar.contains("\"tracer\""), "{sidecar}");
+        for t in ["scalar", "packets", "sheets", "columns"] {
+            let out = run(t, &[physics, &["--tracer", t]].concat());
+            let b = read_npy(&out.join("drr.npy")).1;
+            for (x, y) in a.iter().zip(&b) {
+                assert!((x - y).abs() <= 1e-5 * x.abs().max(1e-3), "{t}: {x} vs {y}");
+            }
+            let sidecar = std::fs::read_to_string(out.join("drr.json")).unwrap();
+            assert!(
+                sidecar.contains(&format!("\"tracer\": \"{t}\"")),
+                "{sidecar}"
+            );
+        }
+    }
+    for (extra, expected) in [
+        (&["--tracer", "fast"][..], "unknown tracer 'fast'"),
+        (
+            &["--tracer", "scalar", "--projector", "trilinear"][..],
+            "the trilinear projector has one marcher",
+        ),
+    ] {
+        let mut args = vec!["project", "-o", dir.path().to_str().unwrap()];
+        args.extend(SMALL);
+        args.extend(extra);
+        let out = tomograf(&args);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(
+            !out.status.success() && err.contains(expected),
+            "{extra:?}: {err}"
+        );
+    }
+}
+
 /// `reconstruct-classical` reads what `project` wrote through the one sidecar definition:
 /// an ideal arc reconstructs; a real-detector folder is refused by name.
 #[test]

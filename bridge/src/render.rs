@@ -7,7 +7,7 @@ use glam::DVec3;
 use numpy::{AllowTypeChange, IntoPyArray, PyArrayDyn, PyArrayLikeDyn};
 use pyo3::prelude::*;
 use rayon::prelude::*;
-use tomograf_sim::{Projector, Quantity, Ray, Renderer, View, Volume};
+use tomograf_sim::{Projector, Quantity, Ray, Renderer, Tracer, View, Volume};
 
 /// Parses the projector name (the one table: [`Projector::from_name`]).
 fn projector(name: &str, step_voxels: f64) -> PyResult<Projector> {
@@ -63,11 +63,15 @@ pub(crate) fn view_list(views: &Bound<'_, PyAny>) -> PyResult<(Vec<View>, bool)>
 /// (midpoint rule through the trilinearly interpolated, cell-centred, edge-clamped field,
 /// samples ``step_voxels`` voxels apart). ``quantity``: ``"line-integral"`` (∫mu ds,
 /// dimensionless), ``"transmission"`` (exp(−L)) or ``"intensity"`` (``i0``·exp(−L)).
+/// ``tracer``: which exact Siddon tracer renders, ``"auto"`` (the measured best),
+/// ``"scalar"``, ``"packets"``, ``"sheets"`` or ``"columns"`` (docs/projector.md, "Which
+/// tracer"; images agree to rounding).
 /// Returns float32 ``(rows, cols)`` for one view, ``(views, rows, cols)`` for a list;
 /// row 0 is the top row (beam's-eye view). The GIL is released while rendering;
 /// the result does not depend on the thread count.
 #[pyfunction]
-#[pyo3(signature = (mu, views, projector="siddon", step_voxels=0.5, quantity="line-integral", i0=1.0))]
+#[pyo3(signature = (mu, views, projector="siddon", step_voxels=0.5, quantity="line-integral", i0=1.0, tracer="auto"))]
+#[allow(clippy::too_many_arguments)]
 pub fn project<'py>(
     py: Python<'py>,
     mu: &PyVolume,
@@ -76,8 +80,10 @@ pub fn project<'py>(
     step_voxels: f64,
     quantity: &str,
     i0: f64,
+    tracer: &str,
 ) -> PyResult<Bound<'py, PyArrayDyn<f32>>> {
     let proj = self::projector(projector, step_voxels)?;
+    let tracer = Tracer::from_name(tracer).map_err(errors::sim)?;
     let q = self::quantity(quantity, i0)?;
     let (list, single) = view_list(views)?;
     let (rows, cols) = (list[0].rows, list[0].cols);
@@ -86,6 +92,7 @@ pub fn project<'py>(
         check_mu(vol)?;
         let renderer = Renderer::new(vol, proj)
             .map_err(errors::sim)?
+            .with_tracer(tracer)
             .for_views(&list);
         let mut data = Vec::new();
         for view in &list {

@@ -113,6 +113,10 @@ def test_views_stack_quantities_and_determinism():
     i = tg.project(vol, geom.views(poses), quantity="intensity", i0=1e4)
     np.testing.assert_allclose(i, 1e4 * np.exp(-li.astype(np.float64)), rtol=1e-6)
     assert tg.project(vol, geom.views(poses)).tobytes() == li.tobytes()
+    # Every exact Siddon tracer renders the same images to rounding; auto is the default.
+    assert tg.project(vol, geom.views(poses), tracer="auto").tobytes() == li.tobytes()
+    for tracer in ("scalar", "packets", "sheets", "columns"):
+        np.testing.assert_allclose(tg.project(vol, geom.views(poses), tracer=tracer), li, rtol=1e-6, atol=1e-6)
 
 
 def test_analytic_thorax_line_integrals_match_a_fine_voxelisation():
@@ -174,6 +178,8 @@ def test_render_errors():
         tg.project(mu, view, quantity="intensity", i0=-1.0)
     with pytest.raises(ValueError, match="unknown quantity 'dose'"):
         tg.project(mu, view, quantity="dose")
+    with pytest.raises(ValueError, match="unknown tracer 'fast': use auto, scalar, packets, sheets or columns"):
+        tg.project(mu, view, tracer="fast")
     with pytest.raises(ValueError, match=r"must have the same shape \(\.\.\., 3\)"):
         tg.line_integrals(mu, np.zeros((3, 3)), np.ones((2, 3)))
     with pytest.raises(ValueError, match="direction non-zero"):

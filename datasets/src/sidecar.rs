@@ -16,7 +16,7 @@ use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 use tomograf_sim::accel::SkipOptions;
 use tomograf_sim::attenuation::Attenuation;
-use tomograf_sim::{Geometry, Pose, Projector, Quantity, View, Volume};
+use tomograf_sim::{Geometry, Pose, Projector, Quantity, Tracer, View, Volume};
 
 /// How pixel (row r, col c) and the rays are laid out; written into every sidecar.
 pub const CONVENTIONS: &str = "World frame DICOM LPS, mm. Pixel (row r, col c) centre = \
@@ -35,6 +35,9 @@ pub struct Sidecar {
     pub volume: VolumeRecord,
     /// How rays were integrated.
     pub projector: Projector,
+    /// The exact Siddon tracer asked for (`[projector] tracer`); absent: `auto`.
+    #[serde(default, skip_serializing_if = "Tracer::is_auto")]
+    pub tracer: Tracer,
     /// Empty-space skipping (`null`: off).
     pub skipping: Option<SkipOptions>,
     /// What a pixel holds.
@@ -135,6 +138,7 @@ impl Sidecar {
             conventions: CONVENTIONS.into(),
             volume,
             projector,
+            tracer: Tracer::Auto,
             skipping,
             quantity: PixelQuantity::Ideal(quantity),
             geometry,

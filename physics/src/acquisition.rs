@@ -23,7 +23,7 @@ use tomograf_sim::error::{Result, SimError};
 use tomograf_sim::geometry::View;
 use tomograf_sim::material::{self, Material};
 use tomograf_sim::mesh::MeshScene;
-use tomograf_sim::render::{ColumnCopy, MassThickness, Projection, Projector, Renderer};
+use tomograf_sim::render::{ColumnCopy, MassThickness, Projection, Projector, Renderer, Tracer};
 use tomograf_sim::seed::frame_seed;
 use tomograf_sim::tissue::TissueModel;
 use tomograf_sim::volume::Volume;
@@ -360,6 +360,7 @@ impl Acquisition {
             flat: Mutex::new(None),
             scatter,
             column_copy: None,
+            tracer: Tracer::Auto,
         })
     }
 }
@@ -386,9 +387,18 @@ pub struct Prepared {
     /// The composition stored k-fastest, for tracing detector columns as ray sheets, made
     /// once for a job's views ([`Prepared::for_views`]) and shared by every view's renderer.
     column_copy: Option<ColumnCopy>,
+    /// The exact Siddon tracer of every view's renderer ([`Prepared::with_tracer`]).
+    tracer: Tracer,
 }
 
 impl Prepared {
+    /// Renders every view with `tracer` ([`Renderer::with_tracer`]; default
+    /// [`Tracer::Auto`]). Set it before [`Prepared::for_views`].
+    pub fn with_tracer(mut self, tracer: Tracer) -> Self {
+        self.tracer = tracer;
+        self
+    }
+
     /// The volume's material composition.
     pub fn composition(&self) -> &Composition {
         &self.composition
@@ -406,6 +416,7 @@ impl Prepared {
     pub fn for_views(mut self, projector: Projector, views: &[View]) -> Result<Self> {
         if self.meshes.is_none() {
             self.column_copy = Renderer::for_composition(&self.composition, projector)?
+                .with_tracer(self.tracer)
                 .for_views(views)
                 .column_copy();
         }
@@ -429,7 +440,9 @@ impl Prepared {
         if let Some(m) = &self.meshes {
             r = r.with_meshes(m.clone())?;
         }
-        r.mass_thickness(view, &self.columns)
+        // After the shared copy: `columns` takes it instead of making its own.
+        r.with_tracer(self.tracer)
+            .mass_thickness(view, &self.columns)
     }
 
     /// The expected (noiseless) primary signal of a view (through the anti-scatter grid, if

@@ -5,7 +5,9 @@ use anyhow::{Result, bail};
 use glam::DVec3;
 use tomograf_sim::accel::SkipOptions;
 use tomograf_sim::geometry::angles;
-use tomograf_sim::{Beam, Detector, Geometry, Pose, Projector, Quantity, View, ViewBeam, Volume};
+use tomograf_sim::{
+    Beam, Detector, Geometry, Pose, Projector, Quantity, Tracer, View, ViewBeam, Volume,
+};
 
 /// Everything needed to render, resolved from a scene.
 pub struct Job {
@@ -13,6 +15,8 @@ pub struct Job {
     pub poses: Vec<Pose>,
     pub views: Vec<View>,
     pub projector: Projector,
+    /// The exact Siddon tracer (`[projector] tracer`).
+    pub tracer: Tracer,
     /// Empty-space skipping (`--empty-below`).
     pub skipping: Option<SkipOptions>,
     pub quantity: Quantity,
@@ -89,6 +93,17 @@ pub fn resolve(scene: &Scene, mu: &Volume) -> Result<Job> {
     if projector == Projector::Siddon && p.step_voxels.is_some() {
         bail!("[projector] step_voxels (--step) applies to the trilinear projector only");
     }
+    let tracer = match p.tracer.as_deref() {
+        None => Tracer::Auto,
+        Some(name) => Tracer::from_name(name)
+            .map_err(|e| anyhow::anyhow!("[projector] tracer (--tracer): {e}"))?,
+    };
+    if projector != Projector::Siddon && tracer != Tracer::Auto {
+        bail!(
+            "[projector] tracer (--tracer) chooses among the exact Siddon tracers; the \
+             trilinear projector has one marcher"
+        );
+    }
     let skipping = p.empty_below_per_mm.map(|threshold| SkipOptions {
         threshold,
         ..SkipOptions::default()
@@ -107,6 +122,7 @@ pub fn resolve(scene: &Scene, mu: &Volume) -> Result<Job> {
         poses,
         views,
         projector,
+        tracer,
         skipping,
         quantity,
     })

@@ -173,7 +173,7 @@ impl Prepared {
                 if let Some(m) = self.meshes(MeshPhysics::Monochromatic { energy_kev })? {
                     r = r.with_meshes(m)?;
                 }
-                r = r.for_views(&self.job.views);
+                r = r.with_tracer(self.job.tracer).for_views(&self.job.views);
                 SceneRenderer::Ideal {
                     renderer: r,
                     quantity: self.job.quantity,
@@ -186,6 +186,7 @@ impl Prepared {
                         *seed,
                         self.meshes(MeshPhysics::Polychromatic)?,
                     )?
+                    .with_tracer(self.job.tracer)
                     .for_views(self.job.projector, &self.job.views)?,
                 ),
                 projector: self.job.projector,

@@ -29,6 +29,7 @@
 //! [projector]
 //! kind = "siddon"             # or "trilinear"
 //! step_voxels = 0.5           # trilinear only
+//! tracer = "auto"             # exact Siddon: auto, scalar, packets, sheets or columns
 //! empty_below_per_mm = 1e-4   # skip |mu| ≤ this (noisy air); default: no skipping
 //!
 //! [output]
@@ -481,6 +482,9 @@ pub struct ExplicitView {
 pub struct ProjectorSection {
     pub kind: Option<String>,
     pub step_voxels: Option<f64>,
+    /// The exact Siddon tracer (`--tracer`): auto (default), scalar, packets, sheets or
+    /// columns (docs/projector.md, "Which tracer").
+    pub tracer: Option<String>,
     /// Empty-space skipping threshold, mm⁻¹ (`--empty-below`).
     pub empty_below_per_mm: Option<f32>,
 }

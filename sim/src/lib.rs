@@ -30,5 +30,7 @@ pub mod volume;
 pub use error::{Result, SimError};
 pub use geometry::{Beam, Detector, Geometry, Pose, View, ViewBeam};
 pub use ray::{GridRay, Ray};
-pub use render::{LineIntegrals, MassThicknesses, Projection, Projector, Quantity, Renderer};
+pub use render::{
+    LineIntegrals, MassThicknesses, Projection, Projector, Quantity, Renderer, Tracer,
+};
 pub use volume::Volume;

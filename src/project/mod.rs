@@ -69,6 +69,10 @@ pub struct ProjectArgs {
     /// Trilinear sample spacing in voxels [default: 0.5].
     #[arg(long)]
     pub step: Option<f64>,
+    /// Exact Siddon tracer: auto (the measured best), scalar, packets, sheets or columns
+    /// [default: auto]. Images agree to rounding; see docs/projector.md, "Which tracer".
+    #[arg(long)]
+    pub tracer: Option<String>,
     /// Skip empty space: voxels with |mu| at or below this (mm⁻¹) count as empty, e.g.
     /// 1e-4 for a CT whose air is noise rather than exact zeros. Each line integral then
     /// loses at most this × its length in skipped space. Ideal DRR only.
@@ -179,6 +183,7 @@ pub(crate) fn merge(args: &ProjectArgs) -> Result<Scene> {
     }
     set!(s.projector.kind, args.projector);
     set!(s.projector.step_voxels, args.step);
+    set!(s.projector.tracer, args.tracer);
     set!(s.projector.empty_below_per_mm, args.empty_below);
     set!(s.output.dir, args.output);
     set!(s.output.prefix, args.prefix);

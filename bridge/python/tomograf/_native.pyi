@@ -18,6 +18,7 @@ __version__: str
 Vec3 = Tuple[float, float, float]
 Projector = Literal["siddon", "trilinear"]
 QuantityName = Literal["line-integral", "line_integral", "transmission", "intensity"]
+TracerName = Literal["auto", "scalar", "packets", "sheets", "columns"]
 
 class Volume:
     """A scalar field on a regular grid in the LPS world frame (HU, or mm⁻¹ after to_mu).
@@ -167,8 +168,10 @@ def project(
     step_voxels: float = 0.5,
     quantity: QuantityName = "line-integral",
     i0: float = 1.0,
+    tracer: TracerName = "auto",
 ) -> npt.NDArray[np.float32]:
     """Render attenuation (mm⁻¹): (rows, cols) for one view, (n, rows, cols) for a list.
+    ``tracer``: the exact Siddon tracer (images agree to rounding).
     GIL released; bit-identical for any thread count."""
 
 def line_integrals(

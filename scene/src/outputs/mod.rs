@@ -201,12 +201,14 @@ pub fn sidecar(volume: &VolumeSource, job: &Job) -> Sidecar {
             view: *view,
         })
         .collect();
-    Sidecar::new(
+    let mut sidecar = Sidecar::new(
         volume.clone(),
         job.projector,
         job.skipping,
         job.quantity,
         job.geometry,
         views,
-    )
+    );
+    sidecar.tracer = job.tracer;
+    sidecar
 }

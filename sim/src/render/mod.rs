@@ -9,10 +9,12 @@ mod image;
 mod meshes;
 mod sheets;
 mod sums;
+mod tracer;
 
 pub use columns::ColumnCopy;
 pub use image::Projection;
 pub use sums::{LineIntegrals, MassThicknesses, Sums};
+pub use tracer::Tracer;
 
 use crate::accel::{EmptySpace, SkipOptions};
 use crate::composition::Composition;
@@ -162,6 +164,8 @@ pub struct Renderer<'a, S: Sums = LineIntegrals> {
     /// Number of materials of a composition; 0 for an attenuation volume.
     materials: usize,
     projector: Projector,
+    /// The exact Siddon tracer asked for ([`Renderer::with_tracer`]).
+    tracer: Tracer,
     packet_threshold: f64,
     /// Whether exact Siddon traces detector rows that form a [`crate::trace::sheet::Sheet`] as one.
     sheets: bool,
@@ -326,6 +330,7 @@ impl<'a, S: Sums> Renderer<'a, S> {
             materials: 0,
             sums: PhantomData,
             projector,
+            tracer: Tracer::Auto,
             packet_threshold: packet::default_threshold(),
             sheets: sheets::sheets_by_default(),
             columns: None,
@@ -375,6 +380,43 @@ impl<'a, S: Sums> Renderer<'a, S> {
             self.mesh_materials = 0;
         }
         Ok(self)
+    }
+
+    /// Chooses the exact Siddon tracer ([`Tracer`]; default [`Tracer::Auto`], the measured
+    /// best). `Scalar` traces one ray at a time, `Packets` adds the SIMD ray packets,
+    /// `Sheets` the row sheets, `Columns` the column sheets over a k-fastest copy of the
+    /// volume made now (unless one was given, [`Renderer::with_column_copy`]); where a
+    /// tracer cannot take a ray (meshes or empty-space skipping for the sheets, a packet of
+    /// mixed directions) the next simpler one does. Set it after skipping and meshes.
+    /// Images agree with the scalar tracer's to rounding (tests/tracers.rs).
+    pub fn with_tracer(mut self, tracer: Tracer) -> Self {
+        self.tracer = tracer;
+        let (packets, sheets) = match tracer {
+            Tracer::Auto => (true, sheets::sheets_by_default()),
+            Tracer::Scalar => (false, false),
+            Tracer::Packets => (true, false),
+            Tracer::Sheets | Tracer::Columns => (true, true),
+        };
+        self.packet_threshold = if packets {
+            packet::default_threshold()
+        } else {
+            f64::INFINITY
+        };
+        self.sheets = sheets;
+        match tracer {
+            Tracer::Auto => self,
+            Tracer::Columns if self.columns.is_some() => self,
+            Tracer::Columns => self.with_column_sheets(true),
+            Tracer::Scalar | Tracer::Packets | Tracer::Sheets => {
+                self.columns = None;
+                self
+            }
+        }
+    }
+
+    /// The exact Siddon tracer asked for ([`Renderer::with_tracer`]).
+    pub fn tracer(&self) -> Tracer {
+        self.tracer
     }
 
     /// Sets the crossings per voxel layer from which exact Siddon traces a packet of rays
@@ -435,7 +477,8 @@ impl<'a, S: Sums> Renderer<'a, S> {
         self
     }
 
-    /// Prepares for rendering `views` with this renderer: column sheets
+    /// Prepares for rendering `views` with this renderer (its tracer [`Tracer::Auto`]; a
+    /// tracer chosen by name keeps its own choice): column sheets
     /// ([`Renderer::with_column_sheets`]) where [`COLUMN_SHEET_VIEWS`] of the views or more
     /// would be traced by them (rows not sheets, columns sheets along k: views of a
     /// circular orbit about k without tilt, other than AP and PA), as judged from each
@@ -444,7 +487,11 @@ impl<'a, S: Sums> Renderer<'a, S> {
     /// docs/projector.md, "Column sheets"); views that cannot use it (a tilted orbit) do
     /// not pay for it.
     pub fn for_views(self, views: &[View]) -> Self {
-        if views.len() < COLUMN_SHEET_VIEWS || !self.column_sheets_possible() {
+        // Only `auto` decides by the views; another tracer was chosen by name.
+        if self.tracer != Tracer::Auto
+            || views.len() < COLUMN_SHEET_VIEWS
+            || !self.column_sheets_possible()
+        {
             return self;
         }
         let users = views
