@@ -20,7 +20,7 @@ echo "| CT | voxels | chain | estimated MiB | measured MiB | estimate / measured
 echo "|---|---:|---|---:|---:|---:|"
 for ct in "${cts[@]}"; do
   for chain in "" "--preset kv-flat-panel-120kvp" "--preset kv-flat-panel-120kvp --scatter estimate"; do
-    /usr/bin/time -v "$bin" --threads 2 tradeoff "$ct" $chain --repeats 1 -o "$work/t" >"$work/out" 2>"$work/err" \
+    /usr/bin/time -v "$bin" --threads 2 tradeoff "$ct" $chain --repeats 1 --report "$work/t" >"$work/out" 2>"$work/err" \
       || { cat "$work/err" >&2; exit 1; }
     est=$(grep -o 'estimated peak memory [0-9]*' "$work/err" "$work/out" | head -1 | awk '{print $4}' || true)
     kib=$(grep 'Maximum resident' "$work/err" | awk '{print $6}')

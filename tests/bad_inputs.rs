@@ -681,7 +681,7 @@ fn a_validation_case_or_tradeoff_beyond_memory_is_refused_before_its_work() {
             "tradeoff",
             "--preset",
             "kv-flat-panel-120kvp",
-            "-o",
+            "--report",
             &s(&out),
         ])
         .env("TOMOGRAF_MEMORY_LIMIT_GB", "0.05")

@@ -18,6 +18,7 @@ use obvhs::aabb::Aabb;
 use obvhs::bvh2::builder::build_bvh2;
 use obvhs::cwbvh::CwBvh;
 use obvhs::cwbvh::bvh2_to_cwbvh::bvh2_to_cwbvh;
+use obvhs::ploc::PlocSearchDistance;
 use std::time::Duration;
 
 /// A closed mesh or an analytic solid in the world with its material.
@@ -129,9 +130,14 @@ impl MeshObject {
             .collect();
         // Small leaves: a candidate costs an f64 watertight test, far more than the f32
         // box test of a node (measured: `tomograf bench --accel-only --section meshes`).
+        // PLOC pairs each node with its best of one neighbour on either side (not 14): a
+        // fan's overlapping boxes made the wider search the build's cost (65 536-side
+        // cylinder 2.5-2.8 s → 0.45-0.65 s) while the sphere's and devices' render times
+        // stayed within noise (docs/reliability.md, "The mesh self-intersection check").
         let params = BvhBuildParams {
             max_prims_per_leaf: LEAF_TRIANGLES,
             collapse_traversal_cost: 1.0,
+            ploc_search_distance: PlocSearchDistance::Minimum,
             ..BvhBuildParams::medium_build()
         };
         let bvh = build_bvh2(&aabbs, params, &mut Duration::default());

@@ -19,6 +19,7 @@ use obvhs::BvhBuildParams;
 use obvhs::aabb::Aabb;
 use obvhs::bvh2::Bvh2;
 use obvhs::bvh2::builder::build_bvh2;
+use obvhs::ploc::PlocSearchDistance;
 use rayon::prelude::*;
 use std::collections::HashMap;
 use std::time::Duration;
@@ -110,9 +111,14 @@ pub fn crossing_pairs(tris: &[[DVec3; 3]]) -> (usize, (usize, usize)) {
             let bvh = if boxes.is_empty() {
                 Bvh2::default()
             } else {
+                // One neighbour each side in PLOC's search: a fan's boxes all overlap, and
+                // the wider search was most of the build (65 536 sides: check 2.1 → 1.4 s).
                 build_bvh2(
                     &boxes,
-                    BvhBuildParams::fast_build(),
+                    BvhBuildParams {
+                        ploc_search_distance: PlocSearchDistance::Minimum,
+                        ..BvhBuildParams::fast_build()
+                    },
                     &mut Duration::default(),
                 )
             };
