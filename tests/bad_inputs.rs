@@ -425,6 +425,7 @@ fn every_bad_input_ends_in_a_clear_error() {
         (vec!["tradeoff", "--phantom-dims", "16,16,8", "--rows", "8", "--cols", "8", "--repeats", "0", "--report", &out("t0")].map_into(), "--repeats 0"),
         (vec!["tradeoff", "--phantom-dims", "16,16,8", "--rows", "8", "--cols", "8", "--kvp", "100", "--bins", "8,0", "--report", &out("t1")].map_into(), "--bins 0"),
         (vec!["tradeoff", "--phantom-dims", "16,16,8", "--rows", "8", "--cols", "8", "--scatter-fractions", "5,-1", "--report", &out("t2")].map_into(), "--scatter-fractions 5"),
+        (vec!["tradeoff", "--phantom-dims", "16,16,8", "--rows", "8", "--cols", "8", "-o", &out("t3")].map_into(), "tradeoff writes no images, only its report: give the report's folder with --report"),
     ];
     assert!(rows.len() >= 40, "{} rows", rows.len());
     let mut failures = Vec::new();
