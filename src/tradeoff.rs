@@ -47,8 +47,7 @@ pub struct TradeoffArgs {
 
 pub fn run(args: TradeoffArgs) -> Result<()> {
     // `project`'s output flags would be silently ignored: the trade-off writes a report.
-    if args.scene.output.is_some() || args.scene.prefix.is_some() || !args.scene.format.is_empty()
-    {
+    if args.scene.output.is_some() || args.scene.prefix.is_some() || !args.scene.format.is_empty() {
         anyhow::bail!(
             "tradeoff writes no images, only its report: give the report's folder with \
              --report (default: tradeoff), not -o/--output, --prefix or --format"
