@@ -248,20 +248,10 @@ fn bench_quick_runs() {
 fn empty_space_skipping_from_the_command_line() {
     let dir = tempfile::tempdir().unwrap();
     let run = |name: &str, extra: &[&str]| {
-        let out = dir.path().join(name);
-        let mut args = vec![
-            "project",
-            "-o",
-            out.to_str().unwrap(),
-            "--format",
-            "npy",
-            "--view",
-            "30,10",
-        ];
-        args.extend(SMALL);
-        args.extend(extra);
-        ok(&tomograf(&args));
-        out
+        project_npy(
+            &dir.path().join(name),
+            &[&["--view", "30,10"], extra].concat(),
+        )
     };
     let plain = run("plain", &[]);
     let skipped = run("skip", &["--empty-below", "0"]);
@@ -275,16 +265,34 @@ fn empty_space_skipping_from_the_command_line() {
     }
     let sidecar = std::fs::read_to_string(skipped.join("drr.json")).unwrap();
     assert!(sidecar.contains("\"threshold\""), "{sidecar}");
-    for (extra, expected) in [
-        (&["--empty-below=-1"][..], "threshold"),
-        (
-            &["--empty-below", "1e-4", "--preset", "kv-flat-panel-120kvp"][..],
-            "empty_below_per_mm (--empty-below) is for the ideal DRR",
-        ),
-    ] {
-        let mut args = vec!["project", "-o", dir.path().to_str().unwrap()];
+    refused(
+        dir.path(),
+        &[
+            (&["--empty-below=-1"], "threshold"),
+            (
+                &["--empty-below", "1e-4", "--preset", "kv-flat-panel-120kvp"],
+                "empty_below_per_mm (--empty-below) is for the ideal DRR",
+            ),
+        ],
+    );
+}
+
+/// `project` of the small phantom into `out` as NPY, with `extra` flags; must succeed.
+fn project_npy(out: &Path, extra: &[&str]) -> std::path::PathBuf {
+    let mut args = vec!["project", "-o", out.to_str().unwrap(), "--format", "npy"];
+    args.extend(SMALL);
+    args.extend(extra);
+    ok(&tomograf(&args));
+    out.to_path_buf()
+}
+
+/// `project` of the small phantom with each case's flags fails, its error holding the
+/// case's text.
+fn refused(dir: &Path, cases: &[(&[&str], &str)]) {
+    for (extra, expected) in cases {
+        let mut args = vec!["project", "-o", dir.to_str().unwrap()];
         args.extend(SMALL);
-        args.extend(extra);
+        args.extend(*extra);
         let out = tomograf(&args);
         let err = String::from_utf8_lossy(&out.stderr);
         assert!(
@@ -302,20 +310,10 @@ fn empty_space_skipping_from_the_command_line() {
 fn the_tracer_is_chosen_by_name() {
     let dir = tempfile::tempdir().unwrap();
     let run = |name: &str, extra: &[&str]| {
-        let out = dir.path().join(name);
-        let mut args = vec![
-            "project",
-            "-o",
-            out.to_str().unwrap(),
-            "--format",
-            "npy",
-            "--arc",
-            "0:40:9",
-        ];
-        args.extend(SMALL);
-        args.extend(extra);
-        ok(&tomograf(&args));
-        out
+        project_npy(
+            &dir.path().join(name),
+            &[&["--arc", "0:40:9"], extra].concat(),
+        )
     };
     for physics in [
         &[][..],
@@ -344,23 +342,16 @@ fn the_tracer_is_chosen_by_name() {
             );
         }
     }
-    for (extra, expected) in [
-        (&["--tracer", "fast"][..], "unknown tracer 'fast'"),
-        (
-            &["--tracer", "scalar", "--projector", "trilinear"][..],
-            "the trilinear projector has one marcher",
-        ),
-    ] {
-        let mut args = vec!["project", "-o", dir.path().to_str().unwrap()];
-        args.extend(SMALL);
-        args.extend(extra);
-        let out = tomograf(&args);
-        let err = String::from_utf8_lossy(&out.stderr);
-        assert!(
-            !out.status.success() && err.contains(expected),
-            "{extra:?}: {err}"
-        );
-    }
+    refused(
+        dir.path(),
+        &[
+            (&["--tracer", "fast"], "unknown tracer 'fast'"),
+            (
+                &["--tracer", "scalar", "--projector", "trilinear"],
+                "the trilinear projector has one marcher",
+            ),
+        ],
+    );
 }
 
 /// `reconstruct-classical` reads what `project` wrote through the one sidecar definition:

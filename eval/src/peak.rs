@@ -22,7 +22,7 @@ use tomograf_model::config::TrainConfig;
 use tomograf_model::data::Item;
 use tomograf_scene::Progress;
 
-const MIB: f64 = (1u64 << 20) as f64;
+pub(crate) const MIB: f64 = (1u64 << 20) as f64;
 
 /// What an evaluation holds besides its work: the test items loaded, and the training set
 /// that PCA-MAP's prior is built from (none without `--train-data`).
@@ -86,24 +86,31 @@ pub fn check_evaluation(
         }
     }
     let peak = evaluation_peak_bytes(largest(items).0, held, inference);
+    let what = format!(
+        "evaluating {} test item(s){} (estimated peak {:.0} MiB)",
+        items.len(),
+        if held.train_items > 0 {
+            format!(" with a PCA prior of {} training items", held.train_items)
+        } else {
+            String::new()
+        },
+        peak as f64 / MIB
+    );
+    check_peak(peak, &what, progress)
+}
+
+/// Refuses a job whose estimated `peak` (bytes), beyond what the process holds now, exceeds
+/// the memory available (the error names `what`, the job and its estimate), else notes
+/// the estimate ("estimated peak memory N MiB").
+pub fn check_peak(peak: u128, what: &str, progress: &dyn Progress) -> Result<()> {
     let resident = tomograf_sim::memory::resident_bytes().map_or(0, u128::from);
     tomograf_sim::memory::check(
         peak.saturating_sub(resident),
-        &format!(
-            "evaluating {} test item(s){} (estimated peak {:.0} MiB), beyond what is already \
-             held,",
-            items.len(),
-            if held.train_items > 0 {
-                format!(" with a PCA prior of {} training items", held.train_items)
-            } else {
-                String::new()
-            },
-            peak as f64 / (1u64 << 20) as f64
-        ),
+        &format!("{what}, beyond what is already held,"),
     )?;
     progress.note(&format!(
         "estimated peak memory {:.0} MiB",
-        peak as f64 / (1u64 << 20) as f64
+        peak as f64 / MIB
     ));
     Ok(())
 }
@@ -137,37 +144,30 @@ pub fn check_training(
 ) -> Result<()> {
     let data = items_bytes(dir, records);
     let peak = config.training_peak_bytes(data);
-    let resident = tomograf_sim::memory::resident_bytes().map_or(0, u128::from);
     let m = &config.model;
-    tomograf_sim::memory::check(
-        (peak as u128).saturating_sub(resident),
-        &format!(
-            "training '{}' (batch {}, patch {}², samples {}, hidden {}, depth {}: lower these in \
-             the config) on {} item(s) of {} (estimated peak {}), beyond what is already held,",
-            config.name,
-            config.batch,
-            m.patch,
-            m.samples,
-            m.hidden,
-            m.depth,
-            records.len(),
-            size(data as f64),
-            size(peak)
-        ),
-    )?;
-    progress.note(&format!("estimated peak memory {:.0} MiB", peak / MIB));
-    Ok(())
+    let what = format!(
+        "training '{}' (batch {}, patch {}², samples {}, hidden {}, depth {}: lower these in the \
+         config) on {} item(s) of {} (estimated peak {})",
+        config.name,
+        config.batch,
+        m.patch,
+        m.samples,
+        m.hidden,
+        m.depth,
+        records.len(),
+        size(data as f64),
+        size(peak)
+    );
+    check_peak(peak as u128, &what, progress)
 }
 
-/// `bytes` as "12.5 MiB", "3.2 GiB" or "49.7 TiB".
+/// `bytes` as sim's memory errors write them ("12.5 MiB", "3.2 GiB"), or "49.7 TiB".
 fn size(bytes: f64) -> String {
-    let gib = MIB * 1024.0;
-    if bytes >= gib * 1024.0 {
-        format!("{:.1} TiB", bytes / (gib * 1024.0))
-    } else if bytes >= gib {
-        format!("{:.1} GiB", bytes / gib)
+    let tib = MIB * 1024.0 * 1024.0;
+    if bytes >= tib {
+        format!("{:.1} TiB", bytes / tib)
     } else {
-        format!("{:.1} MiB", bytes / MIB)
+        tomograf_sim::memory::size(bytes)
     }
 }
 

@@ -117,8 +117,8 @@ pub fn check(bytes: u128, what: &str) -> Result<()> {
     }
 }
 
-/// `bytes` as "3.2 GiB", or "12.5 MiB" below 1 GiB.
-fn size(bytes: f64) -> String {
+/// `bytes` as "3.2 GiB", or "12.5 MiB" below 1 GiB (the words of [`check`]'s errors).
+pub fn size(bytes: f64) -> String {
     const GIB: f64 = (1u64 << 30) as f64;
     if bytes >= GIB {
         format!("{:.1} GiB", bytes / GIB)

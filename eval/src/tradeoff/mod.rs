@@ -5,6 +5,7 @@
 pub mod ladder;
 
 use crate::figures::{Axes, plot_points};
+use crate::peak::MIB;
 use anyhow::{Context, Result, bail};
 use ladder::{Chain, Knob, Ladder, Options};
 use std::fmt::Write as _;
@@ -113,21 +114,13 @@ pub fn tradeoff(scene: &Scene, t: &Tradeoff, progress: &dyn Progress) -> Result<
         .and_then(|p| std::fs::metadata(p).ok())
         .map_or(0, |m| u128::from(m.len()));
     let peak = peak_bytes(physics, vol.len() as u128, file_bytes);
-    let resident = tomograf_sim::memory::resident_bytes().map_or(0, u128::from);
     let [nx, ny, nz] = vol.dims();
-    tomograf_sim::memory::check(
-        peak.saturating_sub(resident),
-        &format!(
-            "the trade-off ladder on a {nx}×{ny}×{nz} volume ({}; estimated peak {:.0} MiB), \
-             beyond what is already held,",
-            physics.words(),
-            peak as f64 / MIB
-        ),
-    )?;
-    progress.note(&format!(
-        "estimated peak memory {:.0} MiB",
+    let what = format!(
+        "the trade-off ladder on a {nx}×{ny}×{nz} volume ({}; estimated peak {:.0} MiB)",
+        physics.words(),
         peak as f64 / MIB
-    ));
+    );
+    crate::peak::check_peak(peak, &what, progress)?;
     let chain = match &acquisition {
         None => Chain::Ideal {
             mu: &vol,
@@ -174,8 +167,6 @@ pub fn tradeoff(scene: &Scene, t: &Tradeoff, progress: &dyn Progress) -> Result<
     ));
     Ok(md)
 }
-
-const MIB: f64 = (1u64 << 20) as f64;
 
 /// What the ladder's renders hold beside the volume.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
