@@ -20,8 +20,11 @@
 //!
 //! Units: mm, keV, HU.
 
+use crate::job::resolve;
 use crate::physics::item_seed;
+use crate::prepare::{Prepared, prepare_in_memory};
 use crate::progress::Progress;
+use crate::scene::Scene;
 use crate::volume::load_volume_file;
 use anyhow::{Context, Result, bail};
 use serde::Serialize;
@@ -36,9 +39,8 @@ use tomograf_datasets::population::Population;
 use tomograf_datasets::preprocess::{HuWindow, crop_black_border, resample};
 use tomograf_datasets::{atomic, image, nifti};
 use tomograf_physics::acquisition::Acquisition;
-use tomograf_sim::attenuation::Attenuation;
 use tomograf_sim::geometry::angles;
-use tomograf_sim::{Beam, Detector, Geometry, Pose, Projector, Renderer, View};
+use tomograf_sim::{Geometry, Pose, View};
 
 /// How every item of a set is made. [`Default`] is the paper's protocol at 128³.
 #[derive(Debug, Clone)]
@@ -394,6 +396,10 @@ pub fn outliers(dir: &Path, reference: &Population) -> Result<Vec<(String, Vec<S
 pub struct ItemScene {
     /// The black-border-cropped CT at full resolution, HU.
     pub hu: tomograf_sim::Volume,
+    /// The item as a scene (cone beam, `size²` detector, its poses, exact Siddon) without
+    /// its volume and physics, which [`ItemScene::prepare`] gives: every item image is
+    /// rendered by [`prepare_in_memory`].
+    pub scene: Scene,
     /// The cone beam and the `size²` detector fitted to the volume.
     pub geometry: Geometry,
     /// The poses: every 360/`views` degrees, then AP, then lateral.
@@ -458,21 +464,13 @@ impl ItemScene {
         let peak_bytes = crate::peak::item_peak_bytes(prepare_peak, render_peak);
         let mut poses = angles::arc(0.0, 360.0 / settings.views as f64, settings.views, 0.0)?;
         poses.extend([Pose::AP, Pose::LATERAL]);
-        let size = settings.size;
-        let mut geometry = Geometry {
-            beam: Beam::Cone {
-                sad_mm: settings.sad_mm,
-                sid_mm: settings.sid_mm,
-            },
-            detector: Detector::new(size, size, 1.0),
-            isocentre: hu.centre(),
-        };
-        let pitch = geometry.fit_pitch(&poses, &hu)?;
-        geometry.detector.pitch_u_mm = pitch;
-        geometry.detector.pitch_v_mm = pitch;
-        let views = geometry.views(&poses)?;
+        let scene = item_scene(settings, &poses);
+        let job = resolve(&scene, &hu)?;
+        let geometry = job.geometry.context("an item's views come from poses")?;
+        let (poses, views) = (job.poses, job.views);
         Ok(Self {
             hu,
+            scene,
             geometry,
             poses,
             views,
@@ -484,18 +482,74 @@ impl ItemScene {
         })
     }
 
-    /// The ideal DRR of `views`: line integrals of μ at `energy_kev` (exact Siddon).
-    pub fn ideal_drr(&self, energy_kev: f64, views: &[View]) -> Result<Vec<Vec<f32>>> {
-        ideal_drr(&self.hu, energy_kev, views)
+    /// The item's scene made ready to render from `hu` (this item's CT or a copy of it):
+    /// the ideal DRR at `energy_kev`, or `acquisition` with its noise seed. For real
+    /// physics the prepared volume is `hu` itself, handed back in [`Prepared::volume`].
+    pub fn prepare(
+        &self,
+        hu: tomograf_sim::Volume,
+        energy_kev: f64,
+        acquisition: Option<(Acquisition, u64)>,
+    ) -> Result<Prepared> {
+        prepare_item(&self.scene, hu, energy_kev, acquisition)
+    }
+
+    /// The ideal DRR of the views numbered `which` (of [`ItemScene::views`]): line
+    /// integrals of μ at `energy_kev`, exact Siddon, as the item's own are rendered.
+    pub fn ideal_drr(
+        &self,
+        energy_kev: f64,
+        which: std::ops::Range<usize>,
+    ) -> Result<Vec<Vec<f32>>> {
+        let prepared = self.prepare(self.hu.clone(), energy_kev, None)?;
+        let renderer = prepared.renderer()?;
+        which
+            .map(|i| first_channel(renderer.render(i, &prepared.job.views[i])?))
+            .collect()
     }
 }
 
-/// The ideal DRR of `views` through the CT `hu` (HU): line integrals of μ at `energy_kev`,
-/// exact Siddon — how every ideal-DRR item is rendered.
-fn ideal_drr(hu: &tomograf_sim::Volume, energy_kev: f64, views: &[View]) -> Result<Vec<Vec<f32>>> {
-    let mu = Attenuation::hounsfield_at_kev(energy_kev)?.to_mu(hu.clone())?;
-    let renderer = Renderer::new(&mu, Projector::Siddon)?.for_views(views);
-    views.iter().map(|v| Ok(renderer.render(v)?.data)).collect()
+/// The scene of an item seen from `poses`: the settings' cone beam, a `size²` detector
+/// whose pitch is fitted to the volume, the volume's centre as isocentre, exact Siddon,
+/// line integrals. Its volume and physics are given in memory ([`ItemScene::prepare`]).
+fn item_scene(settings: &ItemSettings, poses: &[Pose]) -> Scene {
+    let mut scene = Scene::default();
+    scene.geometry.beam = Some("cone".into());
+    scene.geometry.sad_mm = Some(settings.sad_mm);
+    scene.geometry.sid_mm = Some(settings.sid_mm);
+    scene.detector.rows = Some(settings.size);
+    scene.detector.cols = Some(settings.size);
+    // `{}` writes the shortest text that reads back as the same f64.
+    scene.views.poses = Some(
+        poses
+            .iter()
+            .map(|p| format!("{},{}", p.theta_deg, p.phi_deg))
+            .collect(),
+    );
+    scene.projector.kind = Some("siddon".into());
+    scene
+}
+
+/// [`ItemScene::prepare`] of the item scene `scene`.
+fn prepare_item(
+    scene: &Scene,
+    hu: tomograf_sim::Volume,
+    energy_kev: f64,
+    acquisition: Option<(Acquisition, u64)>,
+) -> Result<Prepared> {
+    let mut scene = scene.clone();
+    scene.volume.energy_kev = acquisition.is_none().then_some(energy_kev);
+    prepare_in_memory(&scene, hu, acquisition)
+}
+
+/// The image of a rendered view: its first (for the ideal DRR, only) channel.
+fn first_channel(frame: crate::prepare::Frame) -> Result<Vec<f32>> {
+    Ok(frame
+        .images
+        .into_iter()
+        .next()
+        .context("a rendered view without an image")?
+        .data)
 }
 
 /// Makes item `index` of a set from `source` into `dir` (created if missing); returns its
@@ -506,8 +560,23 @@ pub fn make_item(
     source: &ItemSource,
     dir: &Path,
 ) -> Result<u128> {
+    let item = ItemScene::new(settings, index, source)?;
+    let size = settings.size;
+
+    // Projections from the cropped full-resolution volume, through the item's scene: the
+    // ideal DRR renders μ made from a copy of the CT; real physics takes the CT itself and
+    // hands it back.
+    let acquisition = settings
+        .acquisition
+        .as_ref()
+        .map(|(a, s)| (a.clone(), item_seed(*s, index)));
+    let quantity = match &settings.acquisition {
+        None => "line integral ∫mu ds (mu at the effective energy)".to_string(),
+        Some((acq, _)) => format!("detector signal: {:?} (see acquisition)", acq.output),
+    };
     let ItemScene {
-        hu: cropped,
+        hu,
+        scene,
         geometry,
         poses,
         views,
@@ -516,29 +585,25 @@ pub fn make_item(
         reorientation,
         outside_body,
         augmentation,
-    } = ItemScene::new(settings, index, source)?;
-    let size = settings.size;
-
-    // Projections from the cropped full-resolution volume.
-    let acquisition = &settings.acquisition;
+    } = item;
+    let (hu, kept) = match acquisition {
+        None => (hu.clone(), Some(hu)),
+        Some(_) => (hu, None),
+    };
+    let prepared = prepare_item(&scene, hu, settings.energy_kev, acquisition)?;
     let mut stack = Vec::with_capacity(views.len() * size * size);
-    let quantity = match acquisition {
-        None => {
-            for image in ideal_drr(&cropped, settings.energy_kev, &views)? {
-                stack.extend(image);
-            }
-            "line integral ∫mu ds (mu at the effective energy)".to_string()
+    {
+        let renderer = prepared.renderer()?;
+        for (i, v) in prepared.job.views.iter().enumerate() {
+            stack.extend(first_channel(renderer.render(i, v)?)?);
         }
-        Some((acq, seed)) => {
-            // Classified into tissues by the acquisition, in HU.
-            let prepared = acq
-                .prepare(&cropped, item_seed(*seed, index))?
-                .for_views(Projector::Siddon, &views)?;
-            for (i, v) in views.iter().enumerate() {
-                stack.extend(prepared.acquire(Projector::Siddon, v, i)?.remove(0).data);
-            }
-            format!("detector signal: {:?} (see acquisition)", acq.output)
+    }
+    let cropped = match kept {
+        Some(hu) => {
+            drop(prepared);
+            hu
         }
+        None => prepared.volume,
     };
 
     // The CT on the training grid, normalised; how much of it is body, and of what.
@@ -566,7 +631,8 @@ pub fn make_item(
         ct_dims: ct.dims(),
         projections: "projections.npy".into(),
         projection_quantity: quantity,
-        acquisition: acquisition
+        acquisition: settings
+            .acquisition
             .as_ref()
             .map(|(a, s)| {
                 AcquisitionRecord {

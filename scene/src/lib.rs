@@ -26,7 +26,7 @@ pub mod scatter;
 pub mod scene;
 pub mod volume;
 
-pub use prepare::{Frame, Prepared, SceneRenderer, prepare};
+pub use prepare::{Frame, Prepared, SceneRenderer, prepare, prepare_in_memory};
 pub use progress::{Progress, Silent};
 pub use project::project;
 pub use scene::Scene;

@@ -26,7 +26,7 @@ use tomograf_physics::acquisition::{Acquired, Acquisition};
 use tomograf_sim::attenuation::Attenuation;
 use tomograf_sim::geometry::coverage::{Coverage, coverage};
 use tomograf_sim::mesh::MeshScene;
-use tomograf_sim::{Projection, Renderer, View, Volume};
+use tomograf_sim::{Projection, Projector, Renderer, View, Volume};
 
 /// A scene resolved against its volume; [`Prepared::renderer`] renders its views.
 pub struct Prepared {
@@ -75,6 +75,64 @@ pub fn prepare(scene: &Scene) -> Result<Prepared> {
         Some((acq, _)) => load_hu(scene, acq.materials.calibration_kev)?,
     };
     let load_seconds = t0.elapsed().as_secs_f64();
+    assemble(scene, volume, source, acquisition, load_seconds)
+}
+
+/// [`prepare`] for a CT already in memory: `hu` (HU, mm, the patient frame) stands for the
+/// scene's `[volume]`, and `acquisition` (resolved, with its noise seed; `None`: the ideal
+/// DRR at `[volume] energy_kev`, default 60 keV) for its physics sections, which must be
+/// absent. Geometry, views, projector and output come from the scene as in [`prepare`].
+/// How data-set items and the trade-off ladder make their images: the one renderer every
+/// image goes through. For real physics, [`Prepared::volume`] is `hu` itself, handed back.
+pub fn prepare_in_memory(
+    scene: &Scene,
+    hu: Volume,
+    acquisition: Option<(Acquisition, u64)>,
+) -> Result<Prepared> {
+    if let Some(p) = &scene.volume.path {
+        bail!(
+            "the scene's CT is given in memory; it names a [volume] path too ({})",
+            p.display()
+        );
+    }
+    if crate::physics::acquisition(scene)?.is_some() || scene.dose.is_some() {
+        bail!(
+            "the scene's physics is given with its CT in memory; its own [acquisition], \
+             [spectrum], [materials], [detector] model, [scatter] and [dose] must be absent"
+        );
+    }
+    let (volume, attenuation) = match &acquisition {
+        None => {
+            let a = Attenuation::hounsfield_at_kev(
+                scene.volume.energy_kev.unwrap_or(DEFAULT_ENERGY_KEV),
+            )?;
+            (a.to_mu(hu)?, a)
+        }
+        Some((acq, _)) => {
+            if scene.volume.energy_kev.is_some() {
+                bail!(
+                    "[volume] energy_kev is the monochromatic DRR's energy; with a spectrum \
+                     the CT's energy is [materials] calibration_kev"
+                );
+            }
+            (
+                hu,
+                Attenuation::hounsfield_at_kev(acq.materials.calibration_kev)?,
+            )
+        }
+    };
+    let source = crate::volume::record(&volume, None, None, "hu".into(), attenuation);
+    assemble(scene, volume, source, acquisition, 0.0)
+}
+
+/// Resolves the scene's views against the loaded `volume` and checks what the job will hold.
+fn assemble(
+    scene: &Scene,
+    volume: Volume,
+    source: VolumeSource,
+    acquisition: Option<(Acquisition, u64)>,
+    load_seconds: f64,
+) -> Result<Prepared> {
     let job = resolve(scene, &volume)?;
     let pixels: u128 = job
         .views
@@ -161,9 +219,37 @@ impl Prepared {
     /// Builds the renderer: the projector over the volume (and meshes) for the ideal DRR,
     /// or the acquisition's material decomposition for real detector physics.
     pub fn renderer(&self) -> Result<SceneRenderer<'_>> {
-        Ok(match &self.acquisition {
+        self.renderer_with(self.job.projector, self.acquisition.as_ref())
+    }
+
+    /// [`Prepared::renderer`] with another `projector` and, for real physics, another
+    /// `acquisition` (its spectrum bins, scatter or detector changed): the same volume,
+    /// views, tracer and meshes. How `tomograf tradeoff` renders each setting it measures.
+    /// The physics must be of the kind the scene was prepared for (the volume holds mu
+    /// for the ideal DRR, HU for real physics).
+    pub fn renderer_with(
+        &self,
+        projector: Projector,
+        acquisition: Option<&(Acquisition, u64)>,
+    ) -> Result<SceneRenderer<'_>> {
+        if acquisition.is_some() != self.acquisition.is_some() {
+            bail!(
+                "the scene was prepared for {}: its volume holds {}",
+                if self.acquisition.is_some() {
+                    "real detector physics"
+                } else {
+                    "the ideal DRR"
+                },
+                if self.acquisition.is_some() {
+                    "HU"
+                } else {
+                    "mu"
+                }
+            );
+        }
+        Ok(match acquisition {
             None => {
-                let mut r = Renderer::new(&self.volume, self.job.projector)?;
+                let mut r = Renderer::new(&self.volume, projector)?;
                 if self.job.skipping.is_some() {
                     r = r.with_skipping(self.job.skipping)?;
                 }
@@ -187,9 +273,9 @@ impl Prepared {
                         self.meshes(MeshPhysics::Polychromatic)?,
                     )?
                     .with_tracer(self.job.tracer)
-                    .for_views(self.job.projector, &self.job.views)?,
+                    .for_views(projector, &self.job.views)?,
                 ),
-                projector: self.job.projector,
+                projector,
             },
         })
     }

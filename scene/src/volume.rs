@@ -120,22 +120,35 @@ fn load(scene: &Scene, keep_hu: Option<f64>) -> Result<(Volume, VolumeSource)> {
         (Some(_), _) | (None, Some(_)) => vol,
         (None, None) => attenuation.to_mu(vol)?,
     };
-    let d = mu.direction();
-    let source = VolumeSource {
-        path: v.path.clone(),
+    let source = record(&mu, v.path.clone(), phantom, units, attenuation);
+    Ok((mu, source))
+}
+
+/// What the sidecar records of a loaded `volume`: where it came from (`path` or the
+/// built-in `phantom`; neither for a CT given in memory), its units, how they became mu,
+/// and its grid.
+pub(crate) fn record(
+    volume: &Volume,
+    path: Option<std::path::PathBuf>,
+    phantom: Option<String>,
+    units: String,
+    attenuation: Attenuation,
+) -> VolumeSource {
+    let d = volume.direction();
+    VolumeSource {
+        path,
         phantom,
         units,
         attenuation,
-        dims: mu.dims(),
-        spacing_mm: mu.spacing().to_array(),
-        origin_mm: mu.origin().to_array(),
+        dims: volume.dims(),
+        spacing_mm: volume.spacing().to_array(),
+        origin_mm: volume.origin().to_array(),
         direction: [
             d.x_axis.to_array(),
             d.y_axis.to_array(),
             d.z_axis.to_array(),
         ],
-    };
-    Ok((mu, source))
+    }
 }
 
 /// As [`load_volume_file`], converted to mu by `attenuation`: a NIfTI file in the pass that

@@ -35,7 +35,7 @@ use tomograf_physics::detector::Blur;
 use tomograf_physics::scatter::ScatterModel;
 use tomograf_scene::dataset::{DatasetJob, ItemScene};
 use tomograf_scene::physics::item_seed;
-use tomograf_sim::{Geometry, Projector};
+use tomograf_sim::Geometry;
 
 /// Test items measured per set.
 pub const ITEMS: usize = 2;
@@ -113,10 +113,10 @@ fn item_views(job: &DatasetJob, index: usize) -> Result<([Views; 2], [Vec<f32>; 
     let settings = &job.settings;
     let scene = ItemScene::new(settings, index, &job.sources[index])?;
     let n = scene.views.len();
-    let apl = &scene.views[n - 2..];
+    let apl = n - 2..n;
     let geometry = scene.geometry;
     let [ap, lateral]: [Vec<f32>; 2] = scene
-        .ideal_drr(settings.energy_kev, apl)?
+        .ideal_drr(settings.energy_kev, apl.clone())?
         .try_into()
         .map_err(|_| anyhow::anyhow!("two views expected"))?;
     let ideal = [ap, lateral];
@@ -130,16 +130,20 @@ fn item_views(job: &DatasetJob, index: usize) -> Result<([Views; 2], [Vec<f32>; 
         return Ok(([v(), v()], ideal.clone(), geometry));
     };
     let realisation = |stream: u64| -> Result<Views> {
-        let prepared = acq
-            .prepare(&scene.hu, item_seed(seed ^ stream, index))?
-            .for_views(Projector::Siddon, apl)?;
+        let prepared = scene.prepare(
+            scene.hu.clone(),
+            settings.energy_kev,
+            Some((acq.clone(), item_seed(seed ^ stream, index))),
+        )?;
+        let renderer = prepared.renderer()?;
         let mut images: [Vec<f32>; 2] = Default::default();
         let mut spr = [0.0; 2];
         let mut quanta = None;
         let mut starved = 0;
-        for (i, view) in apl.iter().enumerate() {
+        for (i, k) in apl.clone().enumerate() {
             // The view's index in the item, so that stream 0 gives the item's own bytes.
-            let got = prepared.acquire_with_parts(Projector::Siddon, view, n - 2 + i)?;
+            let frame = renderer.render(k, &prepared.job.views[k])?;
+            let got = frame.parts.context("real physics renders its parts")?;
             starved += got.clipped;
             let mut object = got.primary.clone();
             if let Some(s) = &got.scatter {
@@ -164,7 +168,7 @@ fn item_views(job: &DatasetJob, index: usize) -> Result<([Views; 2], [Vec<f32>; 
                         .collect(),
                 );
             }
-            images[i] = got.images.into_iter().next().context("no image")?.data;
+            images[i] = frame.images.into_iter().next().context("no image")?.data;
         }
         Ok(Views {
             images,

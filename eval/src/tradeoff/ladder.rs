@@ -22,32 +22,18 @@
 //!   render with scatter), after the per-volume preparation (material classification,
 //!   spectral tables), which a data-set job pays once per CT.
 
+use anyhow::{Result, bail};
 use std::time::Instant;
 use tomograf_physics::acquisition::Acquisition;
 use tomograf_physics::scatter::ScatterModel;
-use tomograf_sim::error::{Result, SimError};
-use tomograf_sim::render::{Projection, Projector, Quantity, Renderer};
-use tomograf_sim::{View, Volume};
+use tomograf_scene::Prepared;
+use tomograf_sim::View;
+use tomograf_sim::error::SimError;
+use tomograf_sim::render::{Projection, Projector};
 
-/// What is rendered: the ideal DRR or a realistic acquisition.
-#[derive(Debug, Clone, Copy)]
-pub enum Chain<'a> {
-    /// The monochromatic DRR of a μ volume (mm⁻¹), as `quantity`.
-    Ideal {
-        /// Linear attenuation, mm⁻¹.
-        mu: &'a Volume,
-        /// What pixels hold.
-        quantity: Quantity,
-    },
-    /// A realistic acquisition of a CT volume (HU).
-    Acquisition {
-        /// The CT, HU.
-        hu: &'a Volume,
-        /// Spectrum, tissues, detector, scatter, output.
-        acquisition: &'a Acquisition,
-        /// Seed of the scatter Monte Carlo (and of noise, which is off here).
-        seed: u64,
-    },
+/// The scene's acquisition and its seed, when it has real physics.
+fn physics(scene: &Prepared) -> Option<(&Acquisition, u64)> {
+    scene.acquisition.as_ref().map(|(a, s)| (a, *s))
 }
 
 /// One combination of settings.
@@ -172,52 +158,40 @@ fn reference_scatter(scene: &ScatterModel, photons: Option<u64>) -> ScatterModel
 /// Renders `view` (index `index`) under `setting`: the images of every channel,
 /// concatenated, and the median render time over `repeats`.
 pub fn render(
-    chain: Chain,
+    scene: &Prepared,
     view: &View,
     setting: &Setting,
     repeats: usize,
 ) -> Result<(Vec<f32>, f64)> {
+    let acquisition = physics(scene).map(|(acquisition, seed)| {
+        let mut acq = acquisition.clone();
+        acq.spectrum.bins = setting.energy_bins;
+        acq.scatter = setting.scatter.clone();
+        if !setting.blur {
+            acq.detector.blur = Default::default();
+        }
+        acq.detector.quantum_noise = false;
+        acq.detector.readout.electronic_noise_adu = 0.0;
+        (acq, seed)
+    });
+    let renderer = scene.renderer_with(setting.projector, acquisition.as_ref())?;
+    // A render with scatter is timed once: its Monte Carlo is the slow part.
+    let repeats = if setting.scatter == ScatterModel::None {
+        repeats
+    } else {
+        1
+    };
     let mut times = Vec::new();
     let mut image = Vec::new();
-    match chain {
-        Chain::Ideal { mu, quantity } => {
-            let r = Renderer::new(mu, setting.projector)?;
-            for _ in 0..repeats.max(1) {
-                let t = Instant::now();
-                let p = r.render(view)?.to_quantity(quantity);
-                times.push(t.elapsed().as_secs_f64());
-                image = p.data;
-            }
-        }
-        Chain::Acquisition {
-            hu,
-            acquisition,
-            seed,
-        } => {
-            let mut acq = acquisition.clone();
-            acq.spectrum.bins = setting.energy_bins;
-            acq.scatter = setting.scatter.clone();
-            if !setting.blur {
-                acq.detector.blur = Default::default();
-            }
-            acq.detector.quantum_noise = false;
-            acq.detector.readout.electronic_noise_adu = 0.0;
-            let prepared = acq.prepare(hu, seed)?;
-            let repeats = if setting.scatter == ScatterModel::None {
-                repeats
-            } else {
-                1
-            };
-            for _ in 0..repeats.max(1) {
-                let t = Instant::now();
-                let images = prepared.acquire(setting.projector, view, 0)?;
-                times.push(t.elapsed().as_secs_f64());
-                image = images
-                    .into_iter()
-                    .flat_map(|p: Projection| p.data)
-                    .collect();
-            }
-        }
+    for _ in 0..repeats.max(1) {
+        let t = Instant::now();
+        let frame = renderer.render(0, view)?;
+        times.push(t.elapsed().as_secs_f64());
+        image = frame
+            .images
+            .into_iter()
+            .flat_map(|p: Projection| p.data)
+            .collect();
     }
     times.sort_by(f64::total_cmp);
     Ok((image, times[times.len() / 2]))
@@ -226,7 +200,7 @@ pub fn render(
 /// `(rms, max)` of `a` against the reference `r` (see the module's conventions).
 pub fn errors(a: &[f32], r: &[f32]) -> Result<(f64, f64)> {
     if a.len() != r.len() || r.is_empty() {
-        return Err(SimError::OutOfRange(format!(
+        bail!(SimError::OutOfRange(format!(
             "images of {} and {} values cannot be compared",
             a.len(),
             r.len()
@@ -236,7 +210,7 @@ pub fn errors(a: &[f32], r: &[f32]) -> Result<(f64, f64)> {
     for (&x, &y) in a.iter().zip(r) {
         let (x, y) = (f64::from(x), f64::from(y));
         if !(x.is_finite() && y.is_finite()) {
-            return Err(SimError::OutOfRange(
+            bail!(SimError::OutOfRange(
                 "a rendered image holds a non-finite value".into(),
             ));
         }
@@ -246,7 +220,7 @@ pub fn errors(a: &[f32], r: &[f32]) -> Result<(f64, f64)> {
         rmax = rmax.max(y.abs());
     }
     if r2 == 0.0 {
-        return Err(SimError::OutOfRange(
+        bail!(SimError::OutOfRange(
             "the reference image is all zeros (does the view see the volume?)".into(),
         ));
     }
@@ -262,15 +236,13 @@ fn projector_label(p: Projector) -> String {
 
 /// The reference setting for `chain` (`scatter_photons`: the reference Monte Carlo's
 /// histories, see [`Options::scatter_reference_photons`]).
-pub fn reference(chain: Chain, scatter_photons: Option<u64>) -> Setting {
+pub fn reference(scene: &Prepared, scatter_photons: Option<u64>) -> Setting {
     Setting {
         projector: Projector::Siddon,
         energy_bins: None,
-        scatter: match chain {
-            Chain::Ideal { .. } => ScatterModel::None,
-            Chain::Acquisition { acquisition, .. } => {
-                reference_scatter(&acquisition.scatter, scatter_photons)
-            }
+        scatter: match physics(scene) {
+            None => ScatterModel::None,
+            Some((acquisition, _)) => reference_scatter(&acquisition.scatter, scatter_photons),
         },
         blur: true,
     }
@@ -279,18 +251,18 @@ pub fn reference(chain: Chain, scatter_photons: Option<u64>) -> Setting {
 /// Measures the reference and every one-knob rung of `options` for `view`.
 /// `progress(done, total)` is called after each render.
 pub fn ladder(
-    chain: Chain,
+    scene: &Prepared,
     view: &View,
     options: &Options,
     mut progress: impl FnMut(usize, usize),
 ) -> Result<Ladder> {
     if options.scatter_reference_photons == Some(0) {
-        return Err(SimError::OutOfRange(
+        bail!(SimError::OutOfRange(
             "scatter reference photons = 0: give the reference Monte Carlo's histories (≥ 1)"
                 .into(),
         ));
     }
-    let base = reference(chain, options.scatter_reference_photons);
+    let base = reference(scene, options.scatter_reference_photons);
     // Rungs of the primary-chain knobs go without scatter.
     let primary = Setting {
         scatter: ScatterModel::None,
@@ -299,7 +271,7 @@ pub fn ladder(
     let mut plan: Vec<(Knob, String, Setting)> = Vec::new();
     for &s in &options.steps {
         if !(s.is_finite() && s > 0.0) {
-            return Err(SimError::OutOfRange(format!(
+            bail!(SimError::OutOfRange(format!(
                 "trilinear step {s} voxels: it must be finite and > 0"
             )));
         }
@@ -313,7 +285,7 @@ pub fn ladder(
             },
         ));
     }
-    if let Chain::Acquisition { acquisition, .. } = chain {
+    if let Some((acquisition, _)) = physics(scene) {
         let mut own_bins = acquisition.spectrum.clone();
         own_bins.bins = None;
         let native = own_bins.spectrum()?.energies_kev().len();
@@ -343,7 +315,7 @@ pub fn ladder(
             let own_cell = base.scatter.detection_cell_mm();
             for &f in &options.scatter_fractions {
                 if !(f > 0.0 && f < 1.0) {
-                    return Err(SimError::OutOfRange(format!(
+                    bail!(SimError::OutOfRange(format!(
                         "scatter photon fraction {f}: give fractions in (0, 1)"
                     )));
                 }
@@ -359,7 +331,7 @@ pub fn ladder(
             }
             for &c in &options.scatter_cells {
                 if !(c.is_finite() && c > 0.0) {
-                    return Err(SimError::OutOfRange(format!(
+                    bail!(SimError::OutOfRange(format!(
                         "scatter detection cell {c} mm: give cell sizes > 0"
                     )));
                 }
@@ -397,7 +369,7 @@ pub fn ladder(
     let total = plan.len() + 1 + usize::from(has_scatter);
     let mut done = 0;
     let mut measure = |knob: Knob, label: String, setting: Setting| -> Result<(Rung, Vec<f32>)> {
-        let (img, s) = render(chain, view, &setting, options.repeats)?;
+        let (img, s) = render(scene, view, &setting, options.repeats)?;
         done += 1;
         progress(done, total);
         let rung = Rung {

@@ -7,13 +7,10 @@ pub mod ladder;
 use crate::figures::{Axes, plot_points};
 use crate::peak::MIB;
 use anyhow::{Context, Result, bail};
-use ladder::{Chain, Knob, Ladder, Options};
+use ladder::{Knob, Ladder, Options};
 use std::fmt::Write as _;
 use std::path::PathBuf;
-use tomograf_scene::job::resolve;
-use tomograf_scene::physics::acquisition;
-use tomograf_scene::volume::{load_hu, load_mu};
-use tomograf_scene::{Progress, Scene};
+use tomograf_scene::{Progress, Scene, prepare};
 
 /// The ladder to measure and where to write the report.
 #[derive(Debug, Clone)]
@@ -76,7 +73,6 @@ pub fn tradeoff(scene: &Scene, t: &Tradeoff, progress: &dyn Progress) -> Result<
     {
         bail!("--scatter-cells {c}: a cell size must be > 0 mm");
     }
-    let acquisition = acquisition(scene)?;
     let options = Options {
         steps: t.steps.clone(),
         bins: t.bins.clone(),
@@ -85,21 +81,20 @@ pub fn tradeoff(scene: &Scene, t: &Tradeoff, progress: &dyn Progress) -> Result<
         scatter_reference_photons: t.scatter_reference_photons,
         repeats: t.repeats,
     };
-    let (vol, job) = match &acquisition {
-        None => {
-            let (mu, _) = load_mu(scene)?;
-            let job = resolve(scene, &mu)?;
-            (mu, job)
-        }
-        Some((acq, _)) => {
-            let (hu, _) = load_hu(scene, acq.materials.calibration_kev)?;
-            // The views are resolved on the grid alone; HU or mu does not change them.
-            let job = resolve(scene, &hu)?;
-            (hu, job)
-        }
-    };
-    let view = job.views.first().context("the scene has no view")?;
-    let physics = match &acquisition {
+    // The scene as `project` makes it ready (its volume, views, tracer and physics); the
+    // ladder measures its first view.
+    let mut prepared = prepare(scene)?;
+    for w in &prepared.warnings {
+        progress.warn(w);
+    }
+    prepared.job.views.truncate(1);
+    let view = prepared
+        .job
+        .views
+        .first()
+        .cloned()
+        .context("the scene has no view")?;
+    let physics = match &prepared.acquisition {
         None => Physics::IdealDrr,
         Some((acq, _)) if acq.scatter != tomograf_physics::scatter::ScatterModel::None => {
             Physics::Scatter
@@ -113,6 +108,7 @@ pub fn tradeoff(scene: &Scene, t: &Tradeoff, progress: &dyn Progress) -> Result<
         .filter(|p| p.is_file())
         .and_then(|p| std::fs::metadata(p).ok())
         .map_or(0, |m| u128::from(m.len()));
+    let vol = &prepared.volume;
     let peak = peak_bytes(physics, vol.len() as u128, file_bytes);
     let [nx, ny, nz] = vol.dims();
     let what = format!(
@@ -121,19 +117,9 @@ pub fn tradeoff(scene: &Scene, t: &Tradeoff, progress: &dyn Progress) -> Result<
         peak as f64 / MIB
     );
     crate::peak::check_peak(peak, &what, progress)?;
-    let chain = match &acquisition {
-        None => Chain::Ideal {
-            mu: &vol,
-            quantity: job.quantity,
-        },
-        Some((acq, seed)) => Chain::Acquisition {
-            hu: &vol,
-            acquisition: acq,
-            seed: *seed,
-        },
-    };
+    let view = &view;
     let mut started = false;
-    let ladder = ladder::ladder(chain, view, &options, |done, total| {
+    let ladder = ladder::ladder(&prepared, view, &options, |done, total| {
         if !started {
             progress.start("setting", total as u64, 0);
             started = true;
@@ -143,7 +129,7 @@ pub fn tradeoff(scene: &Scene, t: &Tradeoff, progress: &dyn Progress) -> Result<
     progress.finish();
     let ladder = ladder?;
     let combined = ladder::combine(&ladder, t.budget);
-    let (img, seconds) = ladder::render(chain, view, &combined, options.repeats)?;
+    let (img, seconds) = ladder::render(&prepared, view, &combined, options.repeats)?;
     let (rms, max) = ladder::errors(&img, &ladder.reference_image)?;
 
     std::fs::create_dir_all(&t.report)
@@ -156,7 +142,7 @@ pub fn tradeoff(scene: &Scene, t: &Tradeoff, progress: &dyn Progress) -> Result<
         seconds,
         rms,
         max,
-        acquisition.is_some(),
+        prepared.acquisition.is_some(),
     )?;
     write(&t.report.join("tradeoff.md"), &md)?;
     write(&t.report.join("tradeoff.csv"), &csv(&ladder))?;
