@@ -29,30 +29,7 @@ $bin dataset -o "$out/train-lidc" --phantoms 32 --size 64 --views 36 --profile l
 $bin dataset -o "$out/train-fc" --phantoms 32 --seed 300000 --size 64 --views 36 \
     --profile full-chest --split train
 # One training set of both: the full-chest items follow the lidc ones as 00032…00063.
-if [ ! -f "$out/train-mix/manifest.jsonl" ]; then
-    rm -rf "$out/train-mix.partial"
-    python3 - "$out" <<'EOF'
-import json, pathlib, shutil, sys
-out = pathlib.Path(sys.argv[1])
-dst = out / "train-mix.partial"
-dst.mkdir()
-lines = []
-for src in ["train-lidc", "train-fc"]:
-    for line in (out / src / "manifest.jsonl").read_text().splitlines():
-        if not line.strip():
-            continue
-        rec = json.loads(line)
-        new = f"{len(lines):05d}"
-        shutil.copytree(out / src / rec["id"], dst / new)
-        item = json.loads((dst / new / "item.json").read_text())
-        for r in (rec, item):
-            r["id"], r["index"] = new, len(lines)
-        (dst / new / "item.json").write_text(json.dumps(item))
-        lines.append(json.dumps(rec))
-(dst / "manifest.jsonl").write_text("\n".join(lines) + "\n")
-EOF
-    mv "$out/train-mix.partial" "$out/train-mix"
-fi
+python3 scripts/merge_sets.py "$out/train-mix" "$out/train-lidc" "$out/train-fc"
 $bin train "$out/train-mix" -o "$out/runs/mix" --config small --iterations 5000 --resume
 # Inference as the shipped checkpoint's (its [infer] section: the gate's check interval and
 # the left-out start from two views were chosen on validation for it): the two models then

@@ -74,6 +74,10 @@ pub struct EvaluateArgs {
     /// and results.csv (errors naming the items still missing).
     #[arg(long)]
     pub merge: bool,
+    /// Slice and profile figures and the reconstruction (NIfTI, HU) for every item scored,
+    /// not only the first.
+    #[arg(long)]
+    pub all_figures: bool,
 }
 
 pub fn run(args: EvaluateArgs) -> Result<()> {
@@ -112,6 +116,7 @@ pub fn run(args: EvaluateArgs) -> Result<()> {
         scatter_correction: args.scatter_correction,
         scatter_prior_data: args.scatter_prior_data.as_deref(),
         progress: &bar,
+        all_figures: args.all_figures,
     };
     let made = evaluate(&e)?;
     if shard.1 > 1 {

@@ -151,7 +151,19 @@ fn train_resume_reconstruct_evaluate() {
             }
         }
     }
-    assert!(eval.join("results.md").is_file());
+    // Two items: TomoGRAF minus each method, paired, per view count.
+    let md = std::fs::read_to_string(eval.join("results.md")).unwrap();
+    assert!(md.contains("| views | TomoGRAF − | PSNR (dB) | SSIM |"), "{md}");
+    assert!(md.contains("| 2 | SART-TV from the mean | "), "{md}");
+    // Figures for the first item only, unless --all-figures.
+    assert!(eval.join("00000_1view_slices.png").is_file());
+    assert!(!eval.join("00001_1view_slices.png").exists());
+    let all = tmp.path().join("eval-all");
+    evaluate("1", &["--no-baselines", "--all-figures"], &all);
+    for item in ["00000", "00001"] {
+        assert!(all.join(format!("{item}_1view_slices.png")).is_file());
+        assert!(all.join(format!("{item}_1view.nii.gz")).is_file());
+    }
 
     // --no-baselines scores the model alone (as the studies' model cells do).
     let model_only = tmp.path().join("eval-model");

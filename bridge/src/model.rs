@@ -110,6 +110,7 @@ pub fn reconstruct<'py>(
 /// evaluate` does: results, per-item CSVs, figures and the first item's reconstruction go
 /// to ``output``; items already scored there are skipped (resumable). ``baselines``: a
 /// ``baselines.toml`` of `tomograf tune-baselines` (settings chosen on validation).
+/// ``all_figures``: figures and the reconstruction for every item, not only the first.
 ///
 /// Returns a dict: ``markdown`` (the results table `tomograf evaluate` prints),
 /// ``notes`` (the other lines it prints) and ``rows``, one dict per item, view count and
@@ -120,7 +121,8 @@ pub fn reconstruct<'py>(
 #[pyo3(signature = (data, output, *, checkpoint=None, views=vec![1, 2, 5, 10],
     train_data=None, split=None, items=None, classical=true, iterations=None,
     psnr_threshold=None, refine=None, tune=None, seed=0, backend=None,
-    scatter_correction="none", pca_noise=DEFAULT_PCA_NOISE, baselines=None, progress=None))]
+    scatter_correction="none", pca_noise=DEFAULT_PCA_NOISE, baselines=None, progress=None,
+    all_figures=false))]
 #[allow(clippy::too_many_arguments)]
 pub fn evaluate<'py>(
     py: Python<'py>,
@@ -142,6 +144,7 @@ pub fn evaluate<'py>(
     pca_noise: f64,
     baselines: Option<PathBuf>,
     progress: Option<Py<PyAny>>,
+    all_figures: bool,
 ) -> PyResult<Bound<'py, PyDict>> {
     let infer = overrides(tune, iterations, psnr_threshold, refine)?;
     let baselines = baselines
@@ -170,6 +173,7 @@ pub fn evaluate<'py>(
             scatter_correction,
             scatter_prior_data: None,
             progress: &reporter,
+            all_figures,
         })?;
         merge(&output, false)
     });

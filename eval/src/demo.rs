@@ -125,6 +125,7 @@ pub fn demo(d: &Demo, progress: &dyn Progress) -> Result<String> {
         scatter_correction: Default::default(),
         scatter_prior_data: None,
         progress,
+        all_figures: false,
     })?;
     let (md, _) = merge(&d.output, false)?;
     progress.note(&format!(

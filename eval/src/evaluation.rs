@@ -137,11 +137,14 @@ pub struct Evaluation<'a> {
     pub scatter_prior_data: Option<&'a Path>,
     /// Where inference progress and notes go ([`tomograf_scene::Silent`]: nowhere).
     pub progress: &'a dyn Progress,
+    /// Figures and the reconstruction for every item scored, not only the data set's first.
+    pub all_figures: bool,
 }
 
 /// Scores this shard's items not yet scored under `e.output/items/`; returns how many it
 /// scored. Figures (slices, residual, profile) and the reconstruction are written for the
-/// data set's first item, by the shard that holds it.
+/// data set's first item, by the shard that holds it (for every item with
+/// [`Evaluation::all_figures`]).
 pub fn evaluate(e: &Evaluation) -> Result<usize> {
     let items = load_items(e.data, e.split, e.items, e.views)?;
     let device = backend::device(e.backend.unwrap_or(backend::default_name()))?;
@@ -375,7 +378,7 @@ pub fn evaluate(e: &Evaluation) -> Result<usize> {
                 });
                 volumes.push(v);
             }
-            if n == 0 {
+            if n == 0 || e.all_figures {
                 let stem = e.output.join(format!("{}_{count}view", item.id));
                 write_hu(item, &volumes[0], &stem.with_extension("nii.gz"))?;
                 let refs: Vec<&Volume> = volumes.iter().collect();
@@ -611,10 +614,38 @@ pub fn merge(output: &Path, partial: bool) -> Result<(String, Vec<Row>)> {
         );
     }
     md.push_str(".\n");
+    if let Some(t) = paired_table(&rows) {
+        let _ = write!(
+            md,
+            "\nTomoGRAF minus each method, paired over the test items: mean difference ± \
+             the half-width of its 95 % t-interval, **bold** where the interval excludes \
+             zero (a difference the items resolve).\n\n{t}"
+        );
+    }
     write_atomic(&output.join("results.md"), |w| {
         std::io::Write::write_all(w, md.as_bytes())
     })?;
     Ok((md, rows))
+}
+
+/// TomoGRAF minus every other method in PSNR, SSIM, body PSNR and body SSIM, paired over
+/// the items ([`crate::paired::table`]); `None` below two items or without TomoGRAF.
+fn paired_table(rows: &[Row]) -> Option<String> {
+    let of = |g: fn(&Scores) -> f64| -> Vec<crate::paired::Score> {
+        rows.iter()
+            .map(|r| (r.views, r.method.as_str(), r.item.as_str(), g(&r.scores)))
+            .collect()
+    };
+    crate::paired::table(
+        "TomoGRAF",
+        &[
+            ("PSNR (dB)", of(|s| s.psnr)),
+            ("SSIM", of(|s| s.ssim)),
+            ("body PSNR (dB)", of(|s| s.body_psnr)),
+            ("body SSIM", of(|s| s.body_ssim)),
+        ],
+        &[2, 3, 2, 3],
+    )
 }
 
 #[cfg(test)]

@@ -19,6 +19,7 @@ pub mod classical;
 pub mod demo;
 pub mod evaluation;
 pub mod figures;
+pub mod paired;
 pub mod peak;
 pub mod protocol;
 pub mod study;

@@ -15,7 +15,6 @@
 mod coverage;
 pub mod effects;
 pub mod levels;
-mod paired;
 mod render;
 mod report;
 
@@ -390,6 +389,7 @@ impl Study {
                     scatter_correction: test.correction,
                     scatter_prior_data: prior_data.as_deref(),
                     progress: &Silent,
+                    all_figures: false,
                 })?;
             }
         }

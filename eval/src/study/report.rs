@@ -5,13 +5,13 @@
 
 use super::coverage::Coverage;
 use super::effects::{self, Effect, NEGLIGIBLE_PCT};
-use super::paired::Paired;
 use super::render::{Block, render};
 use super::{Kind, Study, VIEWS, eval_dir_in, relative};
 use crate::evaluation::{NETWORK_ONLY, Row, Scores, merge};
 use crate::figures::{
     Axes, BarSeries, COLOUR_NAMES, plot_categories, plot_histograms, plot_with_bars,
 };
+use crate::paired::Paired;
 use anyhow::{Context, Result};
 use std::fmt::Write as _;
 use std::path::Path;

@@ -62,9 +62,93 @@ impl Paired {
     }
 }
 
+/// One score of one method on one item: (views, method, item, score).
+pub type Score<'a> = (usize, &'a str, &'a str, f64);
+
+/// A markdown table of `reference` minus every other method, paired over the items both
+/// scored, per view count: one column per named score in `scores` (each a list of
+/// [`Score`]s), each cell "mean ± 95 % half-width", bold where the interval excludes zero.
+/// `None` when fewer than two items were scored (no interval to give).
+pub fn table(reference: &str, scores: &[(&str, Vec<Score>)], digits: &[usize]) -> Option<String> {
+    let first = &scores.first()?.1;
+    let items: std::collections::BTreeSet<&str> = first.iter().map(|s| s.2).collect();
+    if items.len() < 2 || !first.iter().any(|s| s.1 == reference) {
+        return None;
+    }
+    let mut keys: Vec<(usize, &str)> = Vec::new();
+    for s in first {
+        if s.1 != reference && !keys.contains(&(s.0, s.1)) {
+            keys.push((s.0, s.1));
+        }
+    }
+    let mut md = format!("| views | {reference} − | ");
+    md.push_str(
+        &scores
+            .iter()
+            .map(|(n, _)| *n)
+            .collect::<Vec<_>>()
+            .join(" | "),
+    );
+    md.push_str(" | items |\n|---:|---|");
+    md.push_str(&"---:|".repeat(scores.len()));
+    md.push_str("---:|\n");
+    for (views, method) in keys {
+        let mut n = 0;
+        let cells: Vec<String> = scores
+            .iter()
+            .zip(digits)
+            .map(|((_, s), d)| {
+                let of = |m: &str| -> Vec<(String, f64)> {
+                    s.iter()
+                        .filter(|x| x.0 == views && x.1 == m)
+                        .map(|x| (x.2.to_string(), x.3))
+                        .collect()
+                };
+                match Paired::of(&of(reference), &of(method)) {
+                    Some(p) => {
+                        n = p.n;
+                        p.format(*d)
+                    }
+                    None => "—".into(),
+                }
+            })
+            .collect();
+        md.push_str(&format!(
+            "| {views} | {method} | {} | {n} |\n",
+            cells.join(" | ")
+        ));
+    }
+    Some(md)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Two items, three methods: the reference minus each other method per view count,
+    /// in the order the methods first appear; the differences by hand.
+    #[test]
+    fn the_table_pairs_the_reference_with_every_other_method() {
+        let psnr: Vec<Score> = vec![
+            (1, "A", "0", 20.0),
+            (1, "B", "0", 19.0),
+            (1, "C", "0", 21.0),
+            (1, "A", "1", 22.0),
+            (1, "B", "1", 20.0),
+            (1, "C", "1", 22.5),
+        ];
+        let t = table("A", &[("PSNR (dB)", psnr.clone())], &[2]).unwrap();
+        let lines: Vec<&str> = t.lines().collect();
+        assert_eq!(lines[0], "| views | A − | PSNR (dB) | items |");
+        // B: differences 1 and 2 (mean 1.5, s = 0.7071, t(0.975, 1) = 12.7062): ± 6.35.
+        assert_eq!(lines[2], "| 1 | B | +1.50 ± 6.35 | 2 |");
+        // C: differences −1 and −0.5.
+        assert_eq!(lines[3], "| 1 | C | -0.75 ± 3.18 | 2 |");
+        assert_eq!(lines.len(), 4);
+        // One item: no table.
+        let one: Vec<Score> = psnr.iter().filter(|s| s.2 == "0").cloned().collect();
+        assert!(table("A", &[("PSNR (dB)", one)], &[2]).is_none());
+    }
 
     /// Against a hand computation: differences 1, 2, 3 (mean 2, s = 1, n = 3) and
     /// t(0.975, 2 df) = 4.302653 (published tables: 4.303), so the half-width is
