@@ -69,4 +69,6 @@ for x in rows("items"):
 (out / "populations.md").write_text("\n".join(lines) + "\n")
 print("\n".join(lines))
 EOF
-echo "results: $out/eval-demo/results.md, $out/eval-mixed/results.md, $out/populations.md"
+echo "results: $out/eval-demo/results.md, $out/eval-mixed/results.md, $out/populations.md, $out/criteria.md"
+# Issue 47's criteria, paired over the CTs.
+python3 scripts/real_ct_criteria.py "$out/eval-demo" "$out/eval-mixed" | tee "$out/criteria.md"
