@@ -153,7 +153,10 @@ fn train_resume_reconstruct_evaluate() {
     }
     // Two items: TomoGRAF minus each method, paired, per view count.
     let md = std::fs::read_to_string(eval.join("results.md")).unwrap();
-    assert!(md.contains("| views | TomoGRAF − | PSNR (dB) | SSIM |"), "{md}");
+    assert!(
+        md.contains("| views | TomoGRAF − | PSNR (dB) | SSIM |"),
+        "{md}"
+    );
     assert!(md.contains("| 2 | SART-TV from the mean | "), "{md}");
     // Figures for the first item only, unless --all-figures.
     assert!(eval.join("00000_1view_slices.png").is_file());
