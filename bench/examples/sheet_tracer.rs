@@ -7,7 +7,7 @@
 //!
 //! Not part of the test suite; measured figures in docs/projector.md ("Ray sheets").
 //!
-//! `cargo run --release -p tomograf-datasets --example sheet_tracer -- CT.nii.gz [θ°]`
+//! `cargo run --release -p tomograf-bench --example sheet_tracer -- CT.nii.gz [θ°]`
 
 #[path = "common/chest.rs"]
 mod chest;

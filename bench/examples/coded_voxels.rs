@@ -11,7 +11,7 @@
 //!
 //! Not part of the test suite; measured figures in docs/projector.md ("Voxel storage").
 //!
-//! `cargo run --release -p tomograf-datasets --example coded_voxels -- CT.nii.gz [θ°]`
+//! `cargo run --release -p tomograf-bench --example coded_voxels -- CT.nii.gz [θ°]`
 
 #[path = "common/timing.rs"]
 mod timing;

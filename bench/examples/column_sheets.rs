@@ -9,7 +9,7 @@
 //!
 //! Not part of the test suite; figures in docs/projector.md ("Column sheets").
 //!
-//! `cargo run --release -p tomograf-datasets --example column_sheets -- CT.nii.gz [θ°]`
+//! `cargo run --release -p tomograf-bench --example column_sheets -- CT.nii.gz [θ°]`
 
 #[path = "common/chest.rs"]
 mod chest;

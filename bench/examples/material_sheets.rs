@@ -7,7 +7,7 @@
 //! `COLUMNS=1` the renderer also makes the k-fastest copy, so that other angles take
 //! column sheets. Not part of the test suite; figures in docs/projector.md ("Session 27").
 //!
-//! `cargo run --release -p tomograf-datasets --example material_sheets -- CT.nii.gz [θ°]`
+//! `cargo run --release -p tomograf-bench --example material_sheets -- CT.nii.gz [θ°]`
 
 #[path = "common/chest.rs"]
 #[allow(dead_code)] // this example reads the CT in HU, not as mu
