@@ -18,7 +18,7 @@ use tomograf_scene::dataset::{DatasetJob, ItemSettings, ItemSource, expand_input
 
 #[derive(Debug, Args)]
 pub struct DatasetArgs {
-    /// CT volumes: NIfTI files or DICOM series folders (a folder of such is expanded).
+    /// CT volumes: NIfTI or NRRD files or DICOM series folders (a folder of such is expanded).
     pub inputs: Vec<PathBuf>,
     /// Output folder.
     #[arg(short, long)]

@@ -66,7 +66,7 @@ pub struct CommonArgs {
     /// With --stage data: make only the train or only the test sets (default both).
     #[arg(long)]
     pub split: Option<String>,
-    /// Train on these CTs instead of phantoms: NIfTI files or DICOM series folders (a folder
+    /// Train on these CTs instead of phantoms: NIfTI or NRRD files or DICOM series folders (a folder
     /// of such is expanded), comma-separated or repeated. Each is brought into the patient
     /// frame and cropped to its body, as `tomograf dataset` does.
     #[arg(long, value_delimiter = ',')]
@@ -108,7 +108,7 @@ pub fn run(command: StudyCommand) -> Result<()> {
         ("--test-ct", &common.test_ct, &test_cts),
     ] {
         if !given.is_empty() && found.is_empty() {
-            bail!("{flag}: no NIfTI file or DICOM series found in {given:?}");
+            bail!("{flag}: no NIfTI or NRRD file or DICOM series found in {given:?}");
         }
         if let Some(missing) = found.iter().find(|p| !p.exists()) {
             bail!("{flag}: {} does not exist", missing.display());

@@ -20,7 +20,7 @@ use tomograf_scene::dataset::{ItemSettings, ItemSource, make_item as make};
 /// (written last: the item is finished). The same files as item ``index`` of
 /// ``tomograf dataset``.
 ///
-/// The source is either ``ct`` (a NIfTI file or a DICOM series folder, in HU) or
+/// The source is either ``ct`` (a NIfTI or NRRD file or a DICOM series folder, in HU) or
 /// ``phantom_seed`` (a seeded anatomical phantom of ``profile`` ``"lidc"`` or
 /// ``"full-chest"``, optionally on a ``table`` and with a ``pacemaker``).
 ///

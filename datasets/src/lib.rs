@@ -34,6 +34,7 @@ pub mod frame;
 pub mod image;
 pub mod item;
 pub mod nifti;
+pub mod nrrd;
 pub mod population;
 pub mod preprocess;
 pub mod sidecar;

@@ -43,6 +43,29 @@ pub fn nifti(data: &[u8]) {
     let _ = tomograf_datasets::nifti::read_nifti(&p);
 }
 
+/// NRRD, attached data (raw or gzip), or a detached header whose data file is the
+/// input's second part (after [`SLICE_MARKER`]), written beside it as `input.raw`.
+pub fn nrrd(data: &[u8]) {
+    let (header, rest) = match data
+        .windows(SLICE_MARKER.len())
+        .position(|w| w == SLICE_MARKER)
+    {
+        Some(k) => (&data[..k], Some(&data[k + SLICE_MARKER.len()..])),
+        None => (data, None),
+    };
+    match rest {
+        None => {
+            let p = file("input.nrrd", header);
+            let _ = tomograf_datasets::nrrd::read_nrrd(&p);
+        }
+        Some(raw) => {
+            file("input.raw", raw);
+            let p = file("input.nhdr", header);
+            let _ = tomograf_datasets::nrrd::read_nrrd(&p);
+        }
+    }
+}
+
 /// The marker that cuts a `dicom_series` input into slice files.
 pub const SLICE_MARKER: &[u8] = b"--slice--";
 
@@ -208,6 +231,7 @@ pub fn checkpoint(data: &[u8]) {
 /// Every target by name (the folder names under `fuzz/corpus/` and `fuzz/seeds/`).
 pub const TARGETS: &[(&str, Target)] = &[
     ("nifti", nifti),
+    ("nrrd", nrrd),
     ("dicom_series", dicom_series),
     ("mesh_obj", |d| mesh("obj", d)),
     ("mesh_ply", |d| mesh("ply", d)),

@@ -141,7 +141,7 @@ impl ItemSettings {
 #[derive(Debug, Clone, Serialize)]
 #[serde(tag = "kind", rename_all = "kebab-case")]
 pub enum ItemSource {
-    /// A CT: NIfTI file or DICOM series folder.
+    /// A CT: NIfTI or NRRD file, or DICOM series folder.
     File {
         /// Its path.
         path: PathBuf,
@@ -169,7 +169,7 @@ impl ItemSource {
 }
 
 /// Inputs expanded: files as given; a folder with DICOM files is one series, any other
-/// folder contributes its NIfTI files and series sub-folders, sorted by path.
+/// folder contributes its NIfTI and NRRD files and series sub-folders, sorted by path.
 pub fn expand_inputs(inputs: &[PathBuf]) -> Result<Vec<PathBuf>> {
     let mut out = Vec::new();
     for p in inputs {
@@ -183,7 +183,7 @@ pub fn expand_inputs(inputs: &[PathBuf]) -> Result<Vec<PathBuf>> {
                 .filter_map(|e| e.ok().map(|e| e.path()))
                 .filter(|f| {
                     let n = f.to_string_lossy().to_ascii_lowercase();
-                    n.ends_with(".nii") || n.ends_with(".nii.gz")
+                    n.ends_with(".nii") || n.ends_with(".nii.gz") || crate::volume::is_nrrd(f)
                 })
                 .collect();
             nii.sort();

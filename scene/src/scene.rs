@@ -6,7 +6,7 @@
 //!
 //! ```toml
 //! [volume]
-//! path = "ct.nii.gz"          # or a DICOM series folder; omit for the built-in phantom
+//! path = "ct.nii.gz"          # or .nrrd, or a DICOM series folder; omit for the built-in phantom
 //! units = "hu"                # "hu" or "mu" (mm⁻¹)
 //! energy_kev = 60.0           # effective energy for HU → mu
 //!

@@ -170,7 +170,13 @@ fn is_nifti(path: &std::path::Path) -> bool {
     !path.is_dir() && (name.ends_with(".nii") || name.ends_with(".nii.gz"))
 }
 
-/// Reads a CT volume: a NIfTI file or a folder holding one DICOM series.
+/// Whether `path` names an NRRD volume (`.nrrd`, or a detached header `.nhdr`).
+pub fn is_nrrd(path: &std::path::Path) -> bool {
+    let name = path.to_string_lossy().to_ascii_lowercase();
+    !path.is_dir() && (name.ends_with(".nrrd") || name.ends_with(".nhdr"))
+}
+
+/// Reads a CT volume: a NIfTI or NRRD file, or a folder holding one DICOM series.
 pub fn load_volume_file(path: &std::path::Path, allow_non_ct: bool) -> Result<Volume> {
     if path.is_dir() {
         Ok(tomograf_datasets::dicom::read_dicom_series(
@@ -179,9 +185,12 @@ pub fn load_volume_file(path: &std::path::Path, allow_non_ct: bool) -> Result<Vo
         )?)
     } else if is_nifti(path) {
         Ok(tomograf_datasets::nifti::read_nifti(path)?)
+    } else if is_nrrd(path) {
+        Ok(tomograf_datasets::nrrd::read_nrrd(path)?)
     } else {
         bail!(
-            "cannot read {}: give a NIfTI volume (.nii, .nii.gz) or a folder holding one DICOM series",
+            "cannot read {}: give a NIfTI volume (.nii, .nii.gz), an NRRD volume (.nrrd, \
+             .nhdr) or a folder holding one DICOM series",
             path.display()
         )
     }
