@@ -94,6 +94,18 @@ pub fn read_nrrd(path: &Path) -> Result<Volume> {
     let payload: Cow<[u8]> = match h.encoding {
         Encoding::Raw => Cow::Borrowed(stored),
         Encoding::Gzip => {
+            // Deflate expands at most 1032-fold: a file too small for what its header asks
+            // is truncated, told before anything is allocated.
+            if (stored.len() as u128) * 1032 < payload_bytes as u128 {
+                return Err(DatasetError::Truncated {
+                    path: source,
+                    detail: format!(
+                        "{} bytes of gzip data cannot hold the {payload_bytes} bytes of \
+                         samples its header asks for (deflate expands at most 1032-fold)",
+                        stored.len()
+                    ),
+                });
+            }
             let mut out = Vec::with_capacity(payload_bytes);
             flate2::read::MultiGzDecoder::new(stored)
                 .take(payload_bytes as u64 + 1)

@@ -168,6 +168,12 @@ fn bad_files_are_named() {
             "do not decompress",
         ),
         (
+            LPS.replace("encoding: raw", "encoding: gzip")
+                .replace("sizes: 4 3 2", "sizes: 400 300 200"),
+            gzip(&bytes),
+            "cannot hold",
+        ),
+        (
             LPS.replace("encoding: raw", "encoding: raw\ndata file: /dev/zero"),
             Vec::new(),
             "not a regular file",
