@@ -366,6 +366,13 @@ impl Header {
                 .parse()
                 .map_err(|_| format!("byte skip '{s}' is not supported (a byte count ≥ 0)"))?,
         };
+        if byte_skip > 0 && encoding == Encoding::Gzip {
+            return Err(
+                "'byte skip' with gzip encoding is not supported (the skip would apply to the \
+                 decompressed data)"
+                    .into(),
+            );
+        }
         if field("line skip").is_some_and(|s| s != "0") {
             return Err("'line skip' is not supported".into());
         }
