@@ -15,7 +15,7 @@
 # phantoms, seed 300000). results.md gives TomoGRAF minus each method paired over the five
 # CTs with 95 % t-intervals.
 #
-# Writes OUT/eval-demo/results.md, OUT/eval-mixed/results.md (and their slice figures) and
+# Writes OUT/eval-demo/results.md, OUT/eval-mixed/results.md (and every CT's slice figures) and
 # OUT/populations.md, OUT/criteria.md. About 12 minutes on 2 cores after the build.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -40,7 +40,7 @@ for run in demo:model/checkpoints/demo:train-lidc mixed:model/checkpoints/lidc-f
     # Two shards of one thread each: two items at a time on two cores.
     for k in 0 1; do
         $bin --threads 1 evaluate "$out/items" --checkpoint "$checkpoint" --train-data "$out/$train" \
-            --views 1,2,5 -o "$out/eval-$name" --shard $k/2 &
+            --views 1,2,5 --all-figures -o "$out/eval-$name" --shard $k/2 &
     done
     wait
     $bin evaluate "$out/items" --checkpoint "$checkpoint" --train-data "$out/$train" \
