@@ -13,7 +13,7 @@
 //!
 //! `cargo run --release -p tomograf-bench --example coded_voxels -- CT.nii.gz [θ°]`
 
-#[path = "common/timing.rs"]
+#[path = "../../datasets/examples/common/timing.rs"]
 mod timing;
 
 use rayon::prelude::*;

@@ -12,7 +12,7 @@
 #[path = "common/chest.rs"]
 #[allow(dead_code)] // this example reads the CT in HU, not as mu
 mod chest;
-#[path = "common/timing.rs"]
+#[path = "../../datasets/examples/common/timing.rs"]
 mod timing;
 
 use std::time::Instant;

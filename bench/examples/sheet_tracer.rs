@@ -11,7 +11,7 @@
 
 #[path = "common/chest.rs"]
 mod chest;
-#[path = "common/timing.rs"]
+#[path = "../../datasets/examples/common/timing.rs"]
 mod timing;
 
 use std::time::Instant;

@@ -137,3 +137,24 @@ impl DatasetError {
         }
     }
 }
+
+/// Refuses reading the `dims` volume of `path` when its stored samples (`stored_bytes`) and
+/// their f32 copy exceed the memory available ([`tomograf_sim::memory::check`]), as
+/// [`DatasetError::TooLarge`]; checked before anything is allocated.
+pub(crate) fn check_read_memory(path: &Path, dims: [usize; 3], stored_bytes: u128) -> Result<()> {
+    let count = dims.iter().map(|&n| n as u128).product::<u128>();
+    tomograf_sim::memory::check(
+        stored_bytes + 4 * count,
+        &format!(
+            "reading {} ({}×{}×{} voxels)",
+            path.display(),
+            dims[0],
+            dims[1],
+            dims[2]
+        ),
+    )
+    .map_err(|e| DatasetError::TooLarge {
+        path: path.to_owned(),
+        detail: e.to_string(),
+    })
+}

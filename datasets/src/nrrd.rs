@@ -57,20 +57,7 @@ pub fn read_nrrd(path: &Path) -> Result<Volume> {
         .checked_mul(sample)
         .ok_or_else(|| unsupported(format!("{count} samples of {sample} bytes overflow")))?;
     // The samples and their f32 copy must fit in memory.
-    tomograf_sim::memory::check(
-        payload_bytes as u128 + 4 * count as u128,
-        &format!(
-            "reading {} ({}×{}×{} voxels)",
-            path.display(),
-            dims[0],
-            dims[1],
-            dims[2]
-        ),
-    )
-    .map_err(|e| DatasetError::TooLarge {
-        path: path.to_path_buf(),
-        detail: e.to_string(),
-    })?;
+    crate::error::check_read_memory(path, dims, payload_bytes as u128)?;
     let (stored, source): (Cow<[u8]>, PathBuf) = match &h.data_file {
         None => (Cow::Borrowed(&bytes[data_start..]), path.to_path_buf()),
         Some(name) => {

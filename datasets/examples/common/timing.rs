@@ -1,4 +1,5 @@
-//! What the loading examples share: the median of timings, and the CT path and a count
+//! What the examples share (datasets' loading examples and bench's projector examples, which
+//! include this file by path): the median of timings, and the CT path and a count
 //! from the command line.
 
 /// The median of `v` (the upper one of an even count).

@@ -154,20 +154,7 @@ pub fn read_nifti_mapped(path: &Path, map: impl Fn(f32) -> f32 + Sync + Copy) ->
         ));
     }
     // The raw voxels and their f32 copy must fit in memory.
-    tomograf_sim::memory::check(
-        u128::from(nbytes) + 4 * count as u128,
-        &format!(
-            "reading {} ({}×{}×{} voxels)",
-            path.display(),
-            dims[0],
-            dims[1],
-            dims[2]
-        ),
-    )
-    .map_err(|e| DatasetError::TooLarge {
-        path: path.to_owned(),
-        detail: e.to_string(),
-    })?;
+    crate::error::check_read_memory(path, dims, u128::from(nbytes))?;
     // Extensions are not used: skip them up to the voxel data.
     let skip = offset - NIFTI1_SIZE as u64;
     let skipped = io::copy(&mut reader.by_ref().take(skip), &mut io::sink())
