@@ -323,8 +323,8 @@ impl MeshEntry {
     /// The analytic solid this entry is (`None`: a triangle mesh). Box, sphere, ellipsoid
     /// and cylinder are exact solids unless `exact = false` or a `resolution` (facets)
     /// asks for a triangle mesh.
-    fn primitive(&self) -> Result<Option<tomograf_sim::mesh::Primitive>> {
-        use tomograf_sim::mesh::Primitive;
+    fn primitive(&self) -> Result<Option<tomograf_sim::mesh::Solid>> {
+        use tomograf_sim::mesh::Solid;
         let kind = self.kind.as_deref();
         let solid = matches!(kind, Some("box" | "sphere" | "ellipsoid" | "cylinder"));
         if !solid {
@@ -358,19 +358,16 @@ impl MeshEntry {
         }
         let r = self.radius_mm.unwrap_or(10.0);
         Ok(Some(match kind {
-            Some("box") => Primitive::Box {
+            Some("box") => Solid::Box {
                 size: glam::DVec3::from(self.size_mm.unwrap_or([20.0; 3])),
             },
-            Some("sphere") => Primitive::Ellipsoid {
+            Some("sphere") => Solid::Ellipsoid {
                 radii: glam::DVec3::splat(r),
             },
-            Some("ellipsoid") => Primitive::Ellipsoid {
+            Some("ellipsoid") => Solid::Ellipsoid {
                 radii: glam::DVec3::from(self.ellipsoid_radii()),
             },
-            _ => Primitive::Cylinder {
-                radius: r,
-                height: self.height_mm.unwrap_or(2.0 * r),
-            },
+            _ => Solid::circular_cylinder(r, self.height_mm.unwrap_or(2.0 * r)),
         }))
     }
 

@@ -23,6 +23,7 @@ pub mod phantom;
 pub mod ray;
 pub mod render;
 pub mod seed;
+pub mod solid;
 pub mod tissue;
 pub mod trace;
 pub mod volume;

@@ -12,6 +12,7 @@
 
 use crate::error::Result;
 use crate::ray::Ray;
+use crate::solid::{PlacedSolid, Solid};
 use crate::volume::Volume;
 use glam::{DMat3, DVec3};
 use rayon::prelude::*;
@@ -42,16 +43,17 @@ pub enum Shape {
 }
 
 impl Shape {
-    fn local(&self) -> (DVec3, DMat3, DVec3) {
-        match *self {
+    /// The shape as a placed [`Solid`]: its chords, containment and bounds.
+    pub fn placed(&self) -> PlacedSolid {
+        let (solid, centre, deg) = match *self {
             Shape::Ellipsoid {
                 centre,
                 semi_axes,
                 rotation_z_deg,
             } => (
+                Solid::Ellipsoid { radii: semi_axes },
                 centre,
-                DMat3::from_rotation_z(rotation_z_deg.to_radians()),
-                semi_axes,
+                rotation_z_deg,
             ),
             Shape::Cylinder {
                 centre,
@@ -59,96 +61,32 @@ impl Shape {
                 half_height,
                 rotation_z_deg,
             } => (
+                Solid::Cylinder {
+                    radii: semi_axes,
+                    height: 2.0 * half_height,
+                },
                 centre,
-                DMat3::from_rotation_z(rotation_z_deg.to_radians()),
-                DVec3::new(semi_axes[0], semi_axes[1], half_height),
+                rotation_z_deg,
             ),
-        }
+        };
+        PlacedSolid::rotated(solid, centre, DMat3::from_rotation_z(deg.to_radians()))
+            .expect("the built-in phantoms' shapes have finite, positive sizes")
     }
 
     /// True if world point `p` is inside (boundary included).
     pub fn contains(&self, p: DVec3) -> bool {
-        let (c, r, s) = self.local();
-        let q = (r.transpose() * (p - c)) / s;
-        match self {
-            Shape::Ellipsoid { .. } => q.length_squared() <= 1.0,
-            Shape::Cylinder { .. } => q.x * q.x + q.y * q.y <= 1.0 && q.z.abs() <= 1.0,
-        }
+        self.placed().contains(p)
     }
 
     /// Axis-aligned world bounding box `(min, max)`, mm.
     pub fn bounds(&self) -> (DVec3, DVec3) {
-        let (c, r, s) = self.local();
-        let ext = DVec3::new(
-            (r.x_axis.x * s.x)
-                .hypot(r.y_axis.x * s.y)
-                .hypot(r.z_axis.x * s.z),
-            (r.x_axis.y * s.x)
-                .hypot(r.y_axis.y * s.y)
-                .hypot(r.z_axis.y * s.z),
-            (r.x_axis.z * s.x)
-                .hypot(r.y_axis.z * s.y)
-                .hypot(r.z_axis.z * s.z),
-        );
-        (c - ext, c + ext)
+        self.placed().bounds()
     }
 
     /// Length (mm) of the part of `ray` inside the shape, within `[t_min, t_max]`.
     pub fn chord(&self, ray: &Ray) -> f64 {
-        let (c, r, s) = self.local();
-        let o = (r.transpose() * (ray.origin - c)) / s;
-        let d = (r.transpose() * ray.direction) / s;
-        let (lo, hi) = match self {
-            Shape::Ellipsoid { .. } => {
-                quadratic_interval(d.length_squared(), o.dot(d), o.length_squared() - 1.0)
-            }
-            Shape::Cylinder { .. } => {
-                let (a, b, cc) = (
-                    d.x * d.x + d.y * d.y,
-                    o.x * d.x + o.y * d.y,
-                    o.x * o.x + o.y * o.y - 1.0,
-                );
-                let (l1, h1) = if a == 0.0 {
-                    if cc <= 0.0 {
-                        (f64::NEG_INFINITY, f64::INFINITY)
-                    } else {
-                        return 0.0;
-                    }
-                } else {
-                    quadratic_interval(a, b, cc)
-                };
-                let (l2, h2) = if d.z == 0.0 {
-                    if o.z.abs() <= 1.0 {
-                        (f64::NEG_INFINITY, f64::INFINITY)
-                    } else {
-                        return 0.0;
-                    }
-                } else {
-                    let (t1, t2) = ((-1.0 - o.z) / d.z, (1.0 - o.z) / d.z);
-                    (t1.min(t2), t1.max(t2))
-                };
-                (l1.max(l2), h1.min(h2))
-            }
-        };
-        (hi.min(ray.t_max) - lo.max(ray.t_min)).max(0.0)
+        self.placed().chord(ray)
     }
-}
-
-/// Interval where `a t² + 2 b t + c ≤ 0` (a > 0); empty as (0, 0).
-fn quadratic_interval(a: f64, b: f64, c: f64) -> (f64, f64) {
-    let disc = b * b - a * c;
-    if disc <= 0.0 {
-        return (0.0, 0.0);
-    }
-    let sq = disc.sqrt();
-    // Stable roots.
-    let q = -(b + b.signum() * sq);
-    let (t1, t2) = if q == 0.0 {
-        (-sq / a, sq / a)
-    } else {
-        (q / a, c / q)
-    };
-    (t1.min(t2), t1.max(t2))
 }
 
 /// One shape and the HU it adds.
@@ -348,16 +286,17 @@ impl Phantom {
             .components
             .iter()
             .map(|c| {
-                let (lo, hi) = c.shape.bounds();
+                let solid = c.shape.placed();
+                let (lo, hi) = solid.bounds();
                 let lo = ((lo - origin) / spacing).ceil().max(DVec3::ZERO);
                 let hi = ((hi - origin) / spacing).floor();
-                (c, lo, hi)
+                (c, solid, lo, hi)
             })
             .collect();
         data.par_chunks_mut(slice)
             .enumerate()
             .for_each(|(k, plane)| {
-                for (c, lo, hi) in &ranges {
+                for (c, solid, lo, hi) in &ranges {
                     let kf = k as f64;
                     if kf < lo.z || kf > hi.z {
                         continue;
@@ -370,7 +309,7 @@ impl Phantom {
                     for j in j0..=j1 {
                         for i in i0..=i1 {
                             let p = origin + DVec3::new(i as f64, j as f64, kf) * spacing;
-                            if c.shape.contains(p) {
+                            if solid.contains(p) {
                                 plane[i + dims[0] * j] += c.delta_hu as f32;
                             }
                         }

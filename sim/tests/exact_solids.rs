@@ -9,15 +9,15 @@ use common::*;
 use glam::DVec3;
 use rand::Rng;
 use std::sync::Arc;
-use tomograf_sim::mesh::{MeshObject, MeshScene, Placement, Primitive, shapes};
+use tomograf_sim::mesh::{MeshObject, MeshScene, Placement, Solid, shapes};
 use tomograf_sim::{Projector, Ray, Renderer, Volume};
 
-fn solid(p: Primitive, placement: Placement) -> MeshObject {
+fn solid(p: Solid, placement: Placement) -> MeshObject {
     MeshObject::analytic("s", p, &placement, "test", Some(0.1)).unwrap()
 }
 
-fn sphere(r: f64) -> Primitive {
-    Primitive::Ellipsoid {
+fn sphere(r: f64) -> Solid {
+    Solid::Ellipsoid {
         radii: DVec3::splat(r),
     }
 }
@@ -92,14 +92,15 @@ fn integrate(ray: &Ray, n: usize, inside: impl Fn(DVec3) -> bool) -> (f64, f64) 
 fn placed_solids_match_point_membership_integration() {
     let mut g = rng(7);
     let primitives = [
-        Primitive::Ellipsoid {
+        Solid::Ellipsoid {
             radii: DVec3::new(30.0, 12.0, 20.0),
         },
-        Primitive::Cylinder {
-            radius: 15.0,
-            height: 50.0,
+        Solid::circular_cylinder(15.0, 50.0),
+        Solid::Cylinder {
+            radii: [18.0, 7.0],
+            height: 40.0,
         },
-        Primitive::Box {
+        Solid::Box {
             size: DVec3::new(40.0, 10.0, 25.0),
         },
     ];
@@ -132,11 +133,12 @@ fn placed_solids_match_point_membership_integration() {
             let inside = |w: DVec3| {
                 let q = to_local.transform_point3(w);
                 match p {
-                    Primitive::Ellipsoid { radii } => (q / radii).length_squared() < 1.0,
-                    Primitive::Cylinder { radius, height } => {
-                        q.x * q.x + q.y * q.y < radius * radius && q.z.abs() < height / 2.0
+                    Solid::Ellipsoid { radii } => (q / radii).length_squared() < 1.0,
+                    Solid::Cylinder { radii, height } => {
+                        (q.x / radii[0]).powi(2) + (q.y / radii[1]).powi(2) < 1.0
+                            && q.z.abs() < height / 2.0
                     }
-                    Primitive::Box { size } => (q.abs() - size / 2.0).max_element() < 0.0,
+                    Solid::Box { size } => (q.abs() - size / 2.0).max_element() < 0.0,
                 }
             };
             let (lo, hi) = s.bounds();
@@ -186,13 +188,7 @@ fn placed_solids_match_point_membership_integration() {
 /// (only the part after `t_min` counts).
 #[test]
 fn axis_parallel_face_and_inside_rays() {
-    let cyl = solid(
-        Primitive::Cylinder {
-            radius: 10.0,
-            height: 30.0,
-        },
-        Placement::default(),
-    );
+    let cyl = solid(Solid::circular_cylinder(10.0, 30.0), Placement::default());
     assert!((cyl.path_length(&through(DVec3::new(3.0, -4.0, 0.0), DVec3::Z)) - 30.0).abs() < 1e-12);
     assert_eq!(
         cyl.path_length(&through(DVec3::new(10.5, 0.0, 0.0), DVec3::Z)),
@@ -219,7 +215,7 @@ fn axis_parallel_face_and_inside_rays() {
     );
 
     let boxed = solid(
-        Primitive::Box {
+        Solid::Box {
             size: DVec3::new(20.0, 20.0, 20.0),
         },
         Placement::default(),
@@ -250,15 +246,9 @@ fn axis_parallel_face_and_inside_rays() {
 fn bad_solids_are_refused() {
     for (p, words) in [
         (sphere(0.0), "radius x is 0"),
+        (Solid::circular_cylinder(5.0, f64::NAN), "height is NaN"),
         (
-            Primitive::Cylinder {
-                radius: 5.0,
-                height: f64::NAN,
-            },
-            "height is NaN",
-        ),
-        (
-            Primitive::Box {
+            Solid::Box {
                 size: DVec3::new(1.0, -1.0, 1.0),
             },
             "box size y is -1",

@@ -137,28 +137,15 @@ fn paint(grid: &Grid, prim: &Prim, z: f64, pm: &mut [u8], ps: &mut [u8]) {
                 }
             }
         }
-        Shape::Ellipsoid { c, m, .. } => {
-            let u = m.x_axis;
-            let a = u.length_squared();
+        Shape::Solid(solid) => {
             for j in j0..=j1 {
-                let w = *m * DVec3::new(0.0, grid.coord(1, j) - c.y, z - c.z);
-                let b = u.dot(w);
-                let disc = b * b - a * (w.length_squared() - 1.0);
-                if disc >= 0.0 {
-                    let r = disc.sqrt();
-                    fill(j, c.x + (-b - r) / a, c.x + (-b + r) / a);
+                let row = DVec3::new(0.0, grid.coord(1, j), z);
+                if let Some((lo, hi)) = solid.span(row, DVec3::X) {
+                    fill(j, lo, hi);
                 }
             }
         }
-        Shape::ZCyl { cx, cy, a, b, .. } => {
-            for j in j0..=j1 {
-                let yy = (grid.coord(1, j) - cy) / b;
-                if yy.abs() <= 1.0 {
-                    let h = a * (1.0 - yy * yy).sqrt();
-                    fill(j, cx - h, cx + h);
-                }
-            }
-        }
+        Shape::Nothing => {}
         shape => {
             for j in j0..=j1 {
                 let y = grid.coord(1, j);
@@ -202,14 +189,7 @@ mod tests {
         let rot = DMat3::from_euler(glam::EulerRot::XYZ, 0.3, -0.5, 0.9);
         let shapes = [
             Shape::ellipsoid(DVec3::new(2.0, -1.0, 3.0), DVec3::new(14.0, 9.0, 6.0), rot),
-            Shape::ZCyl {
-                cx: 1.0,
-                cy: 2.0,
-                a: 12.0,
-                b: 7.0,
-                z0: -10.0,
-                z1: 8.0,
-            },
+            Shape::z_cylinder(1.0, 2.0, 12.0, 7.0, -10.0, 8.0),
             Shape::Section(Section {
                 keys: vec![
                     SecKey {

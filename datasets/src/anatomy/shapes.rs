@@ -1,10 +1,12 @@
 //! The analytic shapes a phantom is built from: superelliptic sections interpolated along
-//! z (optionally one-sided and cut by a dome), ellipsoids, elliptic z-cylinders, tapered
-//! capsules, rounded boxes and the curved couch profile. Each knows its bounding box and
+//! z (optionally one-sided and cut by a dome), ellipsoids and elliptic z-cylinders (the
+//! project's analytic solids, [`tomograf_sim::solid`]), tapered capsules, rounded boxes and
+//! the curved couch profile. Each knows its bounding box and
 //! whether it contains a point; sections, ellipsoids and z-cylinders also give the exact
 //! x-intervals of a voxel row, which [`super::raster`] fills in one go.
 
 use glam::{DMat3, DVec3};
+use tomograf_sim::solid::{PlacedSolid, Solid};
 
 /// One key of a [`Section`]: a superelliptic cross-section at height `z`.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -187,21 +189,10 @@ impl Section {
 #[derive(Debug, Clone, PartialEq)]
 pub(crate) enum Shape {
     Section(Section),
-    /// Ellipsoid: `|m·(p − c)| ≤ 1`, with `m = diag(1/semi)·Rᵀ`.
-    Ellipsoid {
-        c: DVec3,
-        m: DMat3,
-        ext: DVec3,
-    },
-    /// Elliptic cylinder along z between `z0` and `z1`.
-    ZCyl {
-        cx: f64,
-        cy: f64,
-        a: f64,
-        b: f64,
-        z0: f64,
-        z1: f64,
-    },
+    /// An analytic solid (ellipsoid or elliptic cylinder) of the project's one definition.
+    Solid(PlacedSolid),
+    /// A solid whose sizes came out ≤ 0 for this patient: it holds nothing.
+    Nothing,
     /// Tapered capsule from `a` (radius `ra`) to `b` (radius `rb`).
     Tube {
         a: DVec3,
@@ -228,30 +219,22 @@ pub(crate) enum Shape {
 }
 
 impl Shape {
-    /// Ellipsoid with the given semi-axes along the columns of `rot` (world directions).
+    /// Ellipsoid with the given semi-axes along the columns of `rot` (world directions,
+    /// orthonormal).
     pub fn ellipsoid(c: DVec3, semi: DVec3, rot: DMat3) -> Shape {
-        let m = DMat3::from_diagonal(semi.recip()) * rot.transpose();
-        let ext = DVec3::new(
-            DVec3::new(
-                rot.x_axis.x * semi.x,
-                rot.y_axis.x * semi.y,
-                rot.z_axis.x * semi.z,
-            )
-            .length(),
-            DVec3::new(
-                rot.x_axis.y * semi.x,
-                rot.y_axis.y * semi.y,
-                rot.z_axis.y * semi.z,
-            )
-            .length(),
-            DVec3::new(
-                rot.x_axis.z * semi.x,
-                rot.y_axis.z * semi.y,
-                rot.z_axis.z * semi.z,
-            )
-            .length(),
-        );
-        Shape::Ellipsoid { c, m, ext }
+        PlacedSolid::rotated(Solid::Ellipsoid { radii: semi }, c, rot)
+            .map_or(Shape::Nothing, Shape::Solid)
+    }
+
+    /// Elliptic cylinder along z, centred on `(cx, cy)` with semi-axes `a` (x) and `b` (y),
+    /// between `z0` and `z1`.
+    pub fn z_cylinder(cx: f64, cy: f64, a: f64, b: f64, z0: f64, z1: f64) -> Shape {
+        let solid = Solid::Cylinder {
+            radii: [a, b],
+            height: z1 - z0,
+        };
+        let centre = DVec3::new(cx, cy, 0.5 * (z0 + z1));
+        PlacedSolid::rotated(solid, centre, DMat3::IDENTITY).map_or(Shape::Nothing, Shape::Solid)
     }
 
     /// Rounded box with half-size `half` (rounding included) along the columns of `rot`.
@@ -268,18 +251,8 @@ impl Shape {
     pub fn bounds(&self) -> (DVec3, DVec3) {
         match self {
             Shape::Section(s) => s.bounds(),
-            Shape::Ellipsoid { c, ext, .. } => (*c - *ext, *c + *ext),
-            Shape::ZCyl {
-                cx,
-                cy,
-                a,
-                b,
-                z0,
-                z1,
-            } => (
-                DVec3::new(cx - a, cy - b, *z0),
-                DVec3::new(cx + a, cy + b, *z1),
-            ),
+            Shape::Solid(solid) => solid.bounds(),
+            Shape::Nothing => (DVec3::INFINITY, DVec3::NEG_INFINITY),
             Shape::Tube { a, b, ra, rb } => ((*a - *ra).min(*b - *rb), (*a + *ra).max(*b + *rb)),
             Shape::RBox { c, rt, half, round } => {
                 let r = rt.transpose();
@@ -305,19 +278,8 @@ impl Shape {
     pub fn contains(&self, p: DVec3) -> bool {
         match self {
             Shape::Section(s) => s.contains(p),
-            Shape::Ellipsoid { c, m, .. } => (*m * (p - *c)).length_squared() <= 1.0,
-            Shape::ZCyl {
-                cx,
-                cy,
-                a,
-                b,
-                z0,
-                z1,
-            } => {
-                p.z >= *z0
-                    && p.z <= *z1
-                    && ((p.x - cx) / a).powi(2) + ((p.y - cy) / b).powi(2) <= 1.0
-            }
+            Shape::Solid(solid) => solid.contains(p),
+            Shape::Nothing => false,
             Shape::Tube { a, b, ra, rb } => {
                 let d = *b - *a;
                 let l2 = d.length_squared();

@@ -73,14 +73,8 @@ fn spine(sc: &mut Scene, p: &Params) {
         let (a, b) = p.vertebra(z);
         let (y, yc) = (p.spine_y(z), p.canal_y(z));
         let hb = 0.39 * hv;
-        let zcyl = |a: f64, b: f64, cy: f64, z0: f64, z1: f64| Shape::ZCyl {
-            cx: 0.0,
-            cy,
-            a,
-            b,
-            z0,
-            z1,
-        };
+        let zcyl =
+            |a: f64, b: f64, cy: f64, z0: f64, z1: f64| Shape::z_cylinder(0.0, cy, a, b, z0, z1);
         let v = Structure::Vertebra;
         sc.add(zcyl(a, b, y, z - hb, z + hb), Tissue::Bone, v);
         sc.add(

@@ -26,15 +26,16 @@
 use super::MAX_PHOTONS;
 use super::engine::BATCH;
 use super::field::FieldSource;
-use super::region::Region;
+use super::region::{PlacedRegion, Region};
 use super::transport::{E_CUTOFF_KEV, Medium};
-use glam::DVec3;
+use glam::{DMat3, DVec3};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
 use tomograf_sim::composition::unpack;
 use tomograf_sim::error::{Result, SimError};
 use tomograf_sim::seed::frame_seed;
+use tomograf_sim::solid::{PlacedSolid, Solid};
 
 /// Electronvolts per keV.
 const EV_PER_KEV: f64 = 1000.0;
@@ -345,9 +346,10 @@ pub fn simulate_with_fluence(
             medium.e_max_kev()
         )));
     }
-    for r in regions {
-        r.validate()?;
-    }
+    let placed = regions
+        .iter()
+        .map(Region::placed)
+        .collect::<Result<Vec<_>>>()?;
     for d in discs {
         if !(d.centre.is_finite()
             && d.normal.is_finite()
@@ -393,7 +395,7 @@ pub fn simulate_with_fluence(
             .into_par_iter()
             .map(|b| {
                 let n = BATCH.min(photons - b * BATCH);
-                run_batch(medium, source, beam, regions, discs, settings, seed, b, n)
+                run_batch(medium, source, beam, &placed, discs, settings, seed, b, n)
             })
             .collect();
         for batch in round {
@@ -471,7 +473,7 @@ fn run_batch(
     medium: &Medium,
     source: &FieldSource,
     beam: &BeamSpectrum,
-    regions: &[Region],
+    regions: &[PlacedRegion],
     discs: &[FluenceDisc],
     settings: TallySettings,
     seed: u64,
@@ -490,16 +492,20 @@ fn run_batch(
         stopped: 0.0,
     };
     let track_length = settings.regions == RegionEstimator::TrackLength;
-    // For the track-length estimator: each region with unit axis and its bounding box,
-    // which rejects most flights (short ones, in a dense medium) before the exact chord.
-    let scorers: Vec<(Region, Region)> = if track_length {
+    // For the track-length estimator: each region with its bounding box, which rejects
+    // most flights (short ones, in a dense medium) before the exact chord.
+    // (A box that cannot be formed — sides overflowing to infinity — filters nothing.)
+    let scorers: Vec<(&PlacedRegion, Option<PlacedSolid>)> = if track_length {
         regions
             .iter()
             .map(|r| {
                 let (lo, hi) = r.bounds();
+                let size = hi - lo;
+                let bounds = Solid::Box { size };
+                let centre = lo + size * 0.5;
                 (
-                    r.with_unit_axis(),
-                    Region::cube("bounds", (lo + hi) * 0.5, hi - lo),
+                    r,
+                    PlacedSolid::rotated(bounds, centre, DMat3::IDENTITY).ok(),
                 )
             })
             .collect()
@@ -547,7 +553,12 @@ fn run_batch(
             }
             if track_length {
                 for (k, (r, bounds)) in scorers.iter().enumerate() {
-                    let Some((b0, b1)) = bounds.chord(p, d, 0.0, t_end) else {
+                    let span = bounds.map_or(Some((0.0, t_end)), |b| {
+                        b.span(p, d)
+                            .map(|(a, b)| (a.max(0.0), b.min(t_end)))
+                            .filter(|(a, b)| a < b)
+                    });
+                    let Some((b0, b1)) = span else {
                         continue;
                     };
                     if let Some((t0, t1)) = r.chord(p, d, b0, b1) {

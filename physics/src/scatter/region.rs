@@ -4,9 +4,10 @@
 //!
 //! Units: mm, world coordinates.
 
-use glam::DVec3;
+use glam::{DMat3, DVec3};
 use serde::{Deserialize, Serialize};
 use tomograf_sim::error::{Result, SimError};
+use tomograf_sim::solid::{PlacedSolid, Solid};
 
 /// The shape of a scoring region.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -187,177 +188,69 @@ impl Region {
         Ok(())
     }
 
-    /// Whether world point `p` (mm) lies inside.
-    #[inline]
-    pub fn contains(&self, p: DVec3) -> bool {
-        match self.shape {
-            Shape::Box { min, max } => (0..3).all(|a| p[a] >= min[a] && p[a] <= max[a]),
-            Shape::Cylinder {
-                centre,
-                axis,
-                radius,
-                half_length,
-            } => {
-                let a = DVec3::from(axis).normalize();
-                let r = p - DVec3::from(centre);
-                let along = r.dot(a);
-                along.abs() <= half_length && (r - a * along).length_squared() <= radius * radius
-            }
-            Shape::HalfCylinder { centre, side, .. } => {
-                let (full, _) = self.cylinder_part().expect("a cylinder");
-                (p - DVec3::from(centre)).dot(DVec3::from(side)) >= 0.0
-                    && Region {
-                        name: String::new(),
-                        shape: full,
-                    }
-                    .contains(p)
-            }
-        }
-    }
-
-    /// Where the line `p + t·d` (mm, `d` a unit vector) runs inside the region, clipped to
-    /// `t_min ≤ t ≤ t_max`: the parameter interval `(t0, t1)` with `t0 < t1`, or `None` if
-    /// the clipped line misses it (or only touches it).
-    pub fn chord(&self, p: DVec3, d: DVec3, t_min: f64, t_max: f64) -> Option<(f64, f64)> {
-        let (mut t0, mut t1) = (t_min, t_max);
-        if let Some((full, Some((c, n)))) = self.cylinder_part() {
-            // The half-space (p + t·d − c)·n ≥ 0, then the full cylinder.
-            let (h, dn) = ((p - c).dot(n), d.dot(n));
-            if dn == 0.0 {
-                if h < 0.0 {
-                    return None;
-                }
-            } else if dn > 0.0 {
-                t0 = t0.max(-h / dn);
-            } else {
-                t1 = t1.min(-h / dn);
-            }
-            if t0 >= t1 {
-                return None;
-            }
-            let cylinder = Region {
-                name: String::new(),
-                shape: full,
-            };
-            return cylinder.chord(p, d, t0, t1);
-        }
-        match self.shape {
-            Shape::HalfCylinder { .. } => unreachable!("handled above"),
+    /// The region as a placed [`Solid`] and the half-space that cuts it (a point on the
+    /// plane and the unit normal towards the half kept), for scoring many flights: its
+    /// containment, chords and bounds. `Err` as [`Region::validate`].
+    pub fn placed(&self) -> Result<PlacedRegion> {
+        self.validate()?;
+        let turned = |centre: [f64; 3], axis: [f64; 3], radius: f64, half_length: f64| {
+            let a = DVec3::from(axis).normalize();
+            let (u, v) = a.any_orthonormal_pair();
+            PlacedSolid::rotated(
+                Solid::circular_cylinder(radius, 2.0 * half_length),
+                DVec3::from(centre),
+                DMat3::from_cols(u, v, a),
+            )
+        };
+        let (solid, cut) = match self.shape {
             Shape::Box { min, max } => {
-                for a in 0..3 {
-                    if d[a] == 0.0 {
-                        if p[a] < min[a] || p[a] > max[a] {
-                            return None;
-                        }
-                        continue;
-                    }
-                    let (u, v) = ((min[a] - p[a]) / d[a], (max[a] - p[a]) / d[a]);
-                    t0 = t0.max(u.min(v));
-                    t1 = t1.min(u.max(v));
-                }
+                let (min, max) = (DVec3::from(min), DVec3::from(max));
+                let size = max - min;
+                (
+                    PlacedSolid::rotated(Solid::Box { size }, min + size * 0.5, DMat3::IDENTITY),
+                    None,
+                )
             }
             Shape::Cylinder {
                 centre,
                 axis,
                 radius,
                 half_length,
-            } => {
-                let a = DVec3::from(axis);
-                let a = if (a.length_squared() - 1.0).abs() < 1e-12 {
-                    a
-                } else {
-                    a.normalize()
-                };
-                let r = p - DVec3::from(centre);
-                // Along the axis: |r·a + t·d·a| ≤ half_length.
-                let (ra, da) = (r.dot(a), d.dot(a));
-                if da == 0.0 {
-                    if ra.abs() > half_length {
-                        return None;
-                    }
-                } else {
-                    let (u, v) = ((-half_length - ra) / da, (half_length - ra) / da);
-                    t0 = t0.max(u.min(v));
-                    t1 = t1.min(u.max(v));
-                }
-                // Across it: |r⊥ + t·d⊥|² ≤ radius².
-                let (rp, dp) = (r - a * ra, d - a * da);
-                let qa = dp.length_squared();
-                let qc = rp.length_squared() - radius * radius;
-                if qa == 0.0 {
-                    if qc > 0.0 {
-                        return None;
-                    }
-                } else {
-                    let qb = rp.dot(dp);
-                    let disc = qb * qb - qa * qc;
-                    if disc <= 0.0 {
-                        return None;
-                    }
-                    let s = disc.sqrt();
-                    // The stable pair of roots of qa·t² + 2·qb·t + qc.
-                    let q = -(qb + qb.signum() * s);
-                    let (u, v) = if q == 0.0 {
-                        (0.0, 0.0)
-                    } else {
-                        (q / qa, qc / q)
-                    };
-                    t0 = t0.max(u.min(v));
-                    t1 = t1.min(u.max(v));
-                }
-            }
-        }
-        (t0 < t1).then_some((t0, t1))
+            } => (turned(centre, axis, radius, half_length), None),
+            Shape::HalfCylinder {
+                centre,
+                axis,
+                radius,
+                half_length,
+                side,
+            } => (
+                turned(centre, axis, radius, half_length),
+                Some((DVec3::from(centre), DVec3::from(side).normalize())),
+            ),
+        };
+        let solid = solid.map_err(|m| {
+            SimError::InvalidGeometry(format!("scoring region '{}': {m}", self.name))
+        })?;
+        Ok(PlacedRegion { solid, cut })
     }
 
-    /// The same region with its axis (if any) scaled to unit length.
-    pub fn with_unit_axis(&self) -> Self {
-        let mut r = self.clone();
-        match r.shape {
-            Shape::Cylinder { ref mut axis, .. } => {
-                *axis = DVec3::from(*axis).normalize().to_array();
-            }
-            Shape::HalfCylinder {
-                ref mut axis,
-                ref mut side,
-                ..
-            } => {
-                *axis = DVec3::from(*axis).normalize().to_array();
-                *side = DVec3::from(*side).normalize().to_array();
-            }
-            Shape::Box { .. } => {}
-        }
-        r
+    /// Whether world point `p` (mm) lies inside (false for an invalid region). To test
+    /// many points, use [`Region::placed`] once.
+    pub fn contains(&self, p: DVec3) -> bool {
+        self.placed().is_ok_and(|r| r.contains(p))
+    }
+
+    /// Where the line `p + t·d` (mm) runs inside the region, clipped to
+    /// `t_min ≤ t ≤ t_max` ([`PlacedRegion::chord`]; `None` for an invalid region).
+    pub fn chord(&self, p: DVec3, d: DVec3, t_min: f64, t_max: f64) -> Option<(f64, f64)> {
+        self.placed().ok()?.chord(p, d, t_min, t_max)
     }
 
     /// The axis-aligned box that holds the region: (lower, upper corner), mm.
     /// (A half-cylinder's are its full cylinder's: a box that holds it, not the tightest.)
-    pub fn bounds(&self) -> (DVec3, DVec3) {
-        if let Some((full, Some(_))) = self.cylinder_part() {
-            return Region {
-                name: String::new(),
-                shape: full,
-            }
-            .bounds();
-        }
-        match self.shape {
-            Shape::HalfCylinder { .. } => unreachable!("handled above"),
-            Shape::Box { min, max } => (min.into(), max.into()),
-            Shape::Cylinder {
-                centre,
-                axis,
-                radius,
-                half_length,
-            } => {
-                let a = DVec3::from(axis).normalize();
-                let half = DVec3::new(
-                    half_length * a.x.abs() + radius * (1.0 - a.x * a.x).max(0.0).sqrt(),
-                    half_length * a.y.abs() + radius * (1.0 - a.y * a.y).max(0.0).sqrt(),
-                    half_length * a.z.abs() + radius * (1.0 - a.z * a.z).max(0.0).sqrt(),
-                );
-                (DVec3::from(centre) - half, DVec3::from(centre) + half)
-            }
-        }
+    /// Errors as [`Region::validate`].
+    pub fn bounds(&self) -> Result<(DVec3, DVec3)> {
+        Ok(self.placed()?.bounds())
     }
 
     /// Volume in mm³.
@@ -375,6 +268,51 @@ impl Region {
                 ..
             } => std::f64::consts::PI * radius * radius * half_length,
         }
+    }
+}
+
+/// A region ready to score: its solid and the half-space that cuts it, if any.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PlacedRegion {
+    solid: PlacedSolid,
+    /// A point on the cutting plane and its unit normal towards the half kept.
+    cut: Option<(DVec3, DVec3)>,
+}
+
+impl PlacedRegion {
+    /// Whether world point `p` (mm) lies inside, boundary included.
+    #[inline]
+    pub fn contains(&self, p: DVec3) -> bool {
+        self.cut.is_none_or(|(c, n)| (p - c).dot(n) >= 0.0) && self.solid.contains(p)
+    }
+
+    /// Where the line `p + t·d` (mm) runs inside the region, clipped to
+    /// `t_min ≤ t ≤ t_max`: the parameter interval `(t0, t1)` with `t0 < t1`, or `None` if
+    /// the clipped line misses it (or only touches it).
+    pub fn chord(&self, p: DVec3, d: DVec3, t_min: f64, t_max: f64) -> Option<(f64, f64)> {
+        let (mut t0, mut t1) = (t_min, t_max);
+        if let Some((c, n)) = self.cut {
+            // The half-space (p + t·d − c)·n ≥ 0.
+            let (h, dn) = ((p - c).dot(n), d.dot(n));
+            if dn == 0.0 {
+                if h < 0.0 {
+                    return None;
+                }
+            } else if dn > 0.0 {
+                t0 = t0.max(-h / dn);
+            } else {
+                t1 = t1.min(-h / dn);
+            }
+        }
+        let (a, b) = self.solid.span(p, d)?;
+        let (t0, t1) = (t0.max(a), t1.min(b));
+        (t0 < t1).then_some((t0, t1))
+    }
+
+    /// The axis-aligned box that holds the region: (lower, upper corner), mm (a
+    /// half-cylinder's is its full cylinder's).
+    pub fn bounds(&self) -> (DVec3, DVec3) {
+        self.solid.bounds()
     }
 }
 
@@ -409,5 +347,34 @@ mod tests {
                 .to_string()
                 .contains("perpendicular")
         );
+    }
+
+    /// A cylinder on an oblique axis: chords across and along it, and its bounds, by hand.
+    #[test]
+    fn an_oblique_cylinder_by_hand() {
+        let axis = DVec3::new(1.0, 1.0, 0.0);
+        let c = Region::cylinder("c", DVec3::new(5.0, 0.0, 0.0), axis, 3.0, 20.0);
+        let r = c.placed().unwrap();
+        // Across the axis through the centre: the diameter; along it: the length.
+        let (t0, t1) = r
+            .chord(DVec3::new(5.0, 0.0, -50.0), DVec3::Z, 0.0, 1e3)
+            .unwrap();
+        assert!((t1 - t0 - 6.0).abs() < 1e-12 && (t0 - 47.0).abs() < 1e-12);
+        let u = axis.normalize();
+        let (t0, t1) = r
+            .chord(DVec3::new(5.0, 0.0, 0.0) - 50.0 * u, u, 0.0, 1e3)
+            .unwrap();
+        assert!((t1 - t0 - 20.0).abs() < 1e-12);
+        // Clipped by t_max.
+        let (_, t1) = r
+            .chord(DVec3::new(5.0, 0.0, 0.0) - 50.0 * u, u, 0.0, 45.0)
+            .unwrap();
+        assert_eq!(t1, 45.0);
+        // Bounds: 10·cos 45° + 3·sin 45° in x and y, the radius in z.
+        let (lo, hi) = c.bounds().unwrap();
+        let half = 13.0 / 2f64.sqrt();
+        assert!((hi.x - 5.0 - half).abs() < 1e-12 && (hi.y - half).abs() < 1e-12);
+        assert!((hi.z - 3.0).abs() < 1e-12 && (lo.z + 3.0).abs() < 1e-12);
+        assert!(c.contains(DVec3::new(5.0, 0.0, 2.9)) && !c.contains(DVec3::new(5.0, 0.0, 3.1)));
     }
 }

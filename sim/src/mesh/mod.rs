@@ -5,8 +5,9 @@
 //!   the world (LPS, mm).
 //! * [`topology`] — the watertightness check made on load (every edge shared by exactly two
 //!   triangles with opposite orientation, outward normals) and [`topology::repair`].
-//! * [`analytic`] — box, ellipsoid (sphere) and cylinder solids with closed-form ray
-//!   intervals, placed like meshes and used wherever a mesh is ([`MeshObject::analytic`]).
+//! * analytic solids — box, ellipsoid (sphere) and cylinder with closed-form ray intervals
+//!   ([`crate::solid`]), placed like meshes and used wherever a mesh is
+//!   ([`MeshObject::analytic`]).
 //! * [`shapes`] — parametric meshes generated in code (box, spheres, cylinder, pacemaker
 //!   can with leads, table top).
 //! * [`io`] — OBJ, PLY and STL files.
@@ -16,7 +17,6 @@
 //!   and [`object::MeshScene`]: several meshes, their per-ray intervals and how they
 //!   displace the voxels.
 
-pub mod analytic;
 pub mod intersect;
 pub mod io;
 pub mod object;
@@ -24,7 +24,7 @@ pub mod self_intersection;
 pub mod shapes;
 pub mod topology;
 
-pub use analytic::Primitive;
+pub use crate::solid::Solid;
 pub use object::{MeshInterval, MeshObject, MeshScene, Scratch};
 
 use glam::{DMat3, DMat4, DVec3};

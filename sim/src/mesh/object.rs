@@ -7,11 +7,11 @@
 //! so a ray that starts inside a mesh is handled; intervals are then clipped to the ray's
 //! `[t_min, t_max]`.
 
-use super::analytic::{PlacedPrimitive, Primitive};
 use super::intersect::{Hit, ShearedRay};
 use super::{MeshError, Placement, Result, TriMesh, topology};
 use crate::accel::intervals::Interval;
 use crate::ray::Ray;
+use crate::solid::{PlacedSolid, Solid};
 use glam::{DVec3, Vec3A};
 use obvhs::BvhBuildParams;
 use obvhs::aabb::Aabb;
@@ -47,7 +47,7 @@ pub struct MeshObject {
 #[derive(Clone)]
 enum Surface {
     Triangles(Box<Triangles>),
-    Analytic(PlacedPrimitive),
+    Analytic(PlacedSolid),
 }
 
 /// Triangles (world mm) and the BVHs that find them.
@@ -69,7 +69,7 @@ impl std::fmt::Debug for MeshObject {
             .field("density_g_cm3", &self.density_g_cm3);
         match &self.surface {
             Surface::Triangles(t) => d.field("triangles", &t.tris.len()),
-            Surface::Analytic(p) => d.field("primitive", &p.primitive),
+            Surface::Analytic(p) => d.field("primitive", &p.solid),
         };
         d.finish()
     }
@@ -167,19 +167,19 @@ impl MeshObject {
         Ok(object)
     }
 
-    /// An analytic solid ([`Primitive`]: box, ellipsoid or sphere, cylinder) placed by
+    /// An analytic solid ([`Solid`]: box, ellipsoid or sphere, cylinder) placed by
     /// `placement`, whose ray intervals are exact (closed form, no triangles); otherwise
     /// the same as a mesh of `material` (and `mu_per_mm`, mm⁻¹, for the ideal DRR).
     pub fn analytic(
         name: &str,
-        primitive: Primitive,
+        primitive: Solid,
         placement: &Placement,
         material: &str,
         mu_per_mm: Option<f64>,
     ) -> Result<Self> {
         check_mu(name, mu_per_mm)?;
-        let placed =
-            PlacedPrimitive::new(primitive, placement.matrix()?).map_err(|e| prefix(name, e))?;
+        let placed = PlacedSolid::new(primitive, placement.matrix()?)
+            .map_err(|e| prefix(name, MeshError::OutOfRange(e)))?;
         let (lo, hi) = placed.bounds();
         Ok(Self {
             name: name.to_string(),
@@ -263,7 +263,7 @@ impl MeshObject {
         let t = match &self.surface {
             Surface::Triangles(t) => t,
             Surface::Analytic(p) => {
-                if let Some((t0, t1)) = p.span(ray) {
+                if let Some((t0, t1)) = p.ray_span(ray) {
                     out.extend([Hit { t: t0, sign: 1 }, Hit { t: t1, sign: -1 }]);
                 }
                 return;
