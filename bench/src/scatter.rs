@@ -58,18 +58,29 @@ struct Rung {
 }
 
 fn mc(photons: u64, cell: f64) -> ScatterModel {
+    mc_multiple(photons, cell, 0)
+}
+
+/// The Monte Carlo with the multiple-scatter image on `multiple` points per side (0: 16).
+fn mc_multiple(photons: u64, cell: f64, multiple: usize) -> ScatterModel {
     ScatterModel::MonteCarlo {
         photons,
         grid: 16,
+        multiple_grid: multiple,
         max_order: 50,
         detection_cell_mm: cell,
     }
 }
 
 fn estimate(photons: u64, grid: usize, cell: f64) -> ScatterModel {
+    estimate_multiple(photons, grid, cell, 0)
+}
+
+fn estimate_multiple(photons: u64, grid: usize, cell: f64, multiple: usize) -> ScatterModel {
     ScatterModel::Estimate {
         photons,
         grid,
+        multiple_grid: multiple,
         smoothing: 1.0,
         detection_cell_mm: cell,
     }
@@ -83,23 +94,34 @@ fn label(m: &ScatterModel) -> String {
             format!("{c} mm cells")
         }
     };
+    let points = |g: usize, m: usize| {
+        if m == 0 || m == g {
+            format!("{g}² points")
+        } else {
+            format!("{g}² points ({m}² for multiple scatter)")
+        }
+    };
     match m {
         ScatterModel::MonteCarlo {
             photons,
             grid,
+            multiple_grid,
             detection_cell_mm,
             ..
         } => format!(
-            "Monte Carlo, {photons} histories, {grid}² points, {}",
+            "Monte Carlo, {photons} histories, {}, {}",
+            points(*grid, *multiple_grid),
             cell(*detection_cell_mm)
         ),
         ScatterModel::Estimate {
             photons,
             grid,
+            multiple_grid,
             detection_cell_mm,
             ..
         } => format!(
-            "estimate, {photons} histories, {grid}² points, {}",
+            "estimate, {photons} histories, {}, {}",
+            points(*grid, *multiple_grid),
             cell(*detection_cell_mm)
         ),
         ScatterModel::None => "none".into(),
@@ -222,11 +244,17 @@ pub fn section(ct: &Path, o: &ScatterOptions) -> Result<String> {
         mc(q(6_250), 16.0),
         mc(q(1_500), 8.0),
         mc(q(1_500), 16.0),
+        mc_multiple(q(6_250), 8.0, 8),
+        mc_multiple(q(14_000), 8.0, 8),
+        mc_multiple(q(25_000), 8.0, 8),
+        mc_multiple(q(3_500), 8.0, 8),
         estimate(q(5_000), 8, 0.0),
         estimate(q(5_000), 8, 8.0),
         estimate(q(2_000), 8, 8.0),
         estimate(q(2_000), 16, 8.0),
         estimate(q(1_000), 16, 8.0),
+        estimate_multiple(q(2_000), 8, 8.0, 4),
+        estimate_multiple(q(4_000), 8, 8.0, 4),
     ]
     .into_iter()
     .map(|model| Rung {
@@ -243,10 +271,17 @@ pub fn section(ct: &Path, o: &ScatterOptions) -> Result<String> {
     }
     let mut times = vec![Vec::new(); rungs.len()];
     let mut images = vec![Vec::new(); rungs.len()];
-    for _ in 0..o.rounds.max(1) {
+    // Errors of each round's image (line integrals, scatter): a round draws its own
+    // histories (seed SEED + round), so the rounds sample the error's spread as well.
+    let mut errors = vec![Vec::new(); rungs.len()];
+    for round in 0..o.rounds.max(1) {
         for (i, r) in rungs.iter().enumerate() {
-            let (img, s) = scatter(&engine, &r.model, view, SEED)?;
+            let (img, s) = scatter(&engine, &r.model, view, SEED + round as u64)?;
             times[i].push(s);
+            errors[i].push((
+                rms(&line_integrals(&img), &ref_li),
+                rms(&img, &reference),
+            ));
             images[i] = img;
         }
     }
@@ -291,8 +326,9 @@ pub fn section(ct: &Path, o: &ScatterOptions) -> Result<String> {
     )?;
     writeln!(
         md,
-        "| setting | scatter s | × vs first row | line-integral rms | scatter rms | cells' bias |\n\
-         |---|---:|---:|---:|---:|---:|"
+        "| setting | scatter s | × vs first row | line-integral rms | scatter rms (worst of {}) | cells' bias |\n\
+         |---|---:|---:|---:|---:|---:|",
+        o.rounds.max(1)
     )?;
     for (i, r) in rungs.iter().enumerate() {
         let s = median(&mut times[i]);
@@ -301,13 +337,18 @@ pub fn section(ct: &Path, o: &ScatterOptions) -> Result<String> {
         let full = rungs
             .iter()
             .position(|f| f.model == at_full && f.model != r.model);
+        let n = errors[i].len() as f64;
+        let mean_li = errors[i].iter().map(|e| e.0).sum::<f64>() / n;
+        let mean_s = errors[i].iter().map(|e| e.1).sum::<f64>() / n;
+        let worst_s = errors[i].iter().map(|e| e.1).fold(0.0, f64::max);
         writeln!(
             md,
-            "| {} | {s:.2} | {:.1}× | {:.2} % | {:.2} % | {} |",
+            "| {} | {s:.2} | {:.1}× | {:.2} % | {:.2} % ({:.2} %) | {} |",
             r.label,
             base / s,
-            100.0 * rms(&line_integrals(&images[i]), &ref_li),
-            100.0 * rms(&images[i], &reference),
+            100.0 * mean_li,
+            100.0 * mean_s,
+            100.0 * worst_s,
             full.map_or("".into(), |f| format!(
                 "{:.2} %",
                 100.0 * rms(&images[i], &images[f])
@@ -318,13 +359,18 @@ pub fn section(ct: &Path, o: &ScatterOptions) -> Result<String> {
         md,
         "\n`line-integral rms`: of −ln((primary + scatter)/open field), the preset's output, \
          against the reference's (what `tomograf tradeoff` measures, but before the detector's \
-         blur, gain and quantisation); `scatter rms`: of the scatter image alone; both include the reference's own \
-         noise. `cells' bias`: the scatter image against the same histories traced at full \
+         blur, gain and quantisation); `scatter rms`: of the scatter image alone; both the mean \
+         over the rounds, each round its own histories (the worst round in brackets), and both \
+         include the reference's own noise. `cells' bias`: the scatter image against the same histories traced at full \
          resolution (no noise in it: the histories are the same)."
     )?;
 
     // The orbit, from a fresh engine: set-up and detection grid included.
-    for model in [mc(q(1_500), 8.0), ScatterModel::estimate_default()] {
+    for model in [
+        mc(q(1_500), 8.0),
+        mc_multiple(q(3_500), 8.0, 8),
+        ScatterModel::estimate_default(),
+    ] {
         let t = Instant::now();
         let (_, engine) = prepare(&acq, &hu, seed)?;
         let (mut first, mut first_li) = (0.0, 0.0);

@@ -16,6 +16,7 @@ fn the_objects_own_scatter_is_removed_from_its_views() {
     acq.scatter = ScatterModel::Estimate {
         photons: 20_000,
         grid: 6,
+        multiple_grid: 0,
         smoothing: 1.0,
         detection_cell_mm: 0.0,
     };
@@ -84,6 +85,7 @@ fn items_without_scatter_or_acquisition_are_named() {
     with.scatter = ScatterModel::Estimate {
         photons: 10,
         grid: 2,
+        multiple_grid: 0,
         smoothing: 1.0,
         detection_cell_mm: 0.0,
     };

@@ -41,6 +41,7 @@ fn mc(photons: u64, grid: usize) -> ScatterModel {
     ScatterModel::MonteCarlo {
         photons,
         grid,
+        multiple_grid: 0,
         max_order: 50,
         detection_cell_mm: 0.0,
     }
@@ -136,6 +137,7 @@ fn main() {
             ScatterModel::Estimate {
                 photons: 5_000,
                 grid: 8,
+                multiple_grid: 0,
                 smoothing: 1.0,
                 detection_cell_mm: 0.0,
             },

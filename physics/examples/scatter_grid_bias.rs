@@ -29,6 +29,7 @@ fn scatter(hu: &Volume, view: &View, grid: usize, seed: u64) -> Vec<f64> {
     a.scatter = ScatterModel::MonteCarlo {
         photons: PHOTONS,
         grid,
+        multiple_grid: 0,
         max_order: 50,
         detection_cell_mm: 0.0,
     };

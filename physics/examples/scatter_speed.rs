@@ -36,6 +36,7 @@ fn main() {
         a.scatter = ScatterModel::MonteCarlo {
             photons,
             grid,
+            multiple_grid: 0,
             max_order: 50,
             detection_cell_mm: 0.0,
         };

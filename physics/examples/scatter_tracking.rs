@@ -80,6 +80,7 @@ fn main() {
     a.scatter = ScatterModel::MonteCarlo {
         photons: 20_000,
         grid: 16,
+        multiple_grid: 0,
         max_order: 50,
         detection_cell_mm: 0.0,
     };

@@ -220,6 +220,7 @@ fn titanium_slab_in_air_through_the_acquisition() {
         scatter: ScatterModel::Estimate {
             photons: 100,
             grid: 4,
+            multiple_grid: 0,
             smoothing: 1.0,
             detection_cell_mm: 0.0,
         },

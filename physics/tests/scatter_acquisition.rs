@@ -43,6 +43,7 @@ fn scatter_adds_its_expected_images_and_none_adds_nothing() {
     with.scatter = ScatterModel::MonteCarlo {
         photons: 1500,
         grid: 4,
+        multiple_grid: 0,
         max_order: 20,
         detection_cell_mm: 0.0,
     };
@@ -71,6 +72,7 @@ fn the_scatter_table_parses_inside_an_acquisition() {
     a.scatter = ScatterModel::Estimate {
         photons: 100,
         grid: 4,
+        multiple_grid: 0,
         smoothing: 1.0,
         detection_cell_mm: 0.0,
     };
@@ -88,6 +90,7 @@ fn an_acquisition_with_scatter_survives_json() {
     a.scatter = ScatterModel::Estimate {
         photons: 5000,
         grid: 8,
+        multiple_grid: 0,
         smoothing: 1.0,
         detection_cell_mm: 0.0,
     };
@@ -125,6 +128,7 @@ fn detection_cells_change_only_the_forced_detection_paths() {
         a.scatter = ScatterModel::MonteCarlo {
             photons: 3000,
             grid: 8,
+            multiple_grid: 0,
             max_order: 20,
             detection_cell_mm: cell,
         };
@@ -157,6 +161,7 @@ fn detection_cells_out_of_range_are_refused_by_name() {
         let m = ScatterModel::MonteCarlo {
             photons: 10,
             grid: 4,
+            multiple_grid: 0,
             max_order: 5,
             detection_cell_mm: bad,
         };

@@ -39,6 +39,7 @@ fn scatter_correction_from_the_object_removes_the_scatter() {
     a.scatter = ScatterModel::MonteCarlo {
         photons: 4000,
         grid: 4,
+        multiple_grid: 0,
         max_order: 20,
         detection_cell_mm: 0.0,
     };

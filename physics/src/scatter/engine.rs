@@ -38,6 +38,16 @@ pub const BATCH: u64 = 256;
 /// Russian roulette threshold, as a fraction of the starting weight.
 const ROULETTE: f64 = 0.05;
 
+/// Scoring points per detector side: for photons scattered once (`single`) and for those
+/// scattered more than once (`multiple`: the smoother image, which fewer points describe).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct ScoringPoints {
+    /// Points per side of the single-scatter images.
+    pub single: usize,
+    /// Points per side of the multiple-scatter image.
+    pub multiple: usize,
+}
+
 /// Detection grids by cell size (the size's bits).
 type DetectionGrids = Vec<(u64, Arc<DetectionGrid>)>;
 
@@ -187,27 +197,52 @@ impl ScatterEngine {
         seed: u64,
     ) -> Result<Option<ScatterImages>> {
         model.validate()?;
-        let (photons, grid, max_order, smoothing, cell_mm) = match *model {
+        let (photons, grid, multiple_grid, max_order, smoothing, cell_mm) = match *model {
             ScatterModel::None => return Ok(None),
             ScatterModel::Estimate {
                 photons,
                 grid,
+                multiple_grid,
                 smoothing,
                 detection_cell_mm,
-            } => (photons, grid, 50, smoothing, detection_cell_mm),
+            } => (
+                photons,
+                grid,
+                multiple_grid,
+                50,
+                smoothing,
+                detection_cell_mm,
+            ),
             ScatterModel::MonteCarlo {
                 photons,
                 grid,
+                multiple_grid,
                 max_order,
                 detection_cell_mm,
-            } => (photons, grid, max_order, 0.0, detection_cell_mm),
+            } => (
+                photons,
+                grid,
+                multiple_grid,
+                max_order,
+                0.0,
+                detection_cell_mm,
+            ),
+        };
+        // 0: the single-scatter grid's points.
+        let multiple_grid = if multiple_grid == 0 {
+            grid
+        } else {
+            multiple_grid
         };
         let detection = self.detection_grid(cell_mm)?;
         self.simulate_through(
             view,
             view,
             photons,
-            grid,
+            ScoringPoints {
+                single: grid,
+                multiple: multiple_grid,
+            },
             max_order,
             smoothing,
             detection.as_deref(),
@@ -231,18 +266,23 @@ impl ScatterEngine {
         smoothing: f64,
         seed: u64,
     ) -> Result<ScatterImages> {
-        self.simulate_through(aim, view, photons, grid, max_order, smoothing, None, seed)
+        let points = ScoringPoints {
+            single: grid,
+            multiple: grid,
+        };
+        self.simulate_through(aim, view, photons, points, max_order, smoothing, None, seed)
     }
 
     /// [`ScatterEngine::simulate`] with forced detection traced through `detection`
-    /// (`None`: the full-resolution composition).
+    /// (`None`: the full-resolution composition), photons scattered once scored on
+    /// `points.single` points per side and those scattered again on `points.multiple`.
     #[allow(clippy::too_many_arguments)]
     pub fn simulate_through(
         &self,
         aim: &View,
         view: &View,
         photons: u64,
-        grid: usize,
+        points: ScoringPoints,
         max_order: u32,
         smoothing: f64,
         detection: Option<&DetectionGrid>,
@@ -255,9 +295,17 @@ impl ScatterEngine {
                 "scatter needs a cone beam (a point source); this view is parallel".into(),
             ));
         };
-        if !(1..=MAX_PHOTONS).contains(&photons) || !(1..=MAX_GRID).contains(&grid) {
+        let ScoringPoints {
+            single: grid,
+            multiple: multiple_grid,
+        } = points;
+        if !(1..=MAX_PHOTONS).contains(&photons)
+            || !(1..=MAX_GRID).contains(&grid)
+            || !(1..=MAX_GRID).contains(&multiple_grid)
+        {
             return Err(SimError::OutOfRange(format!(
-                "scatter: photons = {photons} (1 to {MAX_PHOTONS}), grid = {grid} (1 to {MAX_GRID})"
+                "scatter: photons = {photons} (1 to {MAX_PHOTONS}), grid = {grid} and multiple \
+                 grid = {multiple_grid} (1 to {MAX_GRID})"
             )));
         }
         if max_order == 0 {
@@ -276,13 +324,16 @@ impl ScatterEngine {
         let n_tot = *self.cdf.last().expect("non-empty");
         let w0 = self.mas * n_tot * f_tot / photons as f64;
         let sgrid = ScoreGrid::new(view, grid);
+        // Photons scattered again on a grid of their own, when it differs.
+        let mgrid = (multiple_grid != grid).then(|| ScoreGrid::new(view, multiple_grid));
         let channels = self.response.channels();
         let batches = photons.div_ceil(BATCH);
-        let tallies: Vec<Tally> = (0..batches)
+        let tallies: Vec<(Tally, Option<Tally>)> = (0..batches)
             .into_par_iter()
             .map(|b| {
                 let mut rng = ChaCha8Rng::seed_from_u64(frame_seed(seed, b));
                 let mut tally = Tally::new(channels, sgrid.len());
+                let mut mtally = mgrid.as_ref().map(|g| Tally::new(channels, g.len()));
                 let n = BATCH.min(photons - b * BATCH);
                 for _ in 0..n {
                     let u = rng.random::<f64>() * f_tot;
@@ -302,36 +353,60 @@ impl ScatterEngine {
                         e,
                         w0,
                         max_order,
-                        &sgrid,
+                        (&sgrid, &mut tally),
+                        mgrid.as_ref().zip(mtally.as_mut()),
                         detection,
-                        &mut tally,
                         &mut rng,
                     );
                 }
-                tally
+                (tally, mtally)
             })
             .collect();
         let mut sum = Tally::new(channels, sgrid.len());
-        for t in &tallies {
+        let mut msum = mgrid.as_ref().map(|g| Tally::new(channels, g.len()));
+        for (t, m) in &tallies {
             sum.add(t);
+            if let (Some(s), Some(m)) = (msum.as_mut(), m) {
+                s.add(m);
+            }
         }
-        let grid_mean = sum.total0();
+        // Channel 0's total at the single grid's points (the multiple image resampled there
+        // when it has points of its own).
+        let total0 = |t: &Tally, m: Option<&Tally>| match (m, mgrid.as_ref()) {
+            (Some(m), Some(g)) => {
+                let multiple = m.channel0(&[Component::Multiple as usize]);
+                let at = sgrid.resample(g, &multiple, view.rows, view.cols);
+                t.channel0(&[0, 1])
+                    .iter()
+                    .zip(at)
+                    .map(|(a, b)| a + b)
+                    .collect()
+            }
+            _ => t.total0(),
+        };
+        let grid_mean = total0(&sum, msum.as_ref());
         let grid_standard_error = if tallies.len() < 2 {
             vec![f64::INFINITY; grid_mean.len()]
         } else {
             let nb = tallies.len() as f64;
             let mut ss = vec![0.0; grid_mean.len()];
-            for t in &tallies {
-                for (s, (x, m)) in ss.iter_mut().zip(t.total0().iter().zip(&grid_mean)) {
+            for (t, m) in &tallies {
+                let x = total0(t, m.as_ref());
+                for (s, (x, m)) in ss.iter_mut().zip(x.iter().zip(&grid_mean)) {
                     *s += (x - m / nb).powi(2);
                 }
             }
             ss.iter().map(|s| (s * nb / (nb - 1.0)).sqrt()).collect()
         };
         if smoothing > 0.0 {
-            let pts = sgrid.len();
-            for chunk in sum.mean.chunks_mut(pts).chain(sum.second.chunks_mut(pts)) {
-                smooth(chunk, sgrid.rows, sgrid.cols, smoothing);
+            for (g, t) in [(&sgrid, &mut sum)]
+                .into_iter()
+                .chain(mgrid.as_ref().zip(msum.as_mut()))
+            {
+                let pts = g.len();
+                for chunk in t.mean.chunks_mut(pts).chain(t.second.chunks_mut(pts)) {
+                    smooth(chunk, g.rows, g.cols, smoothing);
+                }
             }
         }
         let blank = ExpectedImage {
@@ -343,15 +418,19 @@ impl ScatterEngine {
             mean: vec![0.0; channels * view.rows * view.cols],
             second_moment: vec![0.0; channels * view.rows * view.cols],
         };
-        let image = |c: Component| {
+        let image = |g: &ScoreGrid, t: &Tally, c: Component| {
             let mut im = blank.clone();
-            to_image(&sgrid, &sum, c as usize, &mut im);
+            to_image(g, t, c as usize, &mut im);
             im
         };
+        let multiple = match (mgrid.as_ref(), msum.as_ref()) {
+            (Some(g), Some(t)) => image(g, t, Component::Multiple),
+            _ => image(&sgrid, &sum, Component::Multiple),
+        };
         Ok(ScatterImages {
-            single_compton: image(Component::SingleCompton),
-            single_rayleigh: image(Component::SingleRayleigh),
-            multiple: image(Component::Multiple),
+            single_compton: image(&sgrid, &sum, Component::SingleCompton),
+            single_rayleigh: image(&sgrid, &sum, Component::SingleRayleigh),
+            multiple,
             grid: (sgrid.rows, sgrid.cols),
             grid_mean,
             grid_standard_error,
@@ -367,16 +446,22 @@ impl ScatterEngine {
         mut e: f64,
         w0: f64,
         max_order: u32,
-        grid: &ScoreGrid,
+        single: (&ScoreGrid, &mut Tally),
+        mut multiple: Option<(&ScoreGrid, &mut Tally)>,
         detection: Option<&DetectionGrid>,
-        tally: &mut Tally,
         rng: &mut R,
     ) {
+        let (sgrid, stally) = single;
         let mut w = w0;
         let mut order = 0;
         while order < max_order {
             let Some(c) = self.medium.fly(p, d, e, rng) else {
                 return;
+            };
+            // The first collision scores the single-scatter images, later ones the multiple.
+            let (grid, tally) = match multiple.as_mut() {
+                Some((g, t)) if order > 0 => (*g, &mut **t),
+                _ => (sgrid, &mut *stally),
             };
             score(
                 &self.medium,

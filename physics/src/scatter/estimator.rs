@@ -65,6 +65,8 @@ pub struct ScoreGrid {
     /// Grid columns.
     pub cols: usize,
     points: Vec<DVec3>,
+    /// Each point's (row, column) in the detector's pixel coordinates (fractional).
+    coords: Vec<(f64, f64)>,
     normal: DVec3,
     area: f64,
     /// Unit column axis û (across the anti-scatter grid's strips).
@@ -109,6 +111,7 @@ impl ScoreGrid {
             rows,
             cols,
             points,
+            coords,
             normal,
             area: n.length(),
             u_axis,
@@ -129,6 +132,18 @@ impl ScoreGrid {
     /// Bilinear interpolation of per-point values (row-major over the grid) to every pixel
     /// of a `rows × cols` detector.
     pub fn interpolate(&self, values: &[f64], rows: usize, cols: usize) -> Vec<f64> {
+        let mut out = vec![0.0; rows * cols];
+        for r in 0..rows {
+            for c in 0..cols {
+                out[r * cols + c] = self.value_at(values, r as f64, c as f64, rows, cols);
+            }
+        }
+        out
+    }
+
+    /// Bilinear interpolation of per-point values at pixel coordinates `(r, c)`
+    /// (fractional) of a `rows × cols` detector.
+    pub fn value_at(&self, values: &[f64], r: f64, c: f64, rows: usize, cols: usize) -> f64 {
         let axis = |x: f64, n: usize, full: usize| -> (usize, usize, f64) {
             if n == 1 {
                 return (0, 0, 0.0);
@@ -137,17 +152,26 @@ impl ScoreGrid {
             let i = (g.floor() as usize).min(n - 2);
             (i, i + 1, g - i as f64)
         };
-        let mut out = vec![0.0; rows * cols];
-        for r in 0..rows {
-            let (r0, r1, fr) = axis(r as f64, self.rows, rows);
-            for c in 0..cols {
-                let (c0, c1, fc) = axis(c as f64, self.cols, cols);
-                let v = |i: usize, j: usize| values[i * self.cols + j];
-                out[r * cols + c] = (1.0 - fr) * ((1.0 - fc) * v(r0, c0) + fc * v(r0, c1))
-                    + fr * ((1.0 - fc) * v(r1, c0) + fc * v(r1, c1));
-            }
-        }
-        out
+        let (r0, r1, fr) = axis(r, self.rows, rows);
+        let (c0, c1, fc) = axis(c, self.cols, cols);
+        let v = |i: usize, j: usize| values[i * self.cols + j];
+        (1.0 - fr) * ((1.0 - fc) * v(r0, c0) + fc * v(r0, c1))
+            + fr * ((1.0 - fc) * v(r1, c0) + fc * v(r1, c1))
+    }
+
+    /// `values` of `other`'s points (row-major over `other`) at this grid's points, on a
+    /// `rows × cols` detector.
+    pub fn resample(
+        &self,
+        other: &ScoreGrid,
+        values: &[f64],
+        rows: usize,
+        cols: usize,
+    ) -> Vec<f64> {
+        self.coords
+            .iter()
+            .map(|&(r, c)| other.value_at(values, r, c, rows, cols))
+            .collect()
     }
 }
 
@@ -192,8 +216,18 @@ impl Tally {
 
     /// Channel 0's total (all components) at each point.
     pub fn total0(&self) -> Vec<f64> {
+        self.channel0(&[0, 1, 2])
+    }
+
+    /// Channel 0's sum of `components` at each point.
+    pub fn channel0(&self, components: &[usize]) -> Vec<f64> {
         (0..self.points)
-            .map(|p| (0..3).map(|c| self.mean[self.index(c, 0, p)]).sum())
+            .map(|p| {
+                components
+                    .iter()
+                    .map(|&c| self.mean[self.index(c, 0, p)])
+                    .sum()
+            })
             .collect()
     }
 }

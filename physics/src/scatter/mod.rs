@@ -34,7 +34,7 @@ pub mod region;
 pub mod transport;
 
 pub use anti_scatter_grid::AntiScatterGrid;
-pub use engine::{ScatterEngine, ScatterImages};
+pub use engine::{ScatterEngine, ScatterImages, ScoringPoints};
 
 use serde::{Deserialize, Serialize};
 use tomograf_sim::error::{Result, SimError};
@@ -56,6 +56,10 @@ pub enum ScatterModel {
         /// Scoring points per detector side (default 8).
         #[serde(default = "default_estimate_grid")]
         grid: usize,
+        /// Scoring points per side for photons scattered more than once (the smooth
+        /// multiple-scatter image); 0 (the default): the same as `grid`.
+        #[serde(default)]
+        multiple_grid: usize,
         /// Gaussian smoothing of the coarse grid, σ in grid cells (default 1).
         #[serde(default = "default_smoothing")]
         smoothing: f64,
@@ -73,6 +77,12 @@ pub enum ScatterModel {
         /// Scoring points per detector side, interpolated to every pixel (default 16).
         #[serde(default = "default_grid")]
         grid: usize,
+        /// Scoring points per side for photons scattered more than once (the smooth
+        /// multiple-scatter image, which fewer points describe: each collision after the
+        /// first then costs fewer forced-detection traces); 0 (the default): the same as
+        /// `grid`.
+        #[serde(default)]
+        multiple_grid: usize,
         /// Most scatters followed per history (default 50).
         #[serde(default = "default_max_order")]
         max_order: u32,
@@ -120,6 +130,7 @@ impl ScatterModel {
         ScatterModel::MonteCarlo {
             photons: default_photons(),
             grid: default_grid(),
+            multiple_grid: 0,
             max_order: default_max_order(),
             detection_cell_mm: 0.0,
         }
@@ -132,6 +143,7 @@ impl ScatterModel {
         ScatterModel::Estimate {
             photons: default_estimate_photons(),
             grid: default_estimate_grid(),
+            multiple_grid: 0,
             smoothing: default_smoothing(),
             detection_cell_mm: default_estimate_cell(),
         }
@@ -140,11 +152,12 @@ impl ScatterModel {
     /// Checks the settings, naming the bad one.
     pub fn validate(&self) -> Result<()> {
         let bad = |m: String| Err(SimError::OutOfRange(format!("[scatter] {m}")));
-        let (photons, grid, cell) = match *self {
+        let (photons, grid, multiple_grid, cell) = match *self {
             ScatterModel::None => return Ok(()),
             ScatterModel::Estimate {
                 photons,
                 grid,
+                multiple_grid,
                 smoothing,
                 detection_cell_mm,
             } => {
@@ -153,20 +166,26 @@ impl ScatterModel {
                         "smoothing = {smoothing}; give a σ in grid cells in 0–100"
                     ));
                 }
-                (photons, grid, detection_cell_mm)
+                (photons, grid, multiple_grid, detection_cell_mm)
             }
             ScatterModel::MonteCarlo {
                 photons,
                 grid,
+                multiple_grid,
                 max_order,
                 detection_cell_mm,
             } => {
                 if max_order == 0 {
                     return bad("max_order = 0; give ≥ 1 (1: single scatter only)".into());
                 }
-                (photons, grid, detection_cell_mm)
+                (photons, grid, multiple_grid, detection_cell_mm)
             }
         };
+        if multiple_grid > MAX_GRID {
+            return bad(format!(
+                "multiple_grid = {multiple_grid}; give 1 to {MAX_GRID} points per side (0: as grid)"
+            ));
+        }
         if !(cell.is_finite() && (0.0..=MAX_DETECTION_CELL_MM).contains(&cell)) {
             return bad(format!(
                 "detection_cell_mm = {cell}; give a cell size in 0–{MAX_DETECTION_CELL_MM} mm (0: full resolution)"
