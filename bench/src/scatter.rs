@@ -278,10 +278,7 @@ pub fn section(ct: &Path, o: &ScatterOptions) -> Result<String> {
         for (i, r) in rungs.iter().enumerate() {
             let (img, s) = scatter(&engine, &r.model, view, SEED + round as u64)?;
             times[i].push(s);
-            errors[i].push((
-                rms(&line_integrals(&img), &ref_li),
-                rms(&img, &reference),
-            ));
+            errors[i].push((rms(&line_integrals(&img), &ref_li), rms(&img, &reference)));
             images[i] = img;
         }
     }

@@ -490,9 +490,18 @@ fn multiple_scatter_on_fewer_points_changes_only_the_multiple_image() {
     };
     let (fine, coarse) = (run(16), run(8));
     let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
-    assert_eq!(bits(&fine.single_compton.mean), bits(&coarse.single_compton.mean));
-    assert_eq!(bits(&fine.single_rayleigh.mean), bits(&coarse.single_rayleigh.mean));
-    assert_eq!(fine.multiple.mean[0].to_bits(), coarse.multiple.mean[0].to_bits());
+    assert_eq!(
+        bits(&fine.single_compton.mean),
+        bits(&coarse.single_compton.mean)
+    );
+    assert_eq!(
+        bits(&fine.single_rayleigh.mean),
+        bits(&coarse.single_rayleigh.mean)
+    );
+    assert_eq!(
+        fine.multiple.mean[0].to_bits(),
+        coarse.multiple.mean[0].to_bits()
+    );
     assert!(fine.multiple.mean[0] > 0.0);
     assert_ne!(bits(&fine.multiple.mean), bits(&coarse.multiple.mean));
     let sum = |v: &[f64]| v.iter().sum::<f64>();
