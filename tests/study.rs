@@ -763,7 +763,7 @@ fn bad_arguments_are_named() {
             "--scatter",
             "fog",
         ],
-        "unknown --scatter 'fog'",
+        "(--scatter) 'fog'",
     );
     fails_with(
         &[
@@ -775,7 +775,7 @@ fn bad_arguments_are_named() {
             "--scatter-photons",
             "10",
         ],
-        "--scatter-photons needs --scatter",
+        "(--scatter-photons) needs model",
     );
 }
 

@@ -129,7 +129,7 @@ impl ItemSettings {
             w.push(format!(
                 "warning: the source-detector distance {} mm is not beyond the source-isocentre \
                  distance {} mm: the detector cuts through every CT and the line integrals are \
-                 truncated; raise --sid",
+                 truncated; raise sid_mm (--sid)",
                 self.sid_mm, self.sad_mm
             ));
         }

@@ -73,7 +73,10 @@ impl PhysicsOverrides {
                     s.spectrum = Some(Acquisition::preset(p)?.spectrum);
                     s.spectrum.as_mut().expect("just set")
                 }
-                _ => bail!("--mas and --energy-bins need a spectrum: give --kvp or --preset"),
+                _ => bail!(
+                    "mas and energy_bins (--mas, --energy-bins) need a spectrum: give [spectrum] \
+                     (--kvp) or [acquisition] preset (--preset)"
+                ),
             };
             if let Some(m) = self.mas {
                 spec.mas = m;

@@ -47,7 +47,10 @@ pub fn write_phantom(p: &PhantomFile, progress: &dyn Progress) -> Result<()> {
             match &p.mesh_devices {
                 None => anatomy::generate(&spec)?,
                 Some(_) if !(p.table || p.pacemaker) => {
-                    bail!("--mesh-devices needs --pacemaker or --table (the devices it writes)")
+                    bail!(
+                        "mesh_devices (--mesh-devices) needs pacemaker or table (--pacemaker, \
+                         --table): the devices it writes"
+                    )
                 }
                 Some(_) => {
                     let (vol, meshes) = anatomy::generate_with_device_meshes(&spec)?;
@@ -59,7 +62,8 @@ pub fn write_phantom(p: &PhantomFile, progress: &dyn Progress) -> Result<()> {
         None => {
             if p.table || p.pacemaker || p.mesh_devices.is_some() {
                 bail!(
-                    "--table, --pacemaker and --mesh-devices need a procedural patient: give --profile lidc or full-chest"
+                    "table, pacemaker and mesh_devices (--table, --pacemaker, --mesh-devices) need a \
+                     procedural patient: give profile (--profile) lidc or full-chest"
                 );
             }
             phantom_volume(dims, spacing)?

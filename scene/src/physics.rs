@@ -17,11 +17,15 @@ pub fn scatter_model(name: Option<&str>, photons: Option<u64>) -> Result<Option<
     let name = match (name, photons) {
         (None, None) | (Some("none"), None) => return Ok(None),
         (None | Some("none"), Some(_)) => {
-            bail!("--scatter-photons needs --scatter estimate or --scatter monte-carlo")
+            bail!(
+                "[scatter] photons (--scatter-photons) needs model = \"estimate\" or \"monte-carlo\" (--scatter)"
+            )
         }
         (Some(n @ ("estimate" | "monte-carlo")), _) => n,
         (Some(other), _) => {
-            bail!("unknown --scatter '{other}': use none, estimate or monte-carlo")
+            bail!(
+                "unknown [scatter] model (--scatter) '{other}': use none, estimate or monte-carlo"
+            )
         }
     };
     let mut model: ScatterModel = toml::from_str(&format!("model = \"{name}\""))?;
@@ -146,6 +150,6 @@ mod tests {
             .to_string();
         assert!(e.contains("photons = 0"), "{e}");
         let e = scatter_model(Some("fog"), None).unwrap_err().to_string();
-        assert!(e.contains("unknown --scatter 'fog'"), "{e}");
+        assert!(e.contains("(--scatter) 'fog'"), "{e}");
     }
 }

@@ -322,14 +322,14 @@ fn check_geometry(views: &[View], vol: &Volume, meshes: bool) -> Result<Vec<Stri
     if let Some(v) = list(&|c| c.source_inside) {
         warnings.push(format!(
             "warning: the source lies inside the volume (views {v}): only the part of the \
-             volume in front of the source is integrated; raise --sad if this is not meant"
+             volume in front of the source is integrated; raise [geometry] sad_mm (--sad) if this is not meant"
         ));
     }
     if let Some(v) = list(&|c| c.detector_inside) {
         warnings.push(format!(
             "warning: the detector cuts through the volume (views {v}): rays end at the \
-             detector, so the line integrals are truncated; raise --sid (it is at or just \
-             above --sad)"
+             detector, so the line integrals are truncated; raise [geometry] sid_mm (--sid; it is at or \
+             just above sad_mm)"
         ));
     }
     if c.iter().all(|c| c.rays_hitting == 0) {

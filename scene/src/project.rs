@@ -64,7 +64,8 @@ fn constant_images(channels: &[Vec<Projection>]) -> Option<String> {
     values.all(|v| *v == first).then(|| {
         format!(
             "warning: every pixel of every view is {first}: nothing in the beam attenuates \
-             (an all-air volume, --empty-below above every voxel, or a volume out of the beam)"
+             (an all-air volume, [projector] empty_below_per_mm (--empty-below) above every \
+             voxel, or a volume out of the beam)"
         )
     })
 }
