@@ -6,6 +6,8 @@
 #
 #   scripts/compare_binaries.sh OLD_BINARY NEW_BINARY CT.nii[.gz] [REPEATS] [-- project flags]
 #
+# CT `-` projects without a CT file: the built-in phantom, or the volume of a scene given
+# in the flags (`-- --scene examples/meshes.toml`).
 # The flags default to `--view ap --pitch 2.6` (256² detector, SAD 1000 / SID 1500: the
 # geometry of scripts/compare_plastimatch.py); flags given after `--` replace them, e.g.
 # `-- --arc 0:10:36 --pitch 2.6` for an orbit. Build OLD from an earlier commit with
@@ -31,7 +33,9 @@ for ((r = 0; r < repeats; r++)); do
     exe=${!v}
     [[ -n ${BEFORE_EACH:-} ]] && { bash -c "$BEFORE_EACH" >/dev/null 2>&1 || true; }
     start=$(date +%s.%N)
-    msg=$("$exe" --threads 2 project "$ct" "${flags[@]}" --format npy -o "$work/$v" 2>&1)
+    ct_arg=("$ct")
+    [[ $ct == - ]] && ct_arg=()
+    msg=$("$exe" --threads 2 project "${ct_arg[@]}" "${flags[@]}" --format npy -o "$work/$v" 2>&1)
     end=$(date +%s.%N)
     load[$v]+="$(grep -o 'loading [0-9]* ms' <<<"$msg" | grep -o '[0-9]*') "
     render[$v]+="$(grep -o 'view(s) of [0-9×]* in [0-9.]* ms' <<<"$msg" | grep -o '[0-9.]* ms' | grep -o '[0-9.]*') "
