@@ -248,6 +248,8 @@ pub fn section(ct: &Path, o: &ScatterOptions) -> Result<String> {
         mc_multiple(q(14_000), 8.0, 8),
         mc_multiple(q(25_000), 8.0, 8),
         mc_multiple(q(3_500), 8.0, 8),
+        mc_multiple(q(2_000), 8.0, 8),
+        mc_multiple(q(1_500), 8.0, 8),
         estimate(q(5_000), 8, 0.0),
         estimate(q(5_000), 8, 8.0),
         estimate(q(2_000), 8, 8.0),
@@ -255,6 +257,7 @@ pub fn section(ct: &Path, o: &ScatterOptions) -> Result<String> {
         estimate(q(1_000), 16, 8.0),
         estimate_multiple(q(2_000), 8, 8.0, 4),
         estimate_multiple(q(4_000), 8, 8.0, 4),
+        estimate_multiple(q(2_000), 16, 8.0, 8),
     ]
     .into_iter()
     .map(|model| Rung {
