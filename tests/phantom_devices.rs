@@ -144,5 +144,5 @@ fn phantom_devices_as_meshes_end_to_end() {
         "--mesh-devices",
         "d",
     ]);
-    assert!(String::from_utf8_lossy(&out.stderr).contains("--pacemaker or --table"));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("(--pacemaker, --table)"));
 }
