@@ -261,13 +261,7 @@ impl Header {
                 "dimension {dimension}: only 3-D volumes are read (one scalar per voxel)"
             ));
         }
-        let sizes: Vec<usize> = need("sizes")?
-            .split_whitespace()
-            .map(|s| s.parse().map_err(|_| format!("'sizes' holds '{s}'")))
-            .collect::<std::result::Result<_, _>>()?;
-        let sizes: [usize; 3] = sizes
-            .try_into()
-            .map_err(|_| "'sizes' must give 3 sizes".to_string())?;
+        let sizes: [usize; 3] = three("sizes", need("sizes")?, "sizes")?;
         let sample = Sample::parse(need("type")?)?;
         let little_endian = match field("endian") {
             None if sample.bytes() == 1 => true,
@@ -332,18 +326,12 @@ impl Header {
                 (spacing, origin, direction)
             }
             None => {
-                let s: Vec<f64> = need("spacings")
-                    .map_err(|_| {
-                        "the header gives neither 'space' with 'space directions' nor \
+                let s = need("spacings").map_err(|_| {
+                    "the header gives neither 'space' with 'space directions' nor \
                          'spacings': the voxel size is unknown"
-                            .to_string()
-                    })?
-                    .split_whitespace()
-                    .map(|s| s.parse().map_err(|_| format!("'spacings' holds '{s}'")))
-                    .collect::<std::result::Result<_, _>>()?;
-                let s: [f64; 3] = s
-                    .try_into()
-                    .map_err(|_| "'spacings' must give 3 values".to_string())?;
+                        .to_string()
+                })?;
+                let s: [f64; 3] = three("spacings", s, "values")?;
                 (DVec3::from(s), DVec3::ZERO, DMat3::IDENTITY)
             }
         };
@@ -415,4 +403,19 @@ fn vectors(text: &str) -> std::result::Result<Vec<DVec3>, String> {
         out.push(DVec3::from(v));
     }
     Ok(out)
+}
+
+/// The three whitespace-separated numbers of header field `name` (`what` they are, for the
+/// error when there are not three).
+fn three<T: std::str::FromStr>(
+    name: &str,
+    text: &str,
+    what: &str,
+) -> std::result::Result<[T; 3], String> {
+    let v: Vec<T> = text
+        .split_whitespace()
+        .map(|s| s.parse().map_err(|_| format!("'{name}' holds '{s}'")))
+        .collect::<std::result::Result<_, _>>()?;
+    v.try_into()
+        .map_err(|_| format!("'{name}' must give 3 {what}"))
 }

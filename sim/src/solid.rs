@@ -299,6 +299,16 @@ impl PlacedSolid {
 mod tests {
     use super::*;
 
+    /// A ray from `origin` along `direction`, `t` in [0, `t_max`].
+    fn ray(origin: DVec3, direction: DVec3, t_max: f64) -> Ray {
+        Ray {
+            origin,
+            direction,
+            t_min: 0.0,
+            t_max,
+        }
+    }
+
     /// Chords, containment, bounds and volume against hand-worked answers.
     #[test]
     fn solids_by_hand() {
@@ -336,28 +346,13 @@ mod tests {
                 DVec3::new(10.0, 20.0, 15.0)
             )
         );
-        let along_y = Ray {
-            origin: DVec3::new(0.0, -100.0, 0.0),
-            direction: DVec3::Y,
-            t_min: 0.0,
-            t_max: 1e3,
-        };
+        let along_y = ray(DVec3::new(0.0, -100.0, 0.0), DVec3::Y, 1e3);
         assert!((cyl.chord(&along_y) - 40.0).abs() < 1e-12);
         // Clipped by the ray's own end.
-        let short = Ray {
-            origin: DVec3::new(0.0, -100.0, 0.0),
-            direction: DVec3::Y,
-            t_min: 0.0,
-            t_max: 90.0,
-        };
+        let short = ray(DVec3::new(0.0, -100.0, 0.0), DVec3::Y, 90.0);
         assert!((cyl.chord(&short) - 10.0).abs() < 1e-12);
         // Along the axis: the height.
-        let along_z = Ray {
-            origin: DVec3::new(5.0, 5.0, -100.0),
-            direction: DVec3::Z,
-            t_min: 0.0,
-            t_max: 1e3,
-        };
+        let along_z = ray(DVec3::new(5.0, 5.0, -100.0), DVec3::Z, 1e3);
         assert!((cyl.chord(&along_z) - 30.0).abs() < 1e-12);
         assert!(cyl.contains(DVec3::new(10.0, 0.0, 15.0)));
         assert!(!cyl.contains(DVec3::new(10.0, 0.1, 15.0)));
