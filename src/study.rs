@@ -7,6 +7,7 @@ use anyhow::{Result, bail};
 use clap::{Args, Subcommand};
 use std::path::PathBuf;
 use tomograf_eval::evaluation::parse_shard;
+use tomograf_eval::study::peak::Stages;
 use tomograf_eval::study::{Kind, Scale, Settings, Study, levels};
 use tomograf_scene::dataset::expand_inputs;
 
@@ -207,6 +208,17 @@ pub fn run(command: StudyCommand) -> Result<()> {
     study.check_settings()?;
     let bar = Bar::default();
     let all = stage == Stage::All;
+    study.check_memory(
+        Stages {
+            data: all || stage == Stage::Data,
+            training: all || stage == Stage::Train,
+            evaluation: all || stage == Stage::Evaluate,
+            // The report measures the sets' effects unless `effects.json` holds them.
+            report: (all || matches!(stage, Stage::Report | Stage::Effects))
+                && (stage == Stage::Effects || !study.dir.join("effects.json").exists()),
+        },
+        &bar,
+    )?;
     if all || stage == Stage::Data {
         study.data(shard, splits, &bar)?;
     }

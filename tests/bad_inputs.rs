@@ -418,6 +418,8 @@ fn every_bad_input_ends_in_a_clear_error() {
         (vec!["reconstruct-classical", &proj_s, "--dims", "8,8,8", "-o", &format!("{}/", out("recdir"))].map_into(), "that is a folder"),
         (vec!["reconstruct-classical", &proj_s, "--dims", "8,8,8", "-o", &s(d)].map_into(), "that is a folder"),
         (vec!["reconstruct-classical", &proj_s, "--method", "fdk", "--views", "3,3,3", "--dims", "8,8,8", "-o", &out("dup.nii")].map_into(), "view 3 is listed more than once"),
+        // Refused before the reconstruction, not after it (it once ran the whole job first).
+        (vec!["reconstruct-classical", &proj_s, "--dims", "3000,3000,3000", "--energy-kev=-60", "-o", &out("kev.nii")].map_into(), "--energy-kev: out of range: effective energy -60 keV is outside the water attenuation table"),
         (vec!["reconstruct-classical", &proj_s, "--dims", "8,8,8", "--spacing", "1e300", "-o", &out("sp.nii")].map_into(), "--spacing 1e300"),
         (vec!["project", "--phantom-dims", "16,16,8", "--rows", "8", "--cols", "8", "--quantity", "intensity", "--i0", "1e39", "-o", &o].map_into(), "images are float32"),
         (vec!["reconstruct-classical", &s(&cut_proj), "--dims", "8,8,8", "-o", &out("cut.nii")].map_into(), "the file ends before them"),
@@ -906,4 +908,29 @@ fn a_prior_on_another_grid_is_named() {
         err.contains(words) && err.contains("64×64×64 CT grid"),
         "{err}"
     );
+}
+
+/// A study too large for the memory available is refused before its first stage, naming
+/// each stage's estimate and the largest (issue 51: each stage used to be checked only when
+/// it began, after the earlier ones had run).
+#[test]
+fn a_study_beyond_memory_is_refused_before_its_first_stage() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("study");
+    let r = Command::new(env!("CARGO_BIN_EXE_tomograf"))
+        .args(["study", "realism-gap", "--scale", "tiny", "-o", &s(&out)])
+        // 50 MB: less than any stage of a `tiny` study needs beside what the process holds.
+        .env("TOMOGRAF_MEMORY_LIMIT_GB", "0.05")
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&r.stderr);
+    assert_eq!(r.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("the study (--scale tiny: 16³ grids")
+            && err.contains("in its report stage")
+            && err.contains("data 85 MiB, training 49 MiB, evaluation 69 MiB, report 99 MiB")
+            && err.contains("more than the 51.2 MiB that TOMOGRAF_MEMORY_LIMIT_GB allows"),
+        "{err}"
+    );
+    assert!(!out.join("data").exists(), "a stage ran before the refusal");
 }

@@ -105,6 +105,10 @@ pub fn reconstruct_classical(c: &Classical, progress: &dyn Progress) -> Result<(
             c.output.join("recon.nii.gz").display()
         );
     }
+    // So is the energy that turns μ into HU.
+    if !c.mu {
+        tomograf_sim::attenuation::mu_water_per_mm(c.energy_kev).context("--energy-kev")?;
+    }
     if let Some(dir) = c.output.parent().filter(|d| !d.as_os_str().is_empty()) {
         std::fs::create_dir_all(dir)
             .with_context(|| format!("cannot create the output folder {}", dir.display()))?;

@@ -271,6 +271,31 @@ fn bad_configuration_and_input_give_clear_errors() {
     );
 }
 
+/// A ceiling that float32 cannot hold (a 16-bit ADC summed over 59 037 native pixels:
+/// 3 868 989 795 ADU, stored as 3 868 989 696) still counts its clipped pixels: the
+/// `kv-flat-panel-120kvp` preset once clipped large simulated pixels without a word.
+#[test]
+fn clipped_pixels_count_when_the_ceiling_is_not_a_float32() {
+    let m = noiseless(Readout {
+        bits: Some(16),
+        native_pitch_mm: Some(0.15),
+        ..Readout::ideal()
+    });
+    let pitch = (59_037.0f64).sqrt() * 0.15;
+    let binning = m.readout.binning(pitch, pitch);
+    let ceiling = m.readout.ceiling(binning);
+    assert!(
+        f64::from(ceiling as f32) < ceiling,
+        "the ceiling {ceiling} must not be a float32"
+    );
+    let mut e = ExpectedImage::zeros(&Detector::new(1, 3, pitch), 1);
+    e.mean.copy_from_slice(&[1.0e3, 1.0e12, 1.0e15]);
+    e.second_moment = e.mean.iter().map(|m| m * 60.0).collect();
+    let raw = m.record(&e, 0).unwrap();
+    assert_eq!(raw[0].data[1], ceiling as f32);
+    assert_eq!(m.saturated(&raw, pitch, pitch), 2);
+}
+
 #[test]
 fn larger_pixels_read_as_sums_of_native_pixels() {
     // 0.2 mm simulated pixels over a 0.1 mm native panel: n = 4 native pixels each.

@@ -65,7 +65,8 @@ fn constant_images(channels: &[Vec<Projection>]) -> Option<String> {
         format!(
             "warning: every pixel of every view is {first}: nothing in the beam attenuates \
              (an all-air volume, [projector] empty_below_per_mm (--empty-below) above every \
-             voxel, or a volume out of the beam)"
+             voxel, or a volume out of the beam), or every pixel is at the detector's ceiling \
+             (a warning above says so: lower the exposure)"
         )
     })
 }

@@ -15,6 +15,7 @@
 mod coverage;
 pub mod effects;
 pub mod levels;
+pub mod peak;
 mod render;
 mod report;
 

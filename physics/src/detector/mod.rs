@@ -282,8 +282,11 @@ impl DetectorModel {
         if !ceiling.is_finite() {
             return 0;
         }
+        // Compared as stored: a clipped pixel holds the ceiling rounded to float32, which
+        // may lie below the f64 ceiling (large binned pixels: 2¹⁶ × 59 037 native pixels).
+        let ceiling = ceiling as f32;
         raw.iter()
-            .map(|p| p.data.iter().filter(|&&v| f64::from(v) >= ceiling).count())
+            .map(|p| p.data.iter().filter(|&&v| v >= ceiling).count())
             .sum()
     }
 
