@@ -366,6 +366,9 @@ fn every_bad_input_ends_in_a_clear_error() {
         (vec!["project", "--scene", &scene("stl", &format!("{small_scene}[[mesh]]\nname = \"m\"\npath = \"{}\"\nmu_per_mm = 0.1\n", out("cut.stl"))), "-o", &o].map_into(), "ends early"),
         (vec!["project", "--scene", &scene("obj", &format!("{small_scene}[[mesh]]\nname = \"m\"\npath = \"{}\"\nmu_per_mm = 0.1\n", out("bad.obj"))), "-o", &o].map_into(), "bad.obj"),
         (vec!["project", "--scene", &scene("unknown-key", "[volume]\ncolour = 1\n"), "-o", &o].map_into(), "unknown field `colour`"),
+        // The top of the detector's range, once blamed on too few photons ("raise the exposure").
+        (vec!["project", "--scene", &scene("adc8", &format!("{small_scene}[acquisition]\npreset = \"kv-flat-panel-120kvp\"\n[detector.response]\nquantum_noise = true\n[detector.response.mode]\nkind = \"energy-integrating\"\nconversion_gain_adu_per_kev = 0.3125\nswank_factor = 0.9\n[detector.response.scintillator]\nmaterial = \"CsI\"\nthickness_mm = 0.6\n[detector.response.readout]\noffset_adu = 1000.0\nelectronic_noise_adu = 23.4\nbits = 8\n")), "-o", &o].map_into(), "the dark field is already at the detector's ceiling (255 of 255 ADU"),
+        (vec!["project", "--phantom-dims", "16,16,8", "--phantom-spacing", "20,20,40", "--rows", "16", "--cols", "16", "--preset", "kv-flat-panel-120kvp", "--mas", "1e30", "--detector-model", "noiseless-csi", "-o", &o].map_into(), "the open beam's signal is inf: it overflows float32; lower the exposure (mas)"),
         (vec!["project", "--scene", &scene("not-toml", "[volume\n"), "-o", &o].map_into(), "not valid"),
         (vec!["project", "--scene", &out("no-such-scene.toml"), "-o", &o].map_into(), "no-such-scene.toml"),
         (vec!["project", "--scene", &scene("mat", &format!("{small_scene}[[mesh]]\nname = \"m\"\nkind = \"sphere\"\nmaterial = \"unobtainium\"\n")), "-o", &o].map_into(), "unknown material: 'unobtainium'"),
@@ -933,4 +936,24 @@ fn a_study_beyond_memory_is_refused_before_its_first_stage() {
         "{err}"
     );
     assert!(!out.join("data").exists(), "a stage ran before the refusal");
+}
+
+/// `validate tg195` with a photon or a hundred per run (issue 51: it once hung in the
+/// deviations plot) finishes, and says that figures without a finite standard error tell
+/// nothing, instead of printing ± inf deviations without a word.
+#[test]
+fn a_validation_with_too_few_photons_says_so() {
+    let dir = tempfile::tempdir().unwrap();
+    let r = Command::new(env!("CARGO_BIN_EXE_tomograf"))
+        .args(["validate", "tg195", "--cases", "1", "--photons-case1", "1"])
+        .args(["-o", &s(dir.path())])
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&r.stderr);
+    assert!(r.status.success(), "{err}");
+    assert!(
+        err.contains("have no finite, non-zero standard error: too few photons"),
+        "{err}"
+    );
+    assert!(dir.path().join("tg195.csv").exists());
 }

@@ -87,7 +87,7 @@ pub fn acquire<'py>(
     })?;
     // Starved or saturated pixels: the same warning as the command line, as a Python
     // UserWarning (silence it with the warnings module).
-    if let Some(w) = clipping.warning(acq.spectrum.mas, "mas=") {
+    if let Some(w) = clipping.warning(acq.spectrum.mas, "mas=", acq.detector.has_signal_unit()) {
         let category = py.get_type::<pyo3::exceptions::PyUserWarning>();
         PyErr::warn(
             py,

@@ -51,10 +51,13 @@ pub fn render_scene<'py>(
                 data.extend(img.data);
             }
         }
-        let clip = prepared
-            .acquisition
-            .as_ref()
-            .and_then(|(acq, _)| clipping.warning(acq.spectrum.mas, "[spectrum] mas"));
+        let clip = prepared.acquisition.as_ref().and_then(|(acq, _)| {
+            clipping.warning(
+                acq.spectrum.mas,
+                "[spectrum] mas",
+                acq.detector.has_signal_unit(),
+            )
+        });
         let (rows, cols) = views.first().map_or((0, 0), |v| (v.rows, v.cols));
         let mut shape = vec![views.len(), rows, cols];
         if channels > 1 {

@@ -541,3 +541,38 @@ fn the_first_bad_slice_is_reported_whatever_the_thread_count() {
         assert_eq!(message(threads), one, "{threads} threads");
     }
 }
+
+/// A meta header whose TransferSyntaxUID does not match how the data set is encoded (an
+/// explicit-VR file labelled implicit, or big endian) is named as such: it was reported as
+/// "file is truncated" (issue 51), which sent users looking for a cut-off download.
+#[test]
+fn a_transfer_syntax_that_does_not_match_the_data_set_is_named() {
+    for (label, want) in [
+        (&b"1.2.840.10008.1.2\0\0\0"[..], "'1.2.840.10008.1.2'"),
+        (&b"1.2.840.10008.1.2.2\0"[..], "'1.2.840.10008.1.2.2'"),
+    ] {
+        let dir = tempfile::tempdir().unwrap();
+        write_series(
+            dir.path(),
+            &series_specs(1.0, uids::EXPLICIT_VR_LITTLE_ENDIAN),
+        );
+        let explicit = b"1.2.840.10008.1.2.1\0";
+        for entry in std::fs::read_dir(dir.path()).unwrap() {
+            let path = entry.unwrap().path();
+            let mut bytes = std::fs::read(&path).unwrap();
+            let at = bytes
+                .windows(explicit.len())
+                .position(|w| w == explicit)
+                .expect("the meta group's transfer syntax");
+            bytes[at..at + explicit.len()].copy_from_slice(label);
+            std::fs::write(&path, bytes).unwrap();
+        }
+        let (_, msg) = error_of(dir.path());
+        assert!(
+            msg.contains(&format!("its TransferSyntaxUID (0002,0010) is {want}"))
+                && msg.contains("encoded as explicit VR little endian")
+                && !msg.contains("file is truncated"),
+            "{msg}"
+        );
+    }
+}

@@ -191,8 +191,30 @@ pub fn validate(args: &Validation, progress: &dyn Progress) -> Result<()> {
     })?;
     figures(&args.output, &rows)?;
     print!("{}", summary(&rows));
+    if let Some(w) = unresolved_warning(&rows) {
+        progress.warn(&w);
+    }
     progress.note(&format!("{settings}; written to {}", args.output.display()));
     Ok(())
+}
+
+/// A warning when some figure has no finite, non-zero standard error: too few
+/// photons reached it to say anything (its deviation in standard errors is ±inf or NaN).
+fn unresolved_warning(rows: &[Comparison]) -> Option<String> {
+    let bad: Vec<&Comparison> = rows
+        .iter()
+        .filter(|r| !(r.ours_se.is_finite() && r.ours_se > 0.0))
+        .collect();
+    let first = bad.first()?;
+    Some(format!(
+        "warning: {} of {} figures (first: case {}, {}) have no finite, non-zero standard \
+         error: too few photons reached them to estimate one, so their deviations say \
+         nothing; raise the photons of their case (--photons-case1 … --photons-case42)",
+        bad.len(),
+        rows.len(),
+        first.case,
+        first.quantity
+    ))
 }
 
 /// What `--update` keeps from the previous run in the output folder.

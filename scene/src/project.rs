@@ -131,7 +131,11 @@ pub fn project(scene: &Scene, progress: &dyn Progress) -> Result<Summary> {
         sidecar.acquisition = Some(sidecar::acquisition_record(acq, *seed)?);
         sidecar.clipped_pixels = Some(clipping.clipped as u64);
         sidecar.saturated_pixels = Some(clipping.saturated as u64);
-        if let Some(w) = clipping.warning(acq.spectrum.mas, "[spectrum] mas or --mas") {
+        if let Some(w) = clipping.warning(
+            acq.spectrum.mas,
+            "[spectrum] mas or --mas",
+            acq.detector.has_signal_unit(),
+        ) {
             progress.warn(&w);
         }
     }

@@ -100,7 +100,51 @@ pub(super) fn check(path: &Path, bytes: &[u8]) -> Result<()> {
         explicit: syntax_uid != IMPLICIT_LE,
         big_endian: syntax_uid == EXPLICIT_BE,
     };
-    walk(path, bytes, at, bytes.len(), syntax, 0, false).map(|_| ())
+    let Err(e) = walk(path, bytes, at, bytes.len(), syntax, 0, false) else {
+        return Ok(());
+    };
+    if e.to_string().contains("(7FE0,0010)") {
+        return Err(e); // the pixel data cut short: a truncated file
+    }
+    // A data set that reads whole in another encoding was written in it: the meta group's
+    // TransferSyntaxUID is wrong, not the file short (it once read "file is truncated").
+    let others = [
+        (IMPLICIT_LE, "implicit VR little endian", false, false),
+        (
+            "1.2.840.10008.1.2.1",
+            "explicit VR little endian",
+            true,
+            false,
+        ),
+        (EXPLICIT_BE, "explicit VR big endian", true, true),
+    ];
+    for (uid, name, explicit, big_endian) in others {
+        let other = Syntax {
+            explicit,
+            big_endian,
+        };
+        let detail = match &e {
+            DatasetError::Truncated { detail, .. } => detail.clone(),
+            other => other.to_string(),
+        };
+        if (other.explicit, other.big_endian) != (syntax.explicit, syntax.big_endian)
+            && matches!(
+                walk(path, bytes, at, bytes.len(), other, 0, false),
+                Ok(Some(_))
+            )
+        {
+            return Err(DatasetError::Corrupt {
+                path: path.to_path_buf(),
+                reason: format!(
+                    "its TransferSyntaxUID (0002,0010) is '{syntax_uid}', but its data set is \
+                     encoded as {name} ({uid}): read as '{syntax_uid}' it is garbage ({detail}); \
+                     the file's meta header is wrong — rewrite it with the right transfer \
+                     syntax (e.g. dcmodify or pydicom)"
+                ),
+            });
+        }
+    }
+    Err(e)
 }
 
 /// Walks the elements in `bytes[at..end]` as `dicom-parser` reads them. With `in_item`,

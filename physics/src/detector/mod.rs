@@ -433,7 +433,46 @@ impl DetectorModel {
         } else {
             FlatField::NOISELESS
         };
+        self.check_open_beam(&flat, &dark, open)?;
         FlatField::new(flat, dark)?.with_floor(floor)
+    }
+
+    /// Names what makes a calibration unusable at the top of the detector's range, which
+    /// [`FlatField::new`] (knowing no ceiling) would blame on too few photons: an open beam
+    /// whose signal overflows float32, or a dark field already at the readout's ceiling
+    /// (the ADC's top code or the saturation), which no exposure can get above.
+    fn check_open_beam(
+        &self,
+        flat: &[Projection],
+        dark: &[Projection],
+        open: &ExpectedImage,
+    ) -> Result<()> {
+        let ceiling = self
+            .readout
+            .ceiling(self.readout.binning(open.pitch_u_mm, open.pitch_v_mm));
+        for (ch, (f, d)) in flat.iter().zip(dark).enumerate() {
+            for (i, (&fv, &dv)) in f.data.iter().zip(&d.data).enumerate() {
+                let (row, col) = (i / f.cols.max(1), i % f.cols.max(1));
+                if !fv.is_finite() {
+                    return Err(SimError::OutOfRange(format!(
+                        "channel {ch}, pixel (row {row}, col {col}): the open beam's signal is \
+                         {fv}: it overflows float32; lower the exposure (mas)"
+                    )));
+                }
+                // fv ≤ dv at the ceiling: the dark field is there too.
+                if fv <= dv && ceiling.is_finite() && fv >= ceiling as f32 {
+                    return Err(SimError::OutOfRange(format!(
+                        "channel {ch}, pixel (row {row}, col {col}): the dark field is already \
+                         at the detector's ceiling ({dv} of {ceiling} ADU: the ADC's top code or \
+                         the saturation, for pixels of {:.3} × {:.3} mm), so the beam adds \
+                         nothing: the offset (offset_adu) fills the readout's range; lower \
+                         offset_adu or raise bits / saturation_adu",
+                        open.pitch_u_mm, open.pitch_v_mm
+                    )));
+                }
+            }
+        }
+        Ok(())
     }
 
     /// The full chain: records `object`, calibrates with `open` (the same exposure without
