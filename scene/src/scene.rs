@@ -279,6 +279,10 @@ impl MeshEntry {
             }
             _ => anyhow::bail!("{}: give exactly one of path and kind", what()),
         };
+        // A file may cross itself; the built-in tessellations do not (by construction, and an
+        // invertible placement keeps it so), and on their fans — a 2²⁰-sided cylinder's caps —
+        // the check cost over a minute for nothing.
+        let check_self_intersection = self.path.is_some();
         parts
             .into_iter()
             .map(|(part, mesh)| {
@@ -287,8 +291,15 @@ impl MeshEntry {
                     None => mesh,
                 };
                 with_density(
-                    MeshObject::new(&part, &mesh, &placement, &material, mu, true)
-                        .with_context(what)?,
+                    MeshObject::new(
+                        &part,
+                        &mesh,
+                        &placement,
+                        &material,
+                        mu,
+                        check_self_intersection,
+                    )
+                    .with_context(what)?,
                 )
             })
             .collect()
