@@ -957,3 +957,25 @@ fn a_validation_with_too_few_photons_says_so() {
     );
     assert!(dir.path().join("tg195.csv").exists());
 }
+
+/// `demo --phantoms` beyond the limit is refused before the demo remakes its training set
+/// (it once spent seconds and wrote `train-set/` first).
+#[test]
+fn a_demo_with_too_many_phantoms_is_refused_before_any_work() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("demo");
+    let r = Command::new(env!("CARGO_BIN_EXE_tomograf"))
+        .args(["demo", "--phantoms", "1000000000000000", "-o", &s(&out)])
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&r.stderr);
+    assert_eq!(r.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("--phantoms: 1000000000000000 phantoms: at most 1000000"),
+        "{err}"
+    );
+    assert!(
+        !out.join("train-set").exists(),
+        "the training set was remade first"
+    );
+}

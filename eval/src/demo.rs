@@ -51,6 +51,11 @@ pub fn demo(d: &Demo, progress: &dyn Progress) -> Result<String> {
             b.for_views(count)?;
         }
     }
+    // Both counts before any work (a bad --phantoms was refused only after the training
+    // set had been remade).
+    tomograf_scene::dataset::check_phantom_count(0, d.train_phantoms)
+        .context("--train-phantoms")?;
+    tomograf_scene::dataset::check_phantom_count(100_000, d.phantoms).context("--phantoms")?;
     let mean = tomograf_model::checkpoint::load_mean(&d.checkpoint)
         .with_context(|| format!("checkpoint {}", d.checkpoint.display()))?
         .context("the checkpoint has no mean_volume.npy")?;
