@@ -913,6 +913,20 @@ fn a_prior_on_another_grid_is_named() {
     );
 }
 
+/// Runs tomograf with `args` (and `TOMOGRAF_MEMORY_LIMIT_GB` when given): exit code, stderr.
+fn tomograf_with(args: &[&str], limit_gb: Option<&str>) -> (Option<i32>, String) {
+    let mut c = Command::new(env!("CARGO_BIN_EXE_tomograf"));
+    c.args(args);
+    if let Some(l) = limit_gb {
+        c.env("TOMOGRAF_MEMORY_LIMIT_GB", l);
+    }
+    let r = c.output().unwrap();
+    (
+        r.status.code(),
+        String::from_utf8_lossy(&r.stderr).into_owned(),
+    )
+}
+
 /// A study too large for the memory available is refused before its first stage, naming
 /// each stage's estimate and the largest (issue 51: each stage used to be checked only when
 /// it began, after the earlier ones had run).
@@ -920,14 +934,12 @@ fn a_prior_on_another_grid_is_named() {
 fn a_study_beyond_memory_is_refused_before_its_first_stage() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("study");
-    let r = Command::new(env!("CARGO_BIN_EXE_tomograf"))
-        .args(["study", "realism-gap", "--scale", "tiny", "-o", &s(&out)])
-        // 50 MB: less than any stage of a `tiny` study needs beside what the process holds.
-        .env("TOMOGRAF_MEMORY_LIMIT_GB", "0.05")
-        .output()
-        .unwrap();
-    let err = String::from_utf8_lossy(&r.stderr);
-    assert_eq!(r.status.code(), Some(1), "{err}");
+    // 50 MB: less than any stage of a `tiny` study needs beside what the process holds.
+    let (code, err) = tomograf_with(
+        &["study", "realism-gap", "--scale", "tiny", "-o", &s(&out)],
+        Some("0.05"),
+    );
+    assert_eq!(code, Some(1), "{err}");
     assert!(
         err.contains("the study (--scale tiny: 16³ grids")
             && err.contains("in its report stage")
@@ -944,13 +956,20 @@ fn a_study_beyond_memory_is_refused_before_its_first_stage() {
 #[test]
 fn a_validation_with_too_few_photons_says_so() {
     let dir = tempfile::tempdir().unwrap();
-    let r = Command::new(env!("CARGO_BIN_EXE_tomograf"))
-        .args(["validate", "tg195", "--cases", "1", "--photons-case1", "1"])
-        .args(["-o", &s(dir.path())])
-        .output()
-        .unwrap();
-    let err = String::from_utf8_lossy(&r.stderr);
-    assert!(r.status.success(), "{err}");
+    let (code, err) = tomograf_with(
+        &[
+            "validate",
+            "tg195",
+            "--cases",
+            "1",
+            "--photons-case1",
+            "1",
+            "-o",
+            &s(dir.path()),
+        ],
+        None,
+    );
+    assert_eq!(code, Some(0), "{err}");
     assert!(
         err.contains("have no finite, non-zero standard error: too few photons"),
         "{err}"
@@ -964,12 +983,11 @@ fn a_validation_with_too_few_photons_says_so() {
 fn a_demo_with_too_many_phantoms_is_refused_before_any_work() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("demo");
-    let r = Command::new(env!("CARGO_BIN_EXE_tomograf"))
-        .args(["demo", "--phantoms", "1000000000000000", "-o", &s(&out)])
-        .output()
-        .unwrap();
-    let err = String::from_utf8_lossy(&r.stderr);
-    assert_eq!(r.status.code(), Some(1), "{err}");
+    let (code, err) = tomograf_with(
+        &["demo", "--phantoms", "1000000000000000", "-o", &s(&out)],
+        None,
+    );
+    assert_eq!(code, Some(1), "{err}");
     assert!(
         err.contains("--phantoms: 1000000000000000 phantoms: at most 1000000"),
         "{err}"

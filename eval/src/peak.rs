@@ -103,15 +103,22 @@ pub fn check_evaluation(
 /// the memory available (the error names `what`, the job and its estimate), else notes
 /// the estimate ("estimated peak memory N MiB").
 pub fn check_peak(peak: u128, what: &str, progress: &dyn Progress) -> Result<()> {
+    check_beyond_held(peak, what)?;
+    progress.note(&format!(
+        "estimated peak memory {:.0} MiB",
+        peak as f64 / MIB
+    ));
+    Ok(())
+}
+
+/// Refuses a job whose estimated `peak` (bytes), beyond what the process holds now, exceeds
+/// the memory available (the error names `what`, the job and its estimate).
+pub fn check_beyond_held(peak: u128, what: &str) -> Result<()> {
     let resident = tomograf_sim::memory::resident_bytes().map_or(0, u128::from);
     tomograf_sim::memory::check(
         peak.saturating_sub(resident),
         &format!("{what}, beyond what is already held,"),
     )?;
-    progress.note(&format!(
-        "estimated peak memory {:.0} MiB",
-        peak as f64 / MIB
-    ));
     Ok(())
 }
 

@@ -175,11 +175,7 @@ impl Study {
             peak.describe(),
             largest as f64 / MIB
         );
-        let held = tomograf_sim::memory::resident_bytes().map_or(0, u128::from);
-        tomograf_sim::memory::check(
-            largest.saturating_sub(held),
-            &format!("{what}, beyond what is already held,"),
-        )?;
+        crate::peak::check_beyond_held(largest, &what)?;
         progress.note(&format!(
             "study: estimated peak memory {:.0} MiB, in its {stage} stage ({})",
             largest as f64 / MIB,
