@@ -997,3 +997,34 @@ fn a_demo_with_too_many_phantoms_is_refused_before_any_work() {
         "the training set was remade first"
     );
 }
+
+/// A data set larger than the free disk is refused before its first item, naming what it
+/// would write and what is free (issue 51: `dataset` used to run until the disk filled).
+/// 1 000 000 items of 256³ voxels and 38 views are about 74 TiB, beyond any disk CI runs on.
+#[test]
+fn a_data_set_beyond_the_free_disk_is_refused_before_its_first_item() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("set");
+    let (code, err) = tomograf_with(
+        &[
+            "dataset",
+            "-o",
+            &s(&out),
+            "--phantoms",
+            "1000000",
+            "--size",
+            "256",
+            "--views",
+            "36",
+        ],
+        None,
+    );
+    assert_eq!(code, Some(1), "{err}");
+    assert!(
+        err.contains("1000000 item(s) of 256³ voxels and 38 views of 256² pixels")
+            && err.contains("would write about 74.0 TiB but")
+            && err.contains("is free there"),
+        "{err}"
+    );
+    assert!(!out.exists(), "the refused run made its folder");
+}

@@ -350,6 +350,7 @@ impl DatasetJob {
         if self.sources.is_empty() {
             bail!("nothing to do: give CT inputs or phantoms");
         }
+        self.check_disk()?;
         std::fs::create_dir_all(&self.output)
             .with_context(|| format!("cannot create {}", self.output.display()))?;
         atomic::remove_stale_temporaries(&self.output)?;
@@ -377,6 +378,34 @@ impl DatasetJob {
             listed,
             peak_bytes,
         })
+    }
+}
+
+impl DatasetJob {
+    /// Refuses a run whose unfinished items ([`crate::disk::item_bytes`] each) would not fit
+    /// in the space free on the output folder's file system.
+    fn check_disk(&self) -> Result<()> {
+        let pending = self
+            .mine()
+            .into_iter()
+            .filter(|i| !is_finished(&self.output.join(format!("{i:05}"))))
+            .count();
+        if pending == 0 {
+            return Ok(());
+        }
+        let s = &self.settings;
+        let needed = pending as u128 * crate::disk::item_bytes(s.size, s.views + 2);
+        crate::disk::check_fits(
+            needed,
+            crate::disk::available_bytes(&self.output)?,
+            &format!(
+                "{pending} item(s) of {}³ voxels and {} views of {}² pixels in {}",
+                s.size,
+                s.views + 2,
+                s.size,
+                self.output.display()
+            ),
+        )
     }
 }
 

@@ -11,6 +11,7 @@
 //! the model's training and test items (CT, projections, geometry) the same way.
 
 pub mod dataset;
+pub mod disk;
 pub mod dose;
 pub mod job;
 pub mod outputs;
