@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # A prior that transfers to real anatomy, second try (docs/model.md, "On real CTs"): the
-# shipped checkpoint's recipe (`small`, 64³, 36 views + AP + lateral, ideal DRRs; 10 000
-# iterations where the demo checkpoint has 5000) trained on a population that spans real chests' shapes — the 32 `lidc` phantoms the
+# shipped checkpoint's recipe (`small`, 64³, 36 views + AP + lateral, ideal DRRs; 20 000
+# iterations, chosen by scripts/prior_steps.sh) trained on a population that spans real
+# chests' shapes — the 32 `lidc` phantoms the
 # shipped checkpoint saw and 32 `full-chest` phantoms (seeds 300000…: arms, neck, the whole
 # chest wall; bodies fill 47–61 % of the grid, a real chest CT's 60.5 % inside that range,
 # docs/real-ct/populations.md) — against the shipped checkpoint, on validation phantoms only:
@@ -30,9 +31,10 @@ $bin dataset -o "$out/train-fc" --phantoms 32 --seed 300000 --size 64 --views 36
     --profile full-chest --split train
 # One training set of both: the full-chest items follow the lidc ones as 00032…00063.
 python3 scripts/merge_sets.py "$out/train-mix" "$out/train-lidc" "$out/train-fc"
-# 10 000 iterations: chosen on the validation sets below against 5 000 (2026-11-30,
-# docs/model.md, "… trained on to 10 000 iterations"); a run of 5 000 resumes to 10 000.
-$bin train "$out/train-mix" -o "$out/runs/mix" --config small --iterations 10000 --resume
+# 20 000 iterations: 10 000 chosen against 5 000 and 20 000 against 10 000 on the validation
+# sets below by scripts/prior_steps.sh (2026-11-30, docs/model.md, "… trained on to 10 000
+# iterations", "… to 20 000"); a shorter run resumes to 20 000.
+$bin train "$out/train-mix" -o "$out/runs/mix" --config small --iterations 20000 --resume
 # Inference as the shipped checkpoint's (its [infer] section: the gate's check interval and
 # the left-out start from two views were chosen on validation for it): the two models then
 # differ only in what they were trained on.
