@@ -47,6 +47,9 @@ pub struct BenchArgs {
     /// reuse it when the CT, photons and view are the same.
     #[arg(long, requires = "scatter")]
     pub reference_cache: Option<PathBuf>,
+    /// With --scatter: the 72-view orbits only (the one-view ladder skipped).
+    #[arg(long, requires = "scatter")]
+    pub orbit_only: bool,
     /// With --scatter: runs of each setting, taken in turn (the median is reported).
     #[arg(long, requires = "scatter", default_value_t = 2)]
     pub rounds: usize,
@@ -62,13 +65,15 @@ pub fn run(args: BenchArgs) -> Result<()> {
         let so = scatter::ScatterOptions {
             quick: o.quick,
             rounds: args.rounds,
+            orbit_only: args.orbit_only,
             reference_photons: args.reference_photons,
             reference_cache: args.reference_cache.clone(),
         };
         let md = format!(
-            "Measured by `tomograf bench --scatter {}{}`.\n\n{}",
+            "Measured by `tomograf bench --scatter {}{}{}`.\n\n{}",
             ct.display(),
             if o.quick { " --quick" } else { "" },
+            if args.orbit_only { " --orbit-only" } else { "" },
             scatter::section(ct, &so)?
         );
         return write_page("Scatter at data-set speed", &md, out);

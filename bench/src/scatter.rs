@@ -24,7 +24,8 @@ use std::path::Path;
 use std::time::Instant;
 use tomograf_datasets::image::{read_npy, write_npy};
 use tomograf_physics::acquisition::Acquisition;
-use tomograf_physics::scatter::{ScatterEngine, ScatterModel};
+use tomograf_physics::scatter::orbit::{angle_on_orbit, combine, neighbours};
+use tomograf_physics::scatter::{ScatterEngine, ScatterImages, ScatterModel};
 use tomograf_scene::Scene;
 use tomograf_scene::job::resolve;
 use tomograf_scene::physics::acquisition;
@@ -40,10 +41,15 @@ pub struct ScatterOptions {
     pub rounds: usize,
     /// Histories of the full-resolution reference (≥ 4·10⁵ for a converged one).
     pub reference_photons: u64,
+    /// The orbit's rows only (the per-view ladder skipped).
+    pub orbit_only: bool,
     /// Reads the reference scatter image from here when it was made with the same CT,
     /// photons and view; writes it here otherwise.
     pub reference_cache: Option<std::path::PathBuf>,
 }
+
+/// The angular windows (degrees each side) the orbit's Monte Carlo rows are fitted over.
+const WINDOWS_DEG: [f64; 6] = [0.0, 15.0, 20.0, 25.0, 30.0, 35.0];
 
 /// The rungs' seed (every rung draws the same histories, so a rung with detection cells
 /// differs from the same rung at full resolution by the cells' bias alone).
@@ -69,6 +75,7 @@ fn mc_multiple(photons: u64, cell: f64, multiple: usize) -> ScatterModel {
         multiple_grid: multiple,
         max_order: 50,
         detection_cell_mm: cell,
+        angular_window_deg: 0.0,
     }
 }
 
@@ -260,6 +267,7 @@ pub fn section(ct: &Path, o: &ScatterOptions) -> Result<String> {
         estimate_multiple(q(2_000), 16, 8.0, 8),
     ]
     .into_iter()
+    .filter(|_| !o.orbit_only)
     .map(|model| Rung {
         label: label(&model),
         model,
@@ -289,7 +297,7 @@ pub fn section(ct: &Path, o: &ScatterOptions) -> Result<String> {
         t.sort_by(f64::total_cmp);
         t[t.len() / 2]
     };
-    let base = median(&mut times[0].clone());
+    let base = times.first().map_or(1.0, |t| median(&mut t.clone()));
 
     writeln!(
         md,
@@ -324,74 +332,118 @@ pub fn section(ct: &Path, o: &ScatterOptions) -> Result<String> {
             None => " (read from the cache)".into(),
         }
     )?;
-    writeln!(
-        md,
-        "| setting | scatter s | × vs first row | line-integral rms | scatter rms (worst of {}) | cells' bias |\n\
-         |---|---:|---:|---:|---:|---:|",
-        o.rounds.max(1)
-    )?;
-    for (i, r) in rungs.iter().enumerate() {
-        let s = median(&mut times[i]);
-        // The same rung at full resolution (same histories): the difference is the cells'.
-        let at_full = r.model.clone().with_detection_cell_mm(0.0);
-        let full = rungs
-            .iter()
-            .position(|f| f.model == at_full && f.model != r.model);
-        let n = errors[i].len() as f64;
-        let mean_li = errors[i].iter().map(|e| e.0).sum::<f64>() / n;
-        let mean_s = errors[i].iter().map(|e| e.1).sum::<f64>() / n;
-        let worst_s = errors[i].iter().map(|e| e.1).fold(0.0, f64::max);
+    if !rungs.is_empty() {
         writeln!(
             md,
-            "| {} | {s:.2} | {:.1}× | {:.2} % | {:.2} % ({:.2} %) | {} |",
-            r.label,
-            base / s,
-            100.0 * mean_li,
-            100.0 * mean_s,
-            100.0 * worst_s,
-            full.map_or("".into(), |f| format!(
-                "{:.2} %",
-                100.0 * rms(&images[i], &images[f])
-            )),
+            "| setting | scatter s | × vs first row | line-integral rms | scatter rms (worst of {}) | cells' bias |\n\
+             |---|---:|---:|---:|---:|---:|",
+            o.rounds.max(1)
+        )?;
+        for (i, r) in rungs.iter().enumerate() {
+            let s = median(&mut times[i]);
+            // The same rung at full resolution (same histories): the difference is the cells'.
+            let at_full = r.model.clone().with_detection_cell_mm(0.0);
+            let full = rungs
+                .iter()
+                .position(|f| f.model == at_full && f.model != r.model);
+            let n = errors[i].len() as f64;
+            let mean_li = errors[i].iter().map(|e| e.0).sum::<f64>() / n;
+            let mean_s = errors[i].iter().map(|e| e.1).sum::<f64>() / n;
+            let worst_s = errors[i].iter().map(|e| e.1).fold(0.0, f64::max);
+            writeln!(
+                md,
+                "| {} | {s:.2} | {:.1}× | {:.2} % | {:.2} % ({:.2} %) | {} |",
+                r.label,
+                base / s,
+                100.0 * mean_li,
+                100.0 * mean_s,
+                100.0 * worst_s,
+                full.map_or("".into(), |f| format!(
+                    "{:.2} %",
+                    100.0 * rms(&images[i], &images[f])
+                )),
+            )?;
+        }
+        writeln!(
+            md,
+            "\n`line-integral rms`: of −ln((primary + scatter)/open field), the preset's output, \
+             against the reference's (what `tomograf tradeoff` measures, but before the detector's \
+             blur, gain and quantisation); `scatter rms`: of the scatter image alone; both the mean \
+             over the rounds, each round its own histories (the worst round in brackets), and both \
+             include the reference's own noise. `cells' bias`: the scatter image against the same histories traced at full \
+             resolution (no noise in it: the histories are the same)."
         )?;
     }
-    writeln!(
-        md,
-        "\n`line-integral rms`: of −ln((primary + scatter)/open field), the preset's output, \
-         against the reference's (what `tomograf tradeoff` measures, but before the detector's \
-         blur, gain and quantisation); `scatter rms`: of the scatter image alone; both the mean \
-         over the rounds, each round its own histories (the worst round in brackets), and both \
-         include the reference's own noise. `cells' bias`: the scatter image against the same histories traced at full \
-         resolution (no noise in it: the histories are the same)."
-    )?;
 
-    // The orbit, from a fresh engine: set-up and detection grid included.
+    // The orbit, from a fresh engine each round: set-up and detection grid included, each
+    // round its own histories. View 0's scatter is then also fitted in angle with its
+    // neighbours' (physics::scatter::orbit) over each window of WINDOWS_DEG.
+    let widest = WINDOWS_DEG.iter().fold(0.0f64, |a, &b| a.max(b));
     for model in [
         mc(q(1_500), 8.0),
         mc_multiple(q(3_500), 8.0, 8),
         ScatterModel::estimate_default(),
     ] {
-        let t = Instant::now();
-        let (_, engine) = prepare(&acq, &hu, seed)?;
-        let (mut first, mut first_li) = (0.0, 0.0);
-        for (k, v) in views.iter().enumerate() {
-            let (img, _) = scatter(&engine, &model, v, SEED + k as u64)?;
-            if k == 0 {
-                first = rms(&img, &reference);
-                first_li = rms(&line_integrals(&img), &ref_li);
+        let windows: &[f64] = if matches!(model, ScatterModel::MonteCarlo { .. }) {
+            &WINDOWS_DEG
+        } else {
+            &[0.0]
+        };
+        let mut secs = Vec::new();
+        let mut errs = vec![Vec::new(); windows.len()];
+        for round in 0..o.rounds.max(1) {
+            let t = Instant::now();
+            let (_, engine) = prepare(&acq, &hu, seed)?;
+            let mut kept = Vec::new();
+            for (k, v) in views.iter().enumerate() {
+                let s = engine
+                    .run(&model, v, SEED + (round * 100_000 + k) as u64)?
+                    .context("the model scatters nothing")?;
+                let near = k == 0
+                    || angle_on_orbit(&views[0], v).is_some_and(|a| a.abs() <= widest + 1e-9);
+                if near {
+                    kept.push((k, s));
+                }
+            }
+            secs.push(t.elapsed().as_secs_f64());
+            for (w, errs) in windows.iter().zip(errs.iter_mut()) {
+                let parts: Vec<(f64, &ScatterImages)> = neighbours(&views, 0, *w)
+                    .into_iter()
+                    .filter_map(|(j, wt)| kept.iter().find(|(k, _)| *k == j).map(|(_, s)| (wt, s)))
+                    .collect();
+                let img = combine(&parts).total().mean[..n].to_vec();
+                errs.push((rms(&line_integrals(&img), &ref_li), rms(&img, &reference)));
             }
         }
-        let s = t.elapsed().as_secs_f64();
+        let s = median(&mut secs);
         writeln!(
             md,
-            "\nOrbit of {} views, {}: {s:.1} s with the set-up, **{:.2} s per view** (view 0: \
-             line-integral rms {:.2} %, scatter rms {:.2} %).",
+            "\nOrbit of {} views, {}: {s:.1} s with the set-up (median of {}), **{:.2} s per \
+             view**. View 0 against the reference, each view alone and fitted in angle with its \
+             neighbours (`angular_window_deg`), mean of the rounds (the worst in brackets):\n\n\
+             | angular window | views in the fit | line-integral rms | scatter rms |\n|---:|---:|---:|---:|",
             views.len(),
             label(&model),
+            secs.len(),
             s / views.len() as f64,
-            100.0 * first_li,
-            100.0 * first
         )?;
+        for (w, e) in windows.iter().zip(&errs) {
+            let k = e.len() as f64;
+            writeln!(
+                md,
+                "| {} | {} | {:.2} % ({:.2} %) | {:.2} % ({:.2} %) |",
+                if *w == 0.0 {
+                    "none".to_string()
+                } else {
+                    format!("±{w}°")
+                },
+                neighbours(&views, 0, *w).len(),
+                100.0 * e.iter().map(|x| x.0).sum::<f64>() / k,
+                100.0 * e.iter().map(|x| x.0).fold(0.0, f64::max),
+                100.0 * e.iter().map(|x| x.1).sum::<f64>() / k,
+                100.0 * e.iter().map(|x| x.1).fold(0.0, f64::max),
+            )?;
+        }
     }
     Ok(md)
 }

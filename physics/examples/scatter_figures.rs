@@ -44,6 +44,7 @@ fn mc(photons: u64, grid: usize) -> ScatterModel {
         multiple_grid: 0,
         max_order: 50,
         detection_cell_mm: 0.0,
+        angular_window_deg: 0.0,
     }
 }
 

@@ -39,6 +39,7 @@ fn main() {
             multiple_grid: 0,
             max_order: 50,
             detection_cell_mm: 0.0,
+            angular_window_deg: 0.0,
         };
         let p = a.prepare(&hu, 7).unwrap();
         let t0 = cpu_seconds();

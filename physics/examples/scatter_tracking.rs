@@ -83,6 +83,7 @@ fn main() {
         multiple_grid: 0,
         max_order: 50,
         detection_cell_mm: 0.0,
+        angular_window_deg: 0.0,
     };
     let spectrum = a.spectrum.spectrum().unwrap();
     let (energies, fluence) = (spectrum.energies_kev(), spectrum.fluence());

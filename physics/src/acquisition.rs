@@ -12,6 +12,7 @@
 
 use crate::detector::{DetectorModel, ExpectedImage, FlatField, Output};
 use crate::polychromatic::SpectralIntegrator;
+use crate::scatter::orbit::OrbitScatter;
 use crate::scatter::{
     AntiScatterGrid, ScatterEngine, ScatterImages, ScatterModel, estimator, transport,
 };
@@ -361,6 +362,7 @@ impl Acquisition {
             scatter,
             column_copy: None,
             tracer: Tracer::Auto,
+            orbit: None,
         })
     }
 }
@@ -389,6 +391,9 @@ pub struct Prepared {
     column_copy: Option<ColumnCopy>,
     /// The exact Siddon tracer of every view's renderer ([`Prepared::with_tracer`]).
     tracer: Tracer,
+    /// The job's views, when the scatter model fits each view's scatter with its
+    /// neighbours' in angle ([`crate::scatter::orbit`]; set by [`Prepared::for_views`]).
+    orbit: Option<Arc<OrbitScatter>>,
 }
 
 impl Prepared {
@@ -414,6 +419,14 @@ impl Prepared {
     /// every view share one k-fastest copy of the composition, made here (about as long to
     /// make as one view takes; docs/projector.md, "Column sheets"). Images are unchanged.
     pub fn for_views(mut self, projector: Projector, views: &[View]) -> Result<Self> {
+        if let Some((model, _)) = &self.scatter
+            && model.angular_window_deg() > 0.0
+        {
+            self.orbit = Some(Arc::new(OrbitScatter::new(
+                views.to_vec(),
+                model.angular_window_deg(),
+            )));
+        }
         if self.meshes.is_none() {
             self.column_copy = Renderer::for_composition(&self.composition, projector)?
                 .with_tracer(self.tracer)
@@ -482,8 +495,20 @@ impl Prepared {
     }
 
     /// The scatter images of view number `index` (`None` when scatter is not modelled).
-    /// Their random streams derive from the seed and `index` alone.
+    /// Their random streams derive from the seed and `index` alone — and, when the model
+    /// fits views in angle and `view` is the job's view `index` ([`Prepared::for_views`]),
+    /// from those of its neighbours, which are then made too ([`crate::scatter::orbit`]).
     pub fn scatter(&self, view: &View, index: usize) -> Result<Option<ScatterImages>> {
+        match &self.orbit {
+            Some(orbit) if orbit.holds(index, view) => {
+                orbit.images(index, |j| self.raw_scatter(&orbit.view(j), j))
+            }
+            _ => self.raw_scatter(view, index),
+        }
+    }
+
+    /// View `index`'s scatter images from its own histories alone.
+    fn raw_scatter(&self, view: &View, index: usize) -> Result<Option<ScatterImages>> {
         match &self.scatter {
             None => Ok(None),
             Some((model, engine)) => engine.run(

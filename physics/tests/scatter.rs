@@ -401,6 +401,7 @@ fn bad_settings_are_named() {
         multiple_grid: 0,
         max_order,
         detection_cell_mm: 0.0,
+        angular_window_deg: 0.0,
     };
     assert!(err(mc(0, 16, 5)).contains("photons"));
     assert!(err(mc(10, 0, 5)).contains("grid"));

@@ -46,6 +46,7 @@ fn scatter_adds_its_expected_images_and_none_adds_nothing() {
         multiple_grid: 0,
         max_order: 20,
         detection_cell_mm: 0.0,
+        angular_window_deg: 0.0,
     };
     let prepared = with.prepare(&hu, 3).unwrap();
     let (p1, _) = prepared.expected(Projector::Siddon, &v).unwrap();
@@ -131,6 +132,7 @@ fn detection_cells_change_only_the_forced_detection_paths() {
             multiple_grid: 0,
             max_order: 20,
             detection_cell_mm: cell,
+            angular_window_deg: 0.0,
         };
         let p = a.prepare(&hu, 5).unwrap();
         p.scatter(&v, 0).unwrap().unwrap().total().mean
@@ -164,8 +166,105 @@ fn detection_cells_out_of_range_are_refused_by_name() {
             multiple_grid: 0,
             max_order: 5,
             detection_cell_mm: bad,
+            angular_window_deg: 0.0,
         };
         let e = m.validate().unwrap_err().to_string();
         assert!(e.contains("detection_cell_mm"), "{e}");
+    }
+}
+
+/// An orbit of 8 views every 5° round the water cube.
+fn orbit_views() -> Vec<View> {
+    let g = Geometry {
+        beam: Beam::Cone {
+            sad_mm: 1000.0,
+            sid_mm: 1500.0,
+        },
+        detector: Detector::new(8, 8, 40.0),
+        isocentre: DVec3::ZERO,
+    };
+    (0..8)
+        .map(|k| g.view(Pose::new(5.0 * k as f64, 0.0)).unwrap())
+        .collect()
+}
+
+fn orbit_acquisition(window: f64) -> Acquisition {
+    let mut a = Acquisition::preset("kv-flat-panel-120kvp").unwrap();
+    a.scatter = ScatterModel::MonteCarlo {
+        photons: 600,
+        grid: 4,
+        multiple_grid: 0,
+        max_order: 10,
+        detection_cell_mm: 0.0,
+        angular_window_deg: window,
+    };
+    a
+}
+
+/// With an angular window a view's scatter is the quadratic fit, at its angle, through the
+/// raw images of the views within the window — exactly those a window of 0 gives each view
+/// (the same seeds) — whatever order the views are asked for in; without `for_views` (no
+/// orbit known) each view is its own.
+#[test]
+fn an_angular_window_fits_each_view_with_its_neighbours() {
+    use tomograf_physics::scatter::orbit::{combine, neighbours};
+    let hu = water_cube();
+    let views = orbit_views();
+    let raw = orbit_acquisition(0.0)
+        .prepare(&hu, 9)
+        .unwrap()
+        .for_views(Projector::Siddon, &views)
+        .unwrap();
+    let raws: Vec<_> = (0..views.len())
+        .map(|i| raw.scatter(&views[i], i).unwrap().unwrap())
+        .collect();
+    let fitted = || {
+        orbit_acquisition(12.0)
+            .prepare(&hu, 9)
+            .unwrap()
+            .for_views(Projector::Siddon, &views)
+            .unwrap()
+    };
+    let forward = fitted();
+    let backward = fitted();
+    let mut back: Vec<_> = (0..views.len())
+        .rev()
+        .map(|i| backward.scatter(&views[i], i).unwrap().unwrap().total())
+        .collect();
+    back.reverse();
+    for (i, v) in views.iter().enumerate() {
+        let near = neighbours(&views, i, 12.0);
+        // ±12° on a 5° open arc: views i−2 … i+2 where they exist.
+        let ids: Vec<usize> = near.iter().map(|n| n.0).collect();
+        let want: Vec<usize> = (i.saturating_sub(2)..=(i + 2).min(7)).collect();
+        assert_eq!(ids, want, "view {i}");
+        let expected =
+            combine(&near.iter().map(|&(j, w)| (w, &raws[j])).collect::<Vec<_>>()).total();
+        let got = forward.scatter(v, i).unwrap().unwrap().total();
+        assert_eq!(got.mean, expected.mean, "view {i}");
+        assert_eq!(got.second_moment, expected.second_moment, "view {i}");
+        assert_eq!(
+            back[i].mean, got.mean,
+            "view {i} asked for in reverse order"
+        );
+        assert_ne!(got.mean, raws[i].total().mean, "view {i} was not fitted");
+    }
+    // A view the scene does not hold is scattered on its own.
+    let alone = orbit_acquisition(12.0).prepare(&hu, 9).unwrap();
+    assert_eq!(
+        alone.scatter(&views[3], 3).unwrap().unwrap().total().mean,
+        raws[3].total().mean
+    );
+}
+
+#[test]
+fn angular_windows_out_of_range_are_refused_by_name() {
+    for bad in [-1.0, f64::NAN, 91.0] {
+        let e = orbit_acquisition(bad)
+            .scatter
+            .validate()
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("angular_window_deg"), "{e}");
     }
 }

@@ -219,6 +219,7 @@ impl ScatterEngine {
                 multiple_grid,
                 max_order,
                 detection_cell_mm,
+                ..
             } => (
                 photons,
                 grid,

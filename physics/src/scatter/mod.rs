@@ -9,6 +9,7 @@
 //! * [`transport`] — Woodcock tracking and interaction sampling in the voxel composition;
 //! * [`estimator`] — the point-detector (forced detection) estimator on a coarse grid;
 //! * [`engine`] — photons from the source, batches, seeds, the separate images;
+//! * [`orbit`] — each view's scatter fitted in gantry angle with its neighbours';
 //! * [`field`] — a point source collimated to a rectangular field;
 //! * [`region`] — analytic scoring regions (boxes, cylinders);
 //! * [`energy_imparted`] — the energy-imparted (dose) tally per voxel and region;
@@ -30,6 +31,7 @@ pub mod estimator;
 pub mod field;
 pub mod interaction_table;
 pub mod majorant;
+pub mod orbit;
 pub mod region;
 pub mod transport;
 
@@ -91,6 +93,13 @@ pub enum ScatterModel {
         /// resolution.
         #[serde(default)]
         detection_cell_mm: f64,
+        /// Each view's scatter fitted, pixel by pixel, with a quadratic in gantry angle
+        /// through the raw images of the scene's views within this many degrees of it (on
+        /// the same orbit: [`orbit`]) — scatter changes slowly with the angle, so each view's
+        /// Monte Carlo noise is averaged with its neighbours'; 0 (the default): each view
+        /// on its own histories alone.
+        #[serde(default)]
+        angular_window_deg: f64,
     },
 }
 
@@ -133,6 +142,7 @@ impl ScatterModel {
             multiple_grid: 0,
             max_order: default_max_order(),
             detection_cell_mm: 0.0,
+            angular_window_deg: 0.0,
         }
     }
 
@@ -174,9 +184,19 @@ impl ScatterModel {
                 multiple_grid,
                 max_order,
                 detection_cell_mm,
+                angular_window_deg,
             } => {
                 if max_order == 0 {
                     return bad("max_order = 0; give ≥ 1 (1: single scatter only)".into());
+                }
+                if !(angular_window_deg.is_finite()
+                    && (0.0..=orbit::MAX_WINDOW_DEG).contains(&angular_window_deg))
+                {
+                    return bad(format!(
+                        "angular_window_deg = {angular_window_deg}; give 0–{} degrees (0: \
+                         each view alone)",
+                        orbit::MAX_WINDOW_DEG
+                    ));
                 }
                 (photons, grid, multiple_grid, detection_cell_mm)
             }
@@ -237,6 +257,16 @@ impl ScatterModel {
             | ScatterModel::MonteCarlo {
                 detection_cell_mm, ..
             } => *detection_cell_mm,
+        }
+    }
+
+    /// The angular window of the Monte Carlo, degrees (0: none, and for other models).
+    pub fn angular_window_deg(&self) -> f64 {
+        match self {
+            ScatterModel::MonteCarlo {
+                angular_window_deg, ..
+            } => *angular_window_deg,
+            _ => 0.0,
         }
     }
 
