@@ -47,6 +47,9 @@ pub struct BenchArgs {
     /// reuse it when the CT, photons and view are the same.
     #[arg(long, requires = "scatter")]
     pub reference_cache: Option<PathBuf>,
+    /// With --scatter: the view of the 72 that is scored (0, the default: AP; 18: lateral).
+    #[arg(long, requires = "scatter", default_value_t = 0)]
+    pub view: usize,
     /// With --scatter: the 72-view orbits only (the one-view ladder skipped).
     #[arg(long, requires = "scatter")]
     pub orbit_only: bool,
@@ -66,13 +69,19 @@ pub fn run(args: BenchArgs) -> Result<()> {
             quick: o.quick,
             rounds: args.rounds,
             orbit_only: args.orbit_only,
+            view: args.view,
             reference_photons: args.reference_photons,
             reference_cache: args.reference_cache.clone(),
         };
         let md = format!(
-            "Measured by `tomograf bench --scatter {}{}{}`.\n\n{}",
+            "Measured by `tomograf bench --scatter {}{}{}{}`.\n\n{}",
             ct.display(),
             if o.quick { " --quick" } else { "" },
+            if args.view > 0 {
+                format!(" --view {}", args.view)
+            } else {
+                String::new()
+            },
             if args.orbit_only { " --orbit-only" } else { "" },
             scatter::section(ct, &so)?
         );

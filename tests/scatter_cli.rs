@@ -226,4 +226,40 @@ fn the_scatter_bench_runs_on_a_ct_and_reuses_its_reference() {
     assert_eq!(first.matches("Orbit of 4 views").count(), 3, "{first}");
     let second = run();
     assert!(second.contains("(read from the cache)"), "{second}");
+    // Another view of the orbit, its orbits alone; a view the orbit lacks is named.
+    let third = tomograf(&[
+        "bench",
+        "--scatter",
+        ct.to_str().unwrap(),
+        "--quick",
+        "--view",
+        "1",
+        "--orbit-only",
+        "--reference-photons",
+        "512",
+        "--rounds",
+        "1",
+        "--out",
+        page.to_str().unwrap(),
+    ]);
+    ok(&third);
+    let third = std::fs::read_to_string(&page).unwrap();
+    assert!(
+        third.contains("--view 1 --orbit-only")
+            && third.contains("view 1 of 4")
+            && third.contains("View 1 against the reference")
+            && !third.contains("| setting |"),
+        "{third}"
+    );
+    let bad = tomograf(&[
+        "bench",
+        "--scatter",
+        ct.to_str().unwrap(),
+        "--quick",
+        "--view",
+        "4",
+    ]);
+    assert!(!bad.status.success());
+    let e = String::from_utf8_lossy(&bad.stderr);
+    assert!(e.contains("--view 4: the orbit has views 0 to 3"), "{e}");
 }

@@ -1,7 +1,7 @@
 //! `tomograf bench --scatter CT`: the scatter engine's speed against its error on a real CT
 //! (docs/scatter.md, "Scatter at data-set speed").
 //!
-//! One view (the AP view of a 72-view orbit, 256² pixels, preset `kv-flat-panel-120kvp`,
+//! One view (the AP view of a 72-view orbit unless `view` says another, 256² pixels, preset `kv-flat-panel-120kvp`,
 //! noise off) is scattered under a ladder of settings: the full-resolution Monte Carlo as
 //! the engine had it (the baseline of the speed ratios), the same with forced detection
 //! traced through coarse cells ([`tomograf_physics::scatter::detection_grid`]), and the fast
@@ -41,6 +41,8 @@ pub struct ScatterOptions {
     pub rounds: usize,
     /// Histories of the full-resolution reference (≥ 4·10⁵ for a converged one).
     pub reference_photons: u64,
+    /// The view scored (0: AP; 18: the lateral of the 72).
+    pub view: usize,
     /// The orbit's rows only (the per-view ladder skipped).
     pub orbit_only: bool,
     /// Reads the reference scatter image from here when it was made with the same CT,
@@ -195,7 +197,11 @@ pub fn section(ct: &Path, o: &ScatterOptions) -> Result<String> {
     let (hu, _) = load_hu(&scene, acq.materials.calibration_kev)?;
     let job = resolve(&scene, &hu)?;
     let views = job.views;
-    let view = &views[0];
+    let at = o.view;
+    if at >= views.len() {
+        bail!("--view {at}: the orbit has views 0 to {}", views.len() - 1);
+    }
+    let view = &views[at];
     let n = view.rows * view.cols;
 
     let mut md = String::new();
@@ -217,7 +223,7 @@ pub fn section(ct: &Path, o: &ScatterOptions) -> Result<String> {
     };
 
     let key = format!(
-        "ct={} photons={} rows={} cols={} view=0",
+        "ct={} photons={} rows={} cols={} view={at}",
         ct.display(),
         o.reference_photons,
         view.rows,
@@ -301,7 +307,7 @@ pub fn section(ct: &Path, o: &ScatterOptions) -> Result<String> {
 
     writeln!(
         md,
-        "CT `{}` ({}×{}×{} voxels of {:.2}×{:.2}×{:.2} mm), view 0 (AP) of {} ({}×{} pixels), \
+        "CT `{}` ({}×{}×{} voxels of {:.2}×{:.2}×{:.2} mm), view {at}{} of {} ({}×{} pixels), \
          preset `kv-flat-panel-120kvp`, noise off, {} threads, {}. Whole-panel scatter-to-primary \
          ratio {spr:.3}.\n",
         ct.display(),
@@ -311,6 +317,7 @@ pub fn section(ct: &Path, o: &ScatterOptions) -> Result<String> {
         hu.spacing().x,
         hu.spacing().y,
         hu.spacing().z,
+        if at == 0 { " (AP)" } else { "" },
         views.len(),
         view.rows,
         view.cols,
@@ -376,7 +383,7 @@ pub fn section(ct: &Path, o: &ScatterOptions) -> Result<String> {
     }
 
     // The orbit, from a fresh engine each round: set-up and detection grid included, each
-    // round its own histories. View 0's scatter is then also fitted in angle with its
+    // round its own histories. The view's scatter is then also fitted in angle with its
     // neighbours' (physics::scatter::orbit) over each window of WINDOWS_DEG.
     let widest = WINDOWS_DEG.iter().fold(0.0f64, |a, &b| a.max(b));
     for model in [
@@ -399,15 +406,15 @@ pub fn section(ct: &Path, o: &ScatterOptions) -> Result<String> {
                 let s = engine
                     .run(&model, v, SEED + (round * 100_000 + k) as u64)?
                     .context("the model scatters nothing")?;
-                let near = k == 0
-                    || angle_on_orbit(&views[0], v).is_some_and(|a| a.abs() <= widest + 1e-9);
+                let near = k == at
+                    || angle_on_orbit(&views[at], v).is_some_and(|a| a.abs() <= widest + 1e-9);
                 if near {
                     kept.push((k, s));
                 }
             }
             secs.push(t.elapsed().as_secs_f64());
             for (w, errs) in windows.iter().zip(errs.iter_mut()) {
-                let parts: Vec<(f64, &ScatterImages)> = neighbours(&views, 0, *w)
+                let parts: Vec<(f64, &ScatterImages)> = neighbours(&views, at, *w)
                     .into_iter()
                     .filter_map(|(j, wt)| kept.iter().find(|(k, _)| *k == j).map(|(_, s)| (wt, s)))
                     .collect();
@@ -419,7 +426,7 @@ pub fn section(ct: &Path, o: &ScatterOptions) -> Result<String> {
         writeln!(
             md,
             "\nOrbit of {} views, {}: {s:.1} s with the set-up (median of {}), **{:.2} s per \
-             view**. View 0 against the reference, each view alone and fitted in angle with its \
+             view**. View {at} against the reference, each view alone and fitted in angle with its \
              neighbours (`angular_window_deg`), mean of the rounds (the worst in brackets):\n\n\
              | angular window | views in the fit | line-integral rms | scatter rms |\n|---:|---:|---:|---:|",
             views.len(),
@@ -437,7 +444,7 @@ pub fn section(ct: &Path, o: &ScatterOptions) -> Result<String> {
                 } else {
                     format!("±{w}°")
                 },
-                neighbours(&views, 0, *w).len(),
+                neighbours(&views, at, *w).len(),
                 100.0 * e.iter().map(|x| x.0).sum::<f64>() / k,
                 100.0 * e.iter().map(|x| x.0).fold(0.0, f64::max),
                 100.0 * e.iter().map(|x| x.1).sum::<f64>() / k,
