@@ -17,7 +17,8 @@ fn water_cube() -> Volume {
     .unwrap()
 }
 
-fn view() -> View {
+/// The 8² panel at gantry angle `theta_deg` (SAD 1000 mm, SID 1500 mm).
+fn view_at(theta_deg: f64) -> View {
     let g = Geometry {
         beam: Beam::Cone {
             sad_mm: 1000.0,
@@ -26,7 +27,11 @@ fn view() -> View {
         detector: Detector::new(8, 8, 40.0),
         isocentre: DVec3::ZERO,
     };
-    g.view(Pose::new(0.0, 0.0)).unwrap()
+    g.view(Pose::new(theta_deg, 0.0)).unwrap()
+}
+
+fn view() -> View {
+    view_at(0.0)
 }
 
 #[test]
@@ -175,17 +180,7 @@ fn detection_cells_out_of_range_are_refused_by_name() {
 
 /// An orbit of 8 views every 5° round the water cube.
 fn orbit_views() -> Vec<View> {
-    let g = Geometry {
-        beam: Beam::Cone {
-            sad_mm: 1000.0,
-            sid_mm: 1500.0,
-        },
-        detector: Detector::new(8, 8, 40.0),
-        isocentre: DVec3::ZERO,
-    };
-    (0..8)
-        .map(|k| g.view(Pose::new(5.0 * k as f64, 0.0)).unwrap())
-        .collect()
+    (0..8).map(|k| view_at(5.0 * k as f64)).collect()
 }
 
 fn orbit_acquisition(window: f64) -> Acquisition {

@@ -189,7 +189,8 @@ pub fn combine(parts: &[(f64, &ScatterImages)]) -> ScatterImages {
 #[derive(Debug)]
 pub struct OrbitScatter {
     views: Vec<View>,
-    window_deg: f64,
+    /// Each view's [`neighbours`] and their weights, found once.
+    near: Vec<Vec<(usize, f64)>>,
     /// (view index, raw images), at most `capacity`.
     cache: Mutex<Vec<(usize, Arc<ScatterImages>)>>,
     capacity: usize,
@@ -198,15 +199,13 @@ pub struct OrbitScatter {
 impl OrbitScatter {
     /// The scene's `views` (in the order of their indices), fitted over `window_deg`.
     pub fn new(views: Vec<View>, window_deg: f64) -> Self {
-        let capacity = (0..views.len())
-            .map(|i| neighbours(&views, i, window_deg).len())
-            .max()
-            .unwrap_or(1)
-            * 2
-            + 1;
+        let near: Vec<_> = (0..views.len())
+            .map(|i| neighbours(&views, i, window_deg))
+            .collect();
+        let capacity = near.iter().map(Vec::len).max().unwrap_or(1) * 2 + 1;
         Self {
             views,
-            window_deg,
+            near,
             cache: Mutex::new(Vec::new()),
             capacity,
         }
@@ -229,9 +228,9 @@ impl OrbitScatter {
         index: usize,
         raw: impl Fn(usize) -> Result<Option<ScatterImages>>,
     ) -> Result<Option<ScatterImages>> {
-        let near = neighbours(&self.views, index, self.window_deg);
+        let near = &self.near[index];
         let mut parts = Vec::with_capacity(near.len());
-        for &(j, w) in &near {
+        for &(j, w) in near {
             let cached = {
                 let cache = self.cache.lock().unwrap_or_else(|e| e.into_inner());
                 cache.iter().find(|(k, _)| *k == j).map(|(_, s)| s.clone())
