@@ -3,7 +3,8 @@
 # it checks before the fit (model/src/config.rs `inference_peak_bytes`; docs/reliability.md,
 # "Memory budget"). Two fields (hidden 64, 16 samples, inference patches of 16²; hidden
 # 256, 64 samples, patches of 64²: 4 096 and 262 144 points per step), each trained for 2
-# iterations on lidc phantoms at 64³ and 96³, reconstruct 63 iterations (3 of them tune the
+# iterations on lidc phantoms at 64³ and 96³, and the `tiny` preset's field (hidden 32, 8
+# samples, whole views) at 16³, 32³ and 64³, reconstruct 63 iterations (3 of them tune the
 # generator on the large patch) from 1 and 2 views. Prints a markdown table.
 # Usage: scripts/memory_peaks_inference.sh [TOMOGRAF_BIN]
 set -euo pipefail
@@ -27,11 +28,17 @@ PY
 }
 config small-field 64 16 16
 config large-field 256 64 64
+python3 - "$(dirname "$demo")/../../presets/tiny.toml" <<'PY'
+import re, sys
+s = open(sys.argv[1]).read()
+open('tiny.toml', 'w').write(re.sub(r'(?m)^iterations = \d+', 'iterations = 2', s, count=1))
+PY
 echo "| field | grid | views | estimated MiB | measured MiB | estimate / measured |"
 echo "|---|---|---:|---:|---:|---:|"
-for n in 64 96; do
-  "$bin" --threads 1 dataset --phantoms 2 --profile lidc --size "$n" --views 10 -o "d$n" >/dev/null 2>&1
-  for field in small-field large-field; do
+for set in "64 small-field large-field" "96 small-field large-field" "16 tiny" "32 tiny" "64 tiny"; do
+  read -r n fields <<<"$set"
+  [ -d "d$n" ] || "$bin" --threads 1 dataset --phantoms 2 --profile lidc --size "$n" --views 10 -o "d$n" >/dev/null 2>&1
+  for field in $fields; do
     "$bin" --threads 1 train "d$n" -o "t-$field-$n" --config "$field.toml" >/dev/null 2>&1
     for v in 1 2; do
       /usr/bin/time -v "$bin" --threads 1 reconstruct "d$n/00000" --checkpoint "t-$field-$n/checkpoint" \

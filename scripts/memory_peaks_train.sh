@@ -3,8 +3,9 @@
 # its data set (eval/src/peak.rs `training_peak_bytes`; docs/reliability.md, "Memory
 # budget"). Four fields derived from the `small` preset (hidden × samples per ray × patch ×
 # batch; `small-gan` also trains its discriminators), each trained for 2 iterations on two
-# data sets (8 lidc phantoms at 64³ and 32 at 96³, 36 views each; the fit) and on 16 at 128³
-# (a check). Prints a markdown table.
+# data sets (8 lidc phantoms at 64³ and 32 at 96³, 36 views each) and on 16 at 128³, then the
+# `tiny` preset's field on 8 phantoms at 16³, 32³ and 64³ (every row is in the fit). Prints a
+# markdown table.
 # Usage: scripts/memory_peaks_train.sh [TOMOGRAF_BIN]
 set -euo pipefail
 bin="$(realpath "${1:-target/release/tomograf}")"
@@ -12,13 +13,15 @@ presets="$(realpath "$(dirname "$0")/../model/presets")"
 work="$(mktemp -d)"
 trap 'rm -rf "$work"' EXIT
 cd "$work"
-config() { # name preset hidden samples patch batch
+config() { # name preset hidden samples patch batch (the preset's own where empty)
   python3 - "$presets" "$@" <<'PY'
 import re, sys
 presets, name, preset, hidden, samples, patch, batch = sys.argv[1:]
 s = open(f"{presets}/{preset}.toml").read()
 head, sep, infer = s.partition('[infer]')
 for key, v in [("hidden", hidden), ("samples", samples), ("patch", patch), ("batch", batch)]:
+    if not v:
+        continue
     head, n = re.subn(rf'(?m)^{key} = \d+', f'{key} = {v}', head)
     assert n == 1, key
 head = re.sub(r'(?m)^iterations = \d+', 'iterations = 2', head, count=1)
@@ -29,12 +32,14 @@ config small small 128 32 16 4
 config narrow small 64 16 16 4
 config wide small 256 64 16 8
 config small-gan small-gan 128 32 16 4
+config tiny tiny "" "" "" ""
 echo "| config | hidden, samples, patch, batch | data set | estimated MiB | measured MiB | estimate / measured |"
 echo "|---|---|---|---:|---:|---:|"
-for set in "8 64" "32 96" "16 128"; do
-  read -r count n <<<"$set"
-  "$bin" --threads 1 dataset --phantoms "$count" --profile lidc --size "$n" --views 36 -o "d$n" >/dev/null 2>&1
-  for c in small narrow wide small-gan; do
+for set in "8 64 small narrow wide small-gan" "32 96 small narrow wide small-gan" \
+  "16 128 small narrow wide small-gan" "8 16 tiny" "8 32 tiny" "8 64 tiny"; do
+  read -r count n configs <<<"$set"
+  [ -d "d$n" ] || "$bin" --threads 1 dataset --phantoms "$count" --profile lidc --size "$n" --views 36 -o "d$n" >/dev/null 2>&1
+  for c in $configs; do
     rm -rf "t-$c"
     /usr/bin/time -v "$bin" --threads 1 train "d$n" -o "t-$c" --config "$c.toml" >out 2>err || { cat err >&2; exit 1; }
     est=$(grep -o 'estimated peak memory [0-9]*' err out | head -1 | awk '{print $4}' || true)

@@ -91,6 +91,7 @@ fn main() {
     unsafe {
         libc::signal(libc::SIGPIPE, libc::SIG_DFL);
     }
+    tomograf_sim::memory::set_release(allocator::release_freed);
     let cli = match Cli::from_arg_matches(&negative_numbers(Cli::command()).get_matches()) {
         Ok(cli) => cli,
         Err(e) => e.exit(),

@@ -192,8 +192,8 @@ pub fn evaluate(e: &Evaluation) -> Result<usize> {
             let generator = checkpoint::load_generator(ck, &device)
                 .with_context(|| format!("checkpoint {}", ck.display()))?;
             let infer = generator.config.infer.overridden(&e.infer)?;
-            let (grid, pixels) = crate::peak::largest(&items);
-            inference_peak = Some(generator.config.inference_peak_bytes(&infer, grid, pixels));
+            let (_, pixels) = crate::peak::largest(&items);
+            inference_peak = Some(generator.config.inference_peak_bytes(&infer, pixels));
             Some((ck, infer, generator.prior, generator.state.proj_scale))
         }
         None => None,

@@ -370,35 +370,33 @@ impl TrainConfig {
     }
 
     /// Estimated peak memory of training (bytes) on items whose f32 CTs and projections
-    /// take `data_bytes`: `48 MiB + (1.14 + 0.25 · [adversarial]) ·`
-    /// [`Self::step_activation_bytes`] `+ 1.43 · data_bytes`, the `0.25` when the
+    /// take `data_bytes`: `21 MiB + (1.25 + 0.21 · [adversarial]) ·`
+    /// [`Self::step_activation_bytes`] `+ 1.44 · data_bytes`, the `0.21` when the
     /// discriminators train (`w_adversarial > 0`). Fitted to `/usr/bin/time -v` peaks of
     /// `train` (2 iterations, one thread) with fields of hidden 64–256, 16–64 samples and
-    /// batches of 4–8 on 8 items of 64³ and 32 of 96³ (docs/reliability.md, "Memory
-    /// budget"; `scripts/memory_peaks_train.sh`).
+    /// batches of 4–8 on 8 items of 64³, 32 of 96³ and 16 of 128³, and the `tiny` preset's
+    /// field on 8 items of 16³, 32³ and 64³ (docs/reliability.md, "Memory budget";
+    /// `scripts/memory_peaks_train.sh`).
     pub fn training_peak_bytes(&self, data_bytes: u128) -> f64 {
-        let adversarial = if self.w_adversarial > 0.0 { 0.25 } else { 0.0 };
-        48.0 * (1u64 << 20) as f64
-            + (1.14 + adversarial) * self.step_activation_bytes()
-            + 1.43 * data_bytes as f64
+        let adversarial = if self.w_adversarial > 0.0 { 0.21 } else { 0.0 };
+        21.0 * (1u64 << 20) as f64
+            + (1.25 + adversarial) * self.step_activation_bytes()
+            + 1.44 * data_bytes as f64
     }
 
-    /// Estimated peak memory of inference (bytes): a fit, `67 MiB + 1.17 · 8·points·hidden·
-    /// (depth + 1) + 15 · 4·grid_voxels`, where `points` is the larger ray batch of the two
-    /// phases (`code_patch²` and `infer.patch²`, at most the largest view's `view_pixels`, the
-    /// whole image for a patch of 0, times `samples`) whose activations and gradients the backward pass holds, and
-    /// `grid_voxels` the reconstruction grid rendered and swept. Fitted to `/usr/bin/time
-    /// -v` peaks of `reconstruct` at 64³ and 96³ with fields of hidden 64 and 256, ray
-    /// batches of 4 096 and 262 144 points, from 1 and 2 views (docs/reliability.md, "Memory
-    /// budget").
+    /// Estimated peak memory of inference (bytes): a fit, `17 MiB + 1.23 · 8·points·hidden·
+    /// (depth + 1) + 12 KiB · view_pixels`, where `points` is the larger ray batch of the
+    /// two phases (`code_patch²` and `infer.patch²`, at most the largest view's
+    /// `view_pixels`, the whole image for a patch of 0, times `samples`) whose activations
+    /// and gradients the backward pass holds, and `view_pixels` the largest view's pixels
+    /// (every pixel's ray rendered and swept through the grid). Fitted to `/usr/bin/time
+    /// -v` peaks of `reconstruct` with fields of hidden 64 and 256 at 64³ and 96³ (ray
+    /// batches of 4 096 and 262 144 points) and the `tiny` preset's field at 16³, 32³ and
+    /// 64³ (whole views of 256 to 4 096 pixels), from one view (docs/reliability.md,
+    /// "Memory budget"; `scripts/memory_peaks_inference.sh`).
     /// `infer` is the inference's settings (the configuration's, or with a command's
     /// overrides).
-    pub fn inference_peak_bytes(
-        &self,
-        infer: &InferConfig,
-        grid_voxels: u128,
-        view_pixels: u128,
-    ) -> f64 {
+    pub fn inference_peak_bytes(&self, infer: &InferConfig, view_pixels: u128) -> f64 {
         let m = &self.model;
         // A patch is at most the image.
         let side = |p: usize| match p {
@@ -407,7 +405,7 @@ impl TrainConfig {
         };
         let points = side(infer.patch).max(side(infer.code_patch)) * m.samples as f64;
         let activations = 8.0 * points * m.hidden as f64 * (m.depth as f64 + 1.0);
-        67.0 * (1u64 << 20) as f64 + 1.17 * activations + 15.0 * 4.0 * grid_voxels as f64
+        17.0 * (1u64 << 20) as f64 + 1.23 * activations + 12.0 * 1024.0 * view_pixels as f64
     }
 
     /// Checks sizes and weights.

@@ -89,7 +89,7 @@ fn check_memory(
         .map(|r| r.view.rows as u128 * r.view.cols as u128)
         .max()
         .unwrap_or(0);
-    let peak = c.inference_peak_bytes(infer, grid.len() as u128, view_pixels) as u128;
+    let peak = c.inference_peak_bytes(infer, view_pixels) as u128;
     let held = tomograf_sim::memory::resident_bytes().map_or(0, u128::from);
     let [nx, ny, nz] = grid.dims();
     tomograf_sim::memory::check(

@@ -65,6 +65,9 @@ pub fn item_render_peak_bytes(
 /// holds now (the CT already read among it: the available memory no longer counts that),
 /// exceeds the memory available.
 pub fn check_item(index: usize, dims: [usize; 3], phase: &str, peak: u128) -> anyhow::Result<()> {
+    // What the last phase freed is given back first: it is not held, and the phases'
+    // peaks do not add up.
+    tomograf_sim::memory::release_freed();
     let held = tomograf_sim::memory::resident_bytes().map_or(0, u128::from);
     let [nx, ny, nz] = dims;
     tomograf_sim::memory::check(

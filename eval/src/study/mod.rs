@@ -303,6 +303,9 @@ impl Study {
 
     /// Trains every model not yet trained (this shard's: model k goes to shard k mod N).
     pub fn train(&self, (i, n): (usize, usize), progress: &dyn Progress) -> Result<()> {
+        // What the last stage freed is given back before this one starts (its peak is
+        // this stage's alone).
+        tomograf_sim::memory::release_freed();
         for (k, spec) in self.train.iter().enumerate() {
             if k % n != i {
                 continue;
@@ -312,6 +315,7 @@ impl Study {
                 progress.note(&format!("train: model '{}' already trained", spec.name));
                 continue;
             }
+            tomograf_sim::memory::release_freed();
             let data = self.finish_data("train", spec, progress)?;
             // `--resume` continues the checkpoint when there is one (putting back one whose
             // save was killed) and starts afresh otherwise.
@@ -346,6 +350,9 @@ impl Study {
     /// Scores every model and the classical baselines on every test set (this shard's
     /// items of each).
     pub fn evaluate(&self, shard: (usize, usize), progress: &dyn Progress) -> Result<()> {
+        // What the last stage freed is given back before this one starts (its peak is
+        // this stage's alone).
+        tomograf_sim::memory::release_freed();
         for spec in &self.train {
             if !self.model_dir(spec).join("done.json").exists() {
                 bail!(
@@ -372,6 +379,7 @@ impl Study {
             }
             for (checkpoint, output, train_data) in &cells {
                 progress.note(&format!("evaluate: {}", output.display()));
+                tomograf_sim::memory::release_freed();
                 scored += evaluate(&Evaluation {
                     data: &data,
                     checkpoint: checkpoint.as_deref(),
@@ -463,6 +471,9 @@ impl Study {
     /// far (`partial`: an interim report while shards still run; otherwise every cell must
     /// be complete).
     pub fn report(&self, partial: bool) -> Result<()> {
+        // What the last stage freed is given back before this one starts (its peak is
+        // this stage's alone).
+        tomograf_sim::memory::release_freed();
         report::write(self, partial)
     }
 

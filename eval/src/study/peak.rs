@@ -15,8 +15,7 @@
 //!   set ([`effects_peak_bytes`]).
 //!
 //! Stages run one after another and each frees what it held, so the study's peak is the
-//! largest of the four. At `tiny` the training and evaluation estimates are generous (their
-//! fixed parts were fitted at 64³ and 96³); the phantoms' stages set the peak there.
+//! largest of the four.
 
 use super::Study;
 use crate::peak::{Held, MIB, evaluation_peak_bytes};
@@ -115,7 +114,7 @@ impl Study {
             train_voxels: grid,
             train_pixels: (scale.views as u128 + 2) * size * size,
         };
-        let inference = config.inference_peak_bytes(&config.infer, grid, size * size);
+        let inference = config.inference_peak_bytes(&config.infer, size * size);
         let evaluation = evaluation_peak_bytes(grid, held, Some(inference));
         Ok(StudyPeak {
             data,
