@@ -37,13 +37,16 @@ pub fn item_peak_bytes(prepare: u128, render: u128) -> u128 {
 /// Peak while a source CT of `voxels` voxels is prepared, bytes. A CT file (`from_file`) is
 /// brought into the patient frame and its body found at full resolution: the frame's copy,
 /// the connected components' u32 labels and the mask's boolean planes beside the CT make
-/// `89 MiB + 3.0 · 4·voxels`. A phantom is generated in the frame: `66 MiB + 0.95 ·
-/// 4·voxels`.
+/// `28 MiB + 3.36 · 4·voxels`. A phantom is generated in the frame (its labels and HU
+/// beside each other): `18 MiB + 2.1 · 4·voxels`. Refitted in session 47, when each phase
+/// began to give back what the last one freed (`check_item`): the first fit (`89 MiB +
+/// 3.0 ·`, `66 MiB + 0.95 ·`) had measured the phases' peaks with freed memory that
+/// mimalloc had not yet purged.
 pub fn item_prepare_peak_bytes(from_file: bool, voxels: u128) -> u128 {
     if from_file {
-        fit(89.0, &[(3.0, voxels)])
+        fit(28.0, &[(3.36, voxels)])
     } else {
-        fit(66.0, &[(0.95, voxels)])
+        fit(18.0, &[(2.1, voxels)])
     }
 }
 
