@@ -943,7 +943,7 @@ fn a_study_beyond_memory_is_refused_before_its_first_stage() {
     assert!(
         err.contains("the study (--scale tiny: 16³ grids")
             && err.contains("in its report stage")
-            && err.contains("data 69 MiB, training 22 MiB, evaluation 34 MiB, report 99 MiB")
+            && err.contains("data 69 MiB, training 28 MiB, evaluation 34 MiB, report 89 MiB")
             && err.contains("more than the 51.2 MiB that TOMOGRAF_MEMORY_LIMIT_GB allows"),
         "{err}"
     );

@@ -94,14 +94,18 @@ impl Study {
                             item_render_peak_bytes(physics, voxels, pixels, grid),
                         ));
                         if split == "test" {
-                            report = report.max(effects_peak_bytes(voxels));
+                            report = report.max(effects_peak_bytes(voxels, physics));
                         }
                     }
                 }
             }
         }
         let config = TrainConfig::load(&scale.config)?;
-        let training = config.training_peak_bytes(train_items * item_bytes(scale.views)) as u128;
+        // The models train one after another in one process, which keeps a little of each
+        // (the `tiny` studies' training stage measured 28–30 MiB for four models, 26 for
+        // one, against 24–25 for one `train` job).
+        let training = config.training_peak_bytes(train_items * item_bytes(scale.views)) as u128
+            + (6.0 * MIB) as u128;
         let test_items = self
             .test
             .iter()
@@ -126,12 +130,15 @@ impl Study {
 }
 
 /// Peak of measuring one test set's effects on the projections ([`super::effects`]) on a
-/// phantom of `voxels`, bytes: the cropped CT, its copy and the attenuation rendered with
-/// the set's physics, `40 MiB + 3 · 4·voxels` — fitted to `/usr/bin/time -v` peaks of the
-/// report stage of `tiny` studies of lidc and full-chest phantoms
-/// (`scripts/memory_peaks_study.sh`).
-fn effects_peak_bytes(voxels: u128) -> u128 {
-    (40.0 * MIB) as u128 + 3 * 4 * voxels
+/// phantom of `voxels`, bytes: the phantom generated and cropped, then rendered (with the
+/// set's detector physics and scatter when `physics`) beside a copy of it, `37 MiB (60 MiB
+/// with physics) + 1.51 · 4·voxels` — fitted to `/usr/bin/time -v` peaks of the report
+/// stage of `tiny` studies (`scripts/memory_peaks_study.sh`; lidc phantoms: 66 MiB ideal,
+/// 83–94 with physics; full-chest with physics 129), each item made from what is really
+/// held ([`tomograf_sim::memory::release_freed`]).
+fn effects_peak_bytes(voxels: u128, physics: bool) -> u128 {
+    let base = if physics { 60.0 } else { 37.0 };
+    (base * MIB) as u128 + (1.51 * 4.0 * voxels as f64) as u128
 }
 
 /// Which stages a run of `tomograf study` will run.
