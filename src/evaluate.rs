@@ -189,6 +189,7 @@ pub fn tune(args: TuneArgs) -> Result<()> {
         backend: args.backend.as_deref(),
         grid: Grid::Full,
         output: &args.output,
+        shard: (0, 1),
         progress: &bar,
     })?;
     println!("{md}");

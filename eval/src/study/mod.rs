@@ -366,7 +366,7 @@ impl Study {
         // training set holds the same CTs).
         let prior_data = self.train.first().map(|m| self.data_dir("train", m));
         for test in &self.test {
-            let baselines = self.tune(test, progress)?;
+            let baselines = self.tune(test, shard, progress)?;
             let data = self.finish_data("test", test, progress)?;
             let mut cells: Vec<(Option<PathBuf>, PathBuf, Option<PathBuf>)> =
                 vec![(None, self.eval_dir(test.name, None), None)];
@@ -420,8 +420,14 @@ impl Study {
     /// are) with the mean volume and PCA-MAP prior of the training set of the same
     /// acquisition, or of the first training set where none has it: each baseline at
     /// its best for that set, so that no lead of TomoGRAF's comes from untuned baselines.
-    /// Resumable; the search is kept in [`Self::tune_dir`].
-    fn tune(&self, test: &DataSpec, progress: &dyn Progress) -> Result<BaselineSettings> {
+    /// Resumable; the search is kept in [`Self::tune_dir`]. Every evaluation shard runs it
+    /// (each needs the settings), each beginning at its own share of the items.
+    fn tune(
+        &self,
+        test: &DataSpec,
+        shard: (usize, usize),
+        progress: &dyn Progress,
+    ) -> Result<BaselineSettings> {
         let data_spec = match test.data_of {
             Some(name) => self.test.iter().find(|t| t.name == name).with_context(|| {
                 format!(
@@ -461,6 +467,7 @@ impl Study {
                 Grid::Full
             },
             output: &self.tune_dir(test.name),
+            shard,
             progress: &Silent,
         })
         .with_context(|| format!("tuning the baselines for test set '{}'", test.name))?;

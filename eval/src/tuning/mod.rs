@@ -66,6 +66,12 @@ pub struct Tuning<'a> {
     pub grid: Grid,
     /// Output folder: search.csv, search.md, baselines.toml, items/.
     pub output: &'a Path,
+    /// This process's shard `(i, n)` of processes running the same search at once (a
+    /// study's evaluation shards): shard i begins at item i·len/n and wraps around, so the
+    /// shards score different items first instead of the same ones side by side; each
+    /// still scores every item no other has written when it gets there, and the choice does
+    /// not depend on the order. `(0, 1)`: one process.
+    pub shard: (usize, usize),
     pub progress: &'a dyn Progress,
 }
 
@@ -143,13 +149,22 @@ pub fn tune(t: &Tuning) -> Result<(BaselineSettings, String)> {
         .with_context(|| format!("cannot create {}", t.output.display()))?;
     tomograf_datasets::atomic::remove_stale_temporaries(t.output)?;
     check_job(t.output, &job)?;
-    let mut rows = Vec::new();
-    for (n, item) in items.iter().enumerate() {
+    // Each item's rows in its own slot, so the rows keep the items' order whatever order
+    // they were scored in.
+    let mut per_item: Vec<Vec<Row>> = vec![Vec::new(); items.len()];
+    let (i, shards) = t.shard;
+    let first = if shards > 1 {
+        i * items.len() / shards
+    } else {
+        0
+    };
+    for k in 0..items.len() {
+        let n = (first + k) % items.len();
+        let item = &items[n];
         let path = t.output.join("items").join(format!("{}.csv", item.id));
         if let Ok(text) = std::fs::read_to_string(&path) {
-            rows.extend(
-                parse_rows(&text, &candidates).with_context(|| path.display().to_string())?,
-            );
+            per_item[n] =
+                parse_rows(&text, &candidates).with_context(|| path.display().to_string())?;
             continue;
         }
         let mut poses = Vec::new();
@@ -209,8 +224,9 @@ pub fn tune(t: &Tuning) -> Result<(BaselineSettings, String)> {
         let text = csv(&mine);
         write_atomic(&path, |w| std::io::Write::write_all(w, text.as_bytes()))?;
         // The choice is made from the scores as written, so a resumed search makes it alike.
-        rows.extend(parse_rows(&text, &candidates)?);
+        per_item[n] = parse_rows(&text, &candidates)?;
     }
+    let rows: Vec<Row> = per_item.into_iter().flatten().collect();
     write_atomic(&t.output.join("search.csv"), |w| {
         std::io::Write::write_all(w, csv(&rows).as_bytes())
     })?;
@@ -541,6 +557,7 @@ mod tests {
             backend: None,
             grid: Grid::Full,
             output: Path::new("out"),
+            shard: (0, 1),
             progress: &Silent,
         };
         let sweeps = |sweeps, tv_step| SartTvSettings { sweeps, tv_step };
