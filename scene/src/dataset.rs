@@ -361,9 +361,6 @@ impl DatasetJob {
             if done {
                 skipped += 1;
             } else {
-                // The last item's buffers given back first: its peak and this one's do
-                // not add up, and the item's memory check sees what is really held.
-                tomograf_sim::memory::release_freed();
                 let peak = make_item(&self.settings, index, &self.sources[index], &dir)
                     .with_context(|| format!("item {index:05}"))?;
                 peak_bytes = peak_bytes.max(peak);
@@ -451,6 +448,9 @@ impl ItemScene {
     /// Item `index` of a set from `source`: loaded or generated, into the patient frame,
     /// reduced to the body, augmented and cropped as `settings` say; its views fitted.
     pub fn new(settings: &ItemSettings, index: usize, source: &ItemSource) -> Result<Self> {
+        // The last item's buffers given back first (a data set's items, the study's effects
+        // are made one after another): their peaks do not add up.
+        tomograf_sim::memory::release_freed();
         settings.validate()?;
         // The CT in HU, and what identifies it.
         let (hu, sha) = match source {

@@ -232,8 +232,6 @@ pub fn measure(study: &Study) -> Result<Vec<Effect>> {
         let (mut sprs, mut geometries) = (Vec::new(), Vec::new());
         let job = study.dataset_job("test", spec, (0, 1))?;
         for index in 0..items {
-            // Each item's phantom made from what is really held (the last one's freed).
-            tomograf_sim::memory::release_freed();
             let ([first, second], drr, geometry) = item_views(&job, index)
                 .with_context(|| format!("set '{}', item {index}", spec.name))?;
             geometries.push(geometry);

@@ -303,9 +303,6 @@ impl Study {
 
     /// Trains every model not yet trained (this shard's: model k goes to shard k mod N).
     pub fn train(&self, (i, n): (usize, usize), progress: &dyn Progress) -> Result<()> {
-        // What the last stage freed is given back before this one starts (its peak is
-        // this stage's alone).
-        tomograf_sim::memory::release_freed();
         for (k, spec) in self.train.iter().enumerate() {
             if k % n != i {
                 continue;
@@ -315,6 +312,8 @@ impl Study {
                 progress.note(&format!("train: model '{}' already trained", spec.name));
                 continue;
             }
+            // What the last stage or model freed is given back first: this model's peak is
+            // its own.
             tomograf_sim::memory::release_freed();
             let data = self.finish_data("train", spec, progress)?;
             // `--resume` continues the checkpoint when there is one (putting back one whose

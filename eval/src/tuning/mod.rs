@@ -152,12 +152,7 @@ pub fn tune(t: &Tuning) -> Result<(BaselineSettings, String)> {
     // Each item's rows in its own slot, so the rows keep the items' order whatever order
     // they were scored in.
     let mut per_item: Vec<Vec<Row>> = vec![Vec::new(); items.len()];
-    let (i, shards) = t.shard;
-    let first = if shards > 1 {
-        i * items.len() / shards
-    } else {
-        0
-    };
+    let first = t.shard.0 * items.len() / t.shard.1.max(1);
     for k in 0..items.len() {
         let n = (first + k) % items.len();
         let item = &items[n];
