@@ -16,7 +16,7 @@
 # CTs with 95 % t-intervals.
 #
 # Writes OUT/eval-demo/results.md, OUT/eval-mixed/results.md (and every CT's slice figures) and
-# OUT/populations.md, OUT/criteria.md. About 12 minutes on 2 cores after the build.
+# OUT/populations.md, OUT/tissue-stats.md (scripts/tissue_stats.py), OUT/criteria.md. About 12 minutes on 2 cores after the build.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 out=${1:-real-cts}
@@ -69,6 +69,13 @@ for x in rows("items"):
 (out / "populations.md").write_text("\n".join(lines) + "\n")
 print("\n".join(lines))
 EOF
-echo "results: $out/eval-demo/results.md, $out/eval-mixed/results.md, $out/populations.md, $out/criteria.md"
+# Per-tissue HU moments, texture and body outline: the phantoms against the CTs.
+sets=("lidc phantoms (training)=$out/train-lidc" "full-chest phantoms (training)=$out/train-fc"
+      "the real CTs=$out/items")
+for item in "$out"/items/*/; do
+    sets+=("$(python3 -c 'import json,sys,pathlib; print(pathlib.Path(json.load(open(sys.argv[1]))["source"]["path"]).name)' "$item/item.json")=$item")
+done
+"$out/venv/bin/python" scripts/tissue_stats.py "${sets[@]}" | tee "$out/tissue-stats.md"
+echo "results: $out/eval-demo/results.md, $out/eval-mixed/results.md, $out/populations.md, $out/tissue-stats.md, $out/criteria.md"
 # Issue 47's criteria, paired over the CTs.
 python3 scripts/real_ct_criteria.py "$out/eval-demo" "$out/eval-mixed" | tee "$out/criteria.md"
