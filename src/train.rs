@@ -15,9 +15,10 @@ pub struct TrainArgs {
     /// Run folder: checkpoint/, metrics.csv, loss.png.
     #[arg(short, long)]
     pub output: PathBuf,
-    /// Preset (tiny, small, paper) or a TOML file.
-    #[arg(long, default_value = "small")]
-    pub config: String,
+    /// Preset (tiny, small, paper) or a TOML file [default: small; with --init, the
+    /// checkpoint's].
+    #[arg(long, conflicts_with = "init")]
+    pub config: Option<String>,
     /// Override the configuration's iteration count.
     #[arg(long)]
     pub iterations: Option<usize>,
@@ -32,6 +33,12 @@ pub struct TrainArgs {
     /// the same command resumes a job however far it got.
     #[arg(long)]
     pub resume: bool,
+    /// Fine-tune this checkpoint on DATA instead of training fresh networks: its networks,
+    /// configuration and iteration count, new codes for DATA's items and DATA's mean volume
+    /// (docs/model.md, "Fine-tuning a checkpoint on other CTs"). --iterations counts on from
+    /// the checkpoint's; once the run folder holds a checkpoint, --resume continues it.
+    #[arg(long)]
+    pub init: Option<PathBuf>,
     /// Backend: flex (CPU, default), ndarray, cuda, wgpu (as compiled in).
     #[arg(long)]
     pub backend: Option<String>,
@@ -57,11 +64,12 @@ pub fn run(args: TrainArgs) -> Result<()> {
         &Training {
             data,
             output: &args.output,
-            config: &args.config,
+            config: args.config.as_deref().unwrap_or("small"),
             iterations: args.iterations,
             seed: args.seed,
             split: args.split.as_deref(),
             resume: args.resume,
+            init: args.init.as_deref(),
             backend: args.backend.as_deref(),
         },
         &Bar::default(),

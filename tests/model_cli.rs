@@ -226,6 +226,89 @@ fn training_does_not_depend_on_the_thread_count() {
     assert_eq!(runs[0], runs[1], "losses with 1 and 2 threads");
 }
 
+/// `train --init CHECKPOINT`: a run trained on one set carried on to another, its
+/// iteration count going on; the flags it cannot take together are refused by name.
+#[test]
+fn a_checkpoint_is_fine_tuned_on_another_set() {
+    let tmp = tempfile::tempdir().unwrap();
+    let (a, b) = (tmp.path().join("a"), tmp.path().join("b"));
+    tiny_dataset(&a);
+    ok(&tomograf(&[
+        "dataset",
+        "-o",
+        b.to_str().unwrap(),
+        "--phantoms",
+        "3",
+        "--seed",
+        "7",
+        "--size",
+        "16",
+        "--views",
+        "10",
+    ]));
+    let (run_a, run_b) = (tmp.path().join("run-a"), tmp.path().join("run-b"));
+    ok(&tomograf(&[
+        "train",
+        a.to_str().unwrap(),
+        "-o",
+        run_a.to_str().unwrap(),
+        "--config",
+        "tiny",
+        "--iterations",
+        "3",
+    ]));
+    let init = run_a.join("checkpoint");
+    let fine_tune = |extra: &[&str]| {
+        let mut args = vec![
+            "train",
+            b.to_str().unwrap(),
+            "-o",
+            run_b.to_str().unwrap(),
+            "--init",
+            init.to_str().unwrap(),
+        ];
+        args.extend_from_slice(extra);
+        tomograf(&args)
+    };
+    let out = fine_tune(&["--iterations", "3"]);
+    assert!(!out.status.success());
+    let e = String::from_utf8_lossy(&out.stderr);
+    assert!(e.contains("give --iterations beyond 3"), "{e}");
+    let out = fine_tune(&["--iterations", "5", "--config", "tiny"]);
+    assert!(!out.status.success());
+    let e = String::from_utf8_lossy(&out.stderr);
+    assert!(e.contains("--config") && e.contains("--init"), "{e}");
+
+    let out = fine_tune(&["--iterations", "5"]);
+    ok(&out);
+    let e = String::from_utf8_lossy(&out.stderr);
+    assert!(e.contains("from its iteration 3 on 3 new item(s)"), "{e}");
+    let iterations: Vec<String> = losses(&run_b)
+        .iter()
+        .map(|r| r.split(',').next().unwrap().to_string())
+        .collect();
+    assert_eq!(
+        iterations,
+        ["4", "5"],
+        "metrics go on from the checkpoint's count"
+    );
+    let codes: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(run_b.join("checkpoint/codes.json")).unwrap())
+            .unwrap();
+    assert_eq!(
+        codes["items"],
+        serde_json::json!(["00000", "00001", "00002"])
+    );
+    let config = std::fs::read_to_string(run_b.join("config.toml")).unwrap();
+    assert!(
+        config.contains("name = \"tiny\""),
+        "the checkpoint's configuration: {config}"
+    );
+    // The run folder now holds its own checkpoint: --resume continues it.
+    ok(&fine_tune(&["--resume", "--iterations", "6"]));
+    assert_eq!(losses(&run_b).len(), 3);
+}
+
 #[test]
 fn wrong_inputs_are_named() {
     let tmp = tempfile::tempdir().unwrap();

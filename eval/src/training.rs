@@ -32,6 +32,12 @@ pub struct Training<'a> {
     pub split: Option<&'a str>,
     /// Continue from the run folder's checkpoint, or start afresh when there is none yet.
     pub resume: bool,
+    /// Start from this checkpoint instead of fresh networks: fine-tune it on `data`
+    /// ([`checkpoint::load_trainer_for`]: its configuration — `config` is not read — its
+    /// networks and its iteration count, fresh codes for `data`'s items and `data`'s mean
+    /// volume). `iterations` counts on from the checkpoint's. Once the run folder holds a
+    /// checkpoint, `resume` continues that one.
+    pub init: Option<&'a Path>,
     /// Backend name (`None`: the default).
     pub backend: Option<&'a str>,
 }
@@ -69,6 +75,13 @@ pub fn train(args: &Training, progress: &dyn Progress) -> Result<()> {
     // before the items are loaded.
     let config = if resumable {
         checkpoint::read_config(&ck).with_context(|| format!("resuming from {}", ck.display()))?
+    } else if let Some(init) = args.init {
+        let mut config = checkpoint::read_config(init)
+            .with_context(|| format!("fine-tuning {}", init.display()))?;
+        if let Some(s) = args.seed {
+            config.seed = s;
+        }
+        config
     } else {
         let mut config = TrainConfig::load(args.config)?;
         if let Some(s) = args.seed {
@@ -86,12 +99,32 @@ pub fn train(args: &Training, progress: &dyn Progress) -> Result<()> {
             .with_context(|| format!("resuming from {}", ck.display()))?;
         progress.note(&format!("resuming at iteration {}", state.iteration));
         t
+    } else if let Some(init) = args.init {
+        let mean = MeanVolume::from_volumes(items.iter().filter_map(|i| i.ct.as_ref()))?;
+        let t = checkpoint::load_trainer_for(init, args.seed, mean, scale, ids, &device)
+            .with_context(|| format!("fine-tuning {}", init.display()))?;
+        progress.note(&format!(
+            "fine-tuning {} from its iteration {} on {} new item(s)",
+            init.display(),
+            t.iteration,
+            items.len()
+        ));
+        t
     } else {
         let mean = MeanVolume::from_volumes(items.iter().filter_map(|i| i.ct.as_ref()))?;
         Trainer::new(config, projection_scale(&items)?, mean, ids, &device)?
     };
     if let Some(n) = args.iterations {
         trainer.config.iterations = n;
+    }
+    if args.init.is_some() && !resumable && trainer.config.iterations <= trainer.iteration {
+        bail!(
+            "the checkpoint to fine-tune has trained {} iterations and the run stops at {}: \
+             give --iterations beyond {} (the count goes on from the checkpoint's)",
+            trainer.iteration,
+            trainer.config.iterations,
+            trainer.iteration
+        );
     }
     std::fs::create_dir_all(args.output)
         .with_context(|| format!("cannot create the output folder {}", args.output.display()))?;

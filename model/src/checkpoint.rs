@@ -301,6 +301,51 @@ pub fn load_trainer(dir: &Path, device: &Device) -> Result<(Trainer, State)> {
     Ok((t, state))
 }
 
+/// A trainer that carries a checkpoint's training on to another data set (fine-tuning):
+/// the checkpoint's configuration, projection scale, iteration count, generator and
+/// discriminators with their optimiser states; fresh codes (drawn as a new run draws them)
+/// for `item_ids`, the new set's items, with a fresh code optimiser; and `prior`, the new
+/// set's mean volume, as the field's anchor. `seed` (default: the checkpoint's) seeds the
+/// new codes and the run's sampling. The new items must share the checkpoint's density
+/// scale (HU window and energy): the generator learned in those units.
+pub fn load_trainer_for(
+    dir: &Path,
+    seed: Option<u64>,
+    prior: MeanVolume,
+    density_scale: DensityScale,
+    item_ids: Vec<String>,
+    device: &Device,
+) -> Result<Trainer> {
+    recover(dir)?;
+    let (mut config, state) = read_meta(dir)?;
+    if let Some(seed) = seed {
+        config.seed = seed;
+    }
+    ensure!(
+        state.density_scale == density_scale,
+        "{}: the checkpoint was trained on items with density scale {:?}, the new data set's \
+         are {:?} (another HU window or energy): fine-tune on items made alike",
+        dir.display(),
+        state.density_scale,
+        density_scale
+    );
+    let mut t = Trainer::new(config, state.proj_scale, prior, item_ids, device)?;
+    let p = dir.join("generator.bpk");
+    t.field = t.field.try_load_file(&p).map_err(|e| bpk_err(&p, e))?;
+    let p = dir.join("d1.bpk");
+    t.d1 = t.d1.try_load_file(&p).map_err(|e| bpk_err(&p, e))?;
+    let p = dir.join("d2.bpk");
+    t.d2 = t.d2.try_load_file(&p).map_err(|e| bpk_err(&p, e))?;
+    let p = dir.join("opt_g.bpk");
+    t.opt_g = t.opt_g.load(&p).map_err(|e| bpk_err(&p, e))?;
+    let p = dir.join("opt_d1.bpk");
+    t.opt_d1 = t.opt_d1.load(&p).map_err(|e| bpk_err(&p, e))?;
+    let p = dir.join("opt_d2.bpk");
+    t.opt_d2 = t.opt_d2.load(&p).map_err(|e| bpk_err(&p, e))?;
+    t.iteration = state.iteration;
+    Ok(t)
+}
+
 /// Loads what inference needs: the generator, its prior and the training codes.
 pub fn load_generator(dir: &Path, device: &Device) -> Result<Generator> {
     let (config, state) = read_meta(dir)?;

@@ -333,6 +333,7 @@ impl Study {
                     seed: Some(self.settings.seed),
                     split: None,
                     resume,
+                    init: None,
                     backend: self.backend.as_deref(),
                 },
                 progress,

@@ -1,0 +1,123 @@
+//! Fine-tuning a checkpoint on other items ([`checkpoint::load_trainer_for`]): the
+//! networks and their optimiser states come from the checkpoint, the codes and the mean
+//! volume from the new items, and the iteration count goes on.
+
+mod common;
+
+use tomograf_model::baseline::MeanVolume;
+use tomograf_model::checkpoint;
+use tomograf_model::config::TrainConfig;
+use tomograf_model::data::Item;
+use tomograf_model::render::DensityScale;
+use tomograf_model::train::{Trainer, projection_scale};
+
+fn device() -> burn::tensor::Device {
+    tomograf_model::backend::device("flex").unwrap()
+}
+
+fn mean_of(items: &[Item]) -> MeanVolume {
+    MeanVolume::from_volumes(items.iter().filter_map(|i| i.ct.as_ref())).unwrap()
+}
+
+fn ids(items: &[Item]) -> Vec<String> {
+    items.iter().map(|i| i.id.clone()).collect()
+}
+
+#[test]
+fn fine_tuning_starts_from_the_checkpoints_networks_with_the_new_items_codes_and_mean() {
+    let dev = device();
+    let config = TrainConfig::load("tiny").unwrap();
+    let old = vec![common::item(16, 4, 16, 0.0), common::item(16, 4, 16, -0.5)];
+    let mut new = vec![
+        common::item(16, 4, 16, 0.3),
+        common::item(16, 4, 16, 0.6),
+        common::item(16, 4, 16, -0.2),
+    ];
+    for (i, item) in new.iter_mut().enumerate() {
+        item.id = format!("new-{i}");
+    }
+    let scale = projection_scale(&old).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let ck = dir.path().join("checkpoint");
+    let mut t = Trainer::new(config.clone(), scale, mean_of(&old), ids(&old), &dev).unwrap();
+    for _ in 0..3 {
+        t.step(&old).unwrap();
+    }
+    checkpoint::save(&t, old[0].scale, &ck).unwrap();
+
+    let mut f =
+        checkpoint::load_trainer_for(&ck, None, mean_of(&new), new[0].scale, ids(&new), &dev)
+            .unwrap();
+    assert_eq!(f.iteration, 3, "the iteration count goes on");
+    assert_eq!(f.proj_scale, scale, "the checkpoint's projection scale");
+    // Saved as loaded: the networks and their optimisers are the checkpoint's, byte for
+    // byte; the codes are a fresh run's on the new items; the mean is the new items'.
+    let saved = dir.path().join("fine");
+    checkpoint::save(&f, new[0].scale, &saved).unwrap();
+    let fresh = Trainer::new(config.clone(), scale, mean_of(&new), ids(&new), &dev).unwrap();
+    let fresh_dir = dir.path().join("fresh");
+    checkpoint::save(&fresh, new[0].scale, &fresh_dir).unwrap();
+    let bytes = |d: &std::path::Path, name: &str| std::fs::read(d.join(name)).unwrap();
+    for name in [
+        "generator.bpk",
+        "d1.bpk",
+        "d2.bpk",
+        "opt_g.bpk",
+        "opt_d1.bpk",
+        "opt_d2.bpk",
+    ] {
+        assert!(
+            bytes(&saved, name) == bytes(&ck, name),
+            "{name}: not the checkpoint's"
+        );
+        assert!(
+            bytes(&saved, name) != bytes(&fresh_dir, name),
+            "{name}: a fresh run's (the test cannot tell them apart)"
+        );
+    }
+    for name in [
+        "codes.bpk",
+        "codes.json",
+        "opt_codes.bpk",
+        "mean_volume.npy",
+    ] {
+        assert!(
+            bytes(&saved, name) == bytes(&fresh_dir, name),
+            "{name}: not a fresh run's on the new items"
+        );
+    }
+    assert_eq!(
+        checkpoint::load_mean(&saved).unwrap().unwrap(),
+        mean_of(&new)
+    );
+    assert_ne!(mean_of(&new), mean_of(&old), "the test needs two means");
+    // It trains on the new items (and refuses the old ones: their codes are gone).
+    let m = f.step(&new).unwrap();
+    assert_eq!(m.iteration, 4);
+    assert!(m.loss_g.is_finite());
+    let e = f.step(&old).unwrap_err().to_string();
+    assert!(e.contains("are not the 3 items"), "{e}");
+
+    // Another seed draws other codes.
+    let seeded =
+        checkpoint::load_trainer_for(&ck, Some(99), mean_of(&new), new[0].scale, ids(&new), &dev)
+            .unwrap();
+    let seeded_dir = dir.path().join("seeded");
+    checkpoint::save(&seeded, new[0].scale, &seeded_dir).unwrap();
+    assert!(bytes(&seeded_dir, "codes.bpk") != bytes(&saved, "codes.bpk"));
+    assert!(bytes(&seeded_dir, "generator.bpk") == bytes(&ck, "generator.bpk"));
+
+    // Items in other units (another HU window) are refused, naming both scales.
+    let other = DensityScale {
+        mu_per_unit: new[0].scale.mu_per_unit * 2.0,
+        ..new[0].scale
+    };
+    let e = checkpoint::load_trainer_for(&ck, None, mean_of(&new), other, ids(&new), &dev)
+        .err()
+        .expect("another density scale is refused")
+        .to_string();
+    assert!(
+        e.contains("density scale") && e.contains("made alike"),
+        "{e}"
+    );
+}
