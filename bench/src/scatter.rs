@@ -160,8 +160,8 @@ fn rms(a: &[f64], r: &[f64]) -> f64 {
     (d / n).sqrt()
 }
 
-/// The scene: the CT, the preset, a 256² panel, 72 views every 5° (quick: 64², 4 views).
-fn scene(ct: &Path, quick: bool) -> Result<Scene> {
+/// The bench's scene: the CT, the preset, a 256² panel, 72 views every 5° (quick: 64², 4 views).
+pub fn scene(ct: &Path, quick: bool) -> Result<Scene> {
     let (px, arc) = if quick {
         (64, "0:90:4")
     } else {
@@ -384,27 +384,38 @@ pub fn section(ct: &Path, o: &ScatterOptions) -> Result<String> {
 
     // The orbit, from a fresh engine each round: set-up and detection grid included, each
     // round its own histories. The view's scatter is then also fitted in angle with its
-    // neighbours' (physics::scatter::orbit) over each window of WINDOWS_DEG.
+    // neighbours' (physics::scatter::orbit) over each window of WINDOWS_DEG. The settings
+    // are taken in turn within each round (A, B, C, A, B, C), so that their times share the
+    // machine's load; the 3500-history orbit also with the engine's analog sampling (its
+    // sampling before 2026-12-01), the ablation of the strata and the forced first collision.
     let widest = WINDOWS_DEG.iter().fold(0.0f64, |a, &b| a.max(b));
-    for model in [
-        mc(q(1_500), 8.0),
-        mc_multiple(q(3_500), 8.0, 8),
-        ScatterModel::estimate_default(),
-    ] {
-        let windows: &[f64] = if matches!(model, ScatterModel::MonteCarlo { .. }) {
+    let orbits = [
+        (mc(q(1_500), 8.0), false),
+        (mc_multiple(q(3_500), 8.0, 8), false),
+        (mc_multiple(q(3_500), 8.0, 8), true),
+        (ScatterModel::estimate_default(), false),
+    ];
+    let windows_of = |model: &ScatterModel| -> &[f64] {
+        if matches!(model, ScatterModel::MonteCarlo { .. }) {
             &WINDOWS_DEG
         } else {
             &[0.0]
-        };
-        let mut secs = Vec::new();
-        let mut errs = vec![Vec::new(); windows.len()];
-        for round in 0..o.rounds.max(1) {
+        }
+    };
+    let mut secs = vec![Vec::new(); orbits.len()];
+    let mut errs: Vec<Vec<Vec<(f64, f64)>>> = orbits
+        .iter()
+        .map(|(m, _)| vec![Vec::new(); windows_of(m).len()])
+        .collect();
+    for round in 0..o.rounds.max(1) {
+        for (i, (model, analog)) in orbits.iter().enumerate() {
             let t = Instant::now();
             let (_, engine) = prepare(&acq, &hu, seed)?;
+            let engine = engine.with_analog_sampling(*analog);
             let mut kept = Vec::new();
             for (k, v) in views.iter().enumerate() {
                 let s = engine
-                    .run(&model, v, SEED + (round * 100_000 + k) as u64)?
+                    .run(model, v, SEED + (round * 100_000 + k) as u64)?
                     .context("the model scatters nothing")?;
                 let near = k == at
                     || angle_on_orbit(&views[at], v).is_some_and(|a| a.abs() <= widest + 1e-9);
@@ -412,8 +423,8 @@ pub fn section(ct: &Path, o: &ScatterOptions) -> Result<String> {
                     kept.push((k, s));
                 }
             }
-            secs.push(t.elapsed().as_secs_f64());
-            for (w, errs) in windows.iter().zip(errs.iter_mut()) {
+            secs[i].push(t.elapsed().as_secs_f64());
+            for (w, errs) in windows_of(model).iter().zip(errs[i].iter_mut()) {
                 let parts: Vec<(f64, &ScatterImages)> = neighbours(&views, at, *w)
                     .into_iter()
                     .filter_map(|(j, wt)| kept.iter().find(|(k, _)| *k == j).map(|(_, s)| (wt, s)))
@@ -422,19 +433,26 @@ pub fn section(ct: &Path, o: &ScatterOptions) -> Result<String> {
                 errs.push((rms(&line_integrals(&img), &ref_li), rms(&img, &reference)));
             }
         }
-        let s = median(&mut secs);
+    }
+    for (i, (model, analog)) in orbits.iter().enumerate() {
+        let s = median(&mut secs[i]);
         writeln!(
             md,
-            "\nOrbit of {} views, {}: {s:.1} s with the set-up (median of {}), **{:.2} s per \
+            "\nOrbit of {} views, {}{}: {s:.1} s with the set-up (median of {}), **{:.2} s per \
              view**. View {at} against the reference, each view alone and fitted in angle with its \
              neighbours (`angular_window_deg`), mean of the rounds (the worst in brackets):\n\n\
              | angular window | views in the fit | line-integral rms | scatter rms |\n|---:|---:|---:|---:|",
             views.len(),
-            label(&model),
-            secs.len(),
+            label(model),
+            if *analog {
+                ", analog sampling (the engine before 2026-12-01)"
+            } else {
+                ""
+            },
+            secs[i].len(),
             s / views.len() as f64,
         )?;
-        for (w, e) in windows.iter().zip(&errs) {
+        for (w, e) in windows_of(model).iter().zip(&errs[i]) {
             let k = e.len() as f64;
             writeln!(
                 md,

@@ -4,7 +4,9 @@
 //! no-collision probability exp(−τ) and the distribution of the first collision's optical
 //! depth — for rays along axes, through brick corners, grazing a brick face, starting
 //! inside the volume and crossing air, lung, water and bone; the global majorant is held to
-//! the same tests.
+//! the same tests. The forced first flight (`Medium::fly_forced`) is held to the same exact
+//! path: its collision probability is 1 − exp(−τ) and its collision sits at the optical
+//! depth −ln(1 − u·P) it was given (to 1e-9, rounding of two differently ordered sums).
 //!
 //! Tolerance: |z| ≤ 4.5 for each binomial count (100 000 photons per ray: a bias of 0.7 % in
 //! a probability near ½ fails), so a correct tracker fails with probability below 1e-5 per
@@ -227,4 +229,62 @@ fn a_zero_brick_size_is_refused() {
     assert!(err.to_string().contains("brick size"), "{err}");
     let medium = Medium::new(&comp, &materials(), 150.0).unwrap();
     assert!(medium.with_majorant_bricks(Some(0)).is_err());
+}
+
+#[test]
+fn forced_collisions_sit_at_the_optical_depth_they_were_given() {
+    let medium = Medium::new(&phantom(), &materials(), 150.0).unwrap();
+    let mut scratch = Vec::new();
+    for (p, d, what) in rays() {
+        let d = d.normalize();
+        for e in [40.0, 100.0] {
+            let tau = |t: f64| -medium.transmission(&medium.paths(p, p + d * t), e).ln();
+            let tau_exit = tau(500.0);
+            let expected = -(-tau_exit).exp_m1();
+            if tau_exit == 0.0 {
+                // Air alone on the chord (the "along z" ray): nothing to force.
+                assert!(
+                    medium.fly_forced(p, d, e, 0.5, &mut scratch).is_none(),
+                    "{what}"
+                );
+                continue;
+            }
+            for u in [0.0, 0.001, 0.25, 0.5, 0.75, 0.999, 1.0 - 1e-12] {
+                let (c, p_collide) = medium
+                    .fly_forced(p, d, e, u, &mut scratch)
+                    .unwrap_or_else(|| panic!("{what}: the chord crosses matter"));
+                assert!(
+                    (p_collide - expected).abs() <= 1e-9 * expected,
+                    "{what}, {e} keV: P = {p_collide}, 1 − exp(−τ) = {expected}"
+                );
+                let t = (c.position - p).dot(d);
+                assert!(
+                    (c.position - (p + d * t)).length() < 1e-9,
+                    "{what}: off the ray"
+                );
+                let want = -(-u * expected).ln_1p();
+                assert!(
+                    (tau(t) - want).abs() <= 1e-9 * (1.0 + tau_exit),
+                    "{what}, {e} keV, u = {u}: τ at the collision {} against {want}",
+                    tau(t)
+                );
+                assert_eq!(c.energy_kev, e);
+                let sum = c.p_photo + c.p_compton + c.p_rayleigh;
+                assert!((sum - 1.0).abs() < 1e-12 && c.p_compton > 0.0);
+            }
+        }
+    }
+    // No matter on the chord, or no chord: no collision to force.
+    let air = DVec3::new(-20.0, -60.0, 0.5);
+    assert!(
+        medium
+            .fly_forced(air, DVec3::Y, 60.0, 0.5, &mut scratch)
+            .is_none()
+    );
+    let miss = DVec3::new(0.0, 0.0, 100.0);
+    assert!(
+        medium
+            .fly_forced(miss, DVec3::X, 60.0, 0.5, &mut scratch)
+            .is_none()
+    );
 }

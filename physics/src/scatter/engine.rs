@@ -21,6 +21,7 @@ use super::anti_scatter_grid::{AntiScatterGrid, GridTransmission};
 use super::detection_grid::DetectionGrid;
 use super::estimate::smooth;
 use super::estimator::{Component, Response, ScoreGrid, Tally, score, to_image};
+use super::strata::Strata;
 use super::transport::{E_CUTOFF_KEV, Medium};
 use super::{MAX_GRID, MAX_PHOTONS, ScatterModel};
 use crate::detector::ExpectedImage;
@@ -65,6 +66,9 @@ pub struct ScatterEngine {
     /// Detection grids made so far, by cell size (mm, as bits): made once per volume and
     /// shared by every view that asks for the same size.
     detection: Arc<Mutex<DetectionGrids>>,
+    /// Histories start with independent draws and an analog first flight (the engine before
+    /// 2026-12-01), for ablations: [`ScatterEngine::with_analog_sampling`].
+    analog: bool,
 }
 
 /// Scatter images of one view: expected detector signal, same layout and units as the
@@ -151,7 +155,18 @@ impl ScatterEngine {
             mas,
             anti_scatter: None,
             detection: Arc::default(),
+            analog: false,
         })
+    }
+
+    /// The same engine sampling as it did before 2026-12-01, for ablations (`true`): each
+    /// history's pixel, energy and first flight drawn independently and the first flight
+    /// analog (Woodcock; photons may leave uncollided), instead of the default Latin
+    /// hypercube strata ([`super::strata`]) and forced first collision
+    /// ([`Medium::fly_forced`]). Both are unbiased; docs/scatter.md measures the variance.
+    pub fn with_analog_sampling(mut self, analog: bool) -> Self {
+        self.analog = analog;
+        self
     }
 
     /// The same engine with an anti-scatter grid in front of the detector (`None`: none).
@@ -335,14 +350,23 @@ impl ScatterEngine {
                 let mut rng = ChaCha8Rng::seed_from_u64(frame_seed(seed, b));
                 let mut tally = Tally::new(channels, sgrid.len());
                 let mut mtally = mgrid.as_ref().map(|g| Tally::new(channels, g.len()));
-                let n = BATCH.min(photons - b * BATCH);
-                for _ in 0..n {
-                    let u = rng.random::<f64>() * f_tot;
+                let n = BATCH.min(photons - b * BATCH) as usize;
+                // Latin hypercube over the batch: each of the pixel, the energy and the
+                // depth of the first collision draws from its own stratum of [0, 1).
+                let strata = (!self.analog).then(|| Strata::new(n, &mut rng));
+                let mut segments = Vec::new();
+                for j in 0..n {
+                    let [u_pixel, u_energy, u_depth] = match &strata {
+                        Some(s) => s.draw(j, &mut rng),
+                        // No first-collision depth: the first flight is analog.
+                        None => [rng.random(), rng.random(), f64::NAN],
+                    };
+                    let u = u_pixel * f_tot;
                     let p = pix_cdf.partition_point(|&c| c <= u).min(pix_cdf.len() - 1);
                     let (r, c) = ((p / aim.cols) as f64, (p % aim.cols) as f64);
                     let target = aim
                         .pixel_centre(r + rng.random::<f64>() - 0.5, c + rng.random::<f64>() - 0.5);
-                    let u = rng.random::<f64>() * n_tot;
+                    let u = u_energy * n_tot;
                     let k = self
                         .cdf
                         .partition_point(|&c| c <= u)
@@ -357,6 +381,7 @@ impl ScatterEngine {
                         (&sgrid, &mut tally),
                         mgrid.as_ref().zip(mtally.as_mut()),
                         detection,
+                        (u_depth, &mut segments),
                         &mut rng,
                     );
                 }
@@ -438,7 +463,9 @@ impl ScatterEngine {
         })
     }
 
-    /// One history with forced detection at each collision.
+    /// One history with forced detection at each collision; its first collision forced
+    /// ([`Medium::fly_forced`]) at the depth drawn from `first.0` (`first.1`: scratch),
+    /// unless the engine samples analog; later flights analog.
     #[allow(clippy::too_many_arguments)]
     fn history<R: Rng>(
         &self,
@@ -450,13 +477,25 @@ impl ScatterEngine {
         single: (&ScoreGrid, &mut Tally),
         mut multiple: Option<(&ScoreGrid, &mut Tally)>,
         detection: Option<&DetectionGrid>,
+        first: (f64, &mut Vec<(usize, f64)>),
         rng: &mut R,
     ) {
         let (sgrid, stally) = single;
         let mut w = w0;
         let mut order = 0;
+        let (u_depth, segments) = first;
         while order < max_order {
-            let Some(c) = self.medium.fly(p, d, e, rng) else {
+            let flight = if order == 0 && !self.analog {
+                self.medium
+                    .fly_forced(p, d, e, u_depth, segments)
+                    .map(|(c, p_collide)| {
+                        w *= p_collide;
+                        c
+                    })
+            } else {
+                self.medium.fly(p, d, e, rng)
+            };
+            let Some(c) = flight else {
                 return;
             };
             // The first collision scores the single-scatter images, later ones the multiple.

@@ -9,6 +9,8 @@
 //! * [`transport`] — Woodcock tracking and interaction sampling in the voxel composition;
 //! * [`estimator`] — the point-detector (forced detection) estimator on a coarse grid;
 //! * [`engine`] — photons from the source, batches, seeds, the separate images;
+//! * [`strata`] — Latin hypercube strata of a batch's pixels, energies and first-collision
+//!   depths (the first collision forced: [`transport::Medium::fly_forced`]);
 //! * [`orbit`] — each view's scatter fitted in gantry angle with its neighbours';
 //! * [`field`] — a point source collimated to a rectangular field;
 //! * [`region`] — analytic scoring regions (boxes, cylinders);
@@ -33,6 +35,7 @@ pub mod interaction_table;
 pub mod majorant;
 pub mod orbit;
 pub mod region;
+pub mod strata;
 pub mod transport;
 
 pub use anti_scatter_grid::AntiScatterGrid;

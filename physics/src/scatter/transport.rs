@@ -268,19 +268,89 @@ impl Medium {
             None => self.fly_global(&g, e, at, rng),
             Some(grid) => self.fly_bricks(grid, &g, e, at, rng),
         }?;
+        Some(self.collision(p + d * t, e, m))
+    }
+
+    /// Forced collision for a flight from `p` along unit `d` at `e` keV: the photon is made
+    /// to collide inside the volume, at the optical depth τ* = −ln(1 − u·P) for the uniform
+    /// `u` ∈ [0, 1) the caller draws (so that it may stratify it), where P = 1 − e^(−τ) is
+    /// the probability that the flight collides at all (τ: the optical depth of the whole
+    /// chord, traced exactly through the voxels). Returns the collision and P, the weight
+    /// the photon must carry on: the expected score of the flight is P × the expected score
+    /// at a collision drawn this way, so the estimate stays unbiased while the depth of the
+    /// collision — the main source of variance of a forced-detection score (a site near the
+    /// exit scores e^τ times one near the entrance) — no longer comes from an analog draw
+    /// and the flights that would leave the volume without colliding no longer score
+    /// nothing. `None` when the chord misses the volume or crosses no matter. `segments` is
+    /// scratch space (the chord's voxels), reused between calls.
+    pub fn fly_forced(
+        &self,
+        p: DVec3,
+        d: DVec3,
+        e: f64,
+        u: f64,
+        segments: &mut Vec<(usize, f64)>,
+    ) -> Option<(Collision, f64)> {
+        let ray = Ray {
+            origin: p,
+            direction: d,
+            t_min: 0.0,
+            t_max: f64::INFINITY,
+        };
+        let packed = self.composition.packed();
+        let g = GridRay::clip(packed, &ray)?;
+        segments.clear();
+        siddon::trace(packed.dims(), &g, &mut SegmentList(segments));
+        let at = self.knots.locate(e);
+        let data = packed.data();
+        // μ (mm⁻¹) of a voxel; zero for empty voxels.
+        let mu = |v: usize| {
+            let (rho, m) = unpack(data[v]);
+            (self.table(m, at, TOTAL) * f64::from(rho) / 10.0, m)
+        };
+        let tau: f64 = segments.iter().map(|&(v, l)| mu(v).0 * l).sum();
+        if tau.is_nan() || tau <= 0.0 {
+            return None;
+        }
+        let p_collide = -(-tau).exp_m1();
+        // Never past the chord's own depth (rounding of the sums).
+        let target = (-(-u * p_collide).ln_1p()).min(tau);
+        let mut depth = 0.0;
+        let mut t = g.t_enter.max(0.0);
+        let mut last = None;
+        for &(v, l) in segments.iter() {
+            let (mu_v, m) = mu(v);
+            if mu_v > 0.0 {
+                last = Some((t + l, m));
+                if depth + mu_v * l >= target {
+                    let s = ((target - depth) / mu_v).clamp(0.0, l);
+                    return Some((self.collision(p + d * (t + s), e, m), p_collide));
+                }
+                depth += mu_v * l;
+            }
+            t += l;
+        }
+        // Rounding left the target a hair beyond the summed depth: the chord's last matter.
+        let (t, m) = last?;
+        Some((self.collision(p + d * t, e, m), p_collide))
+    }
+
+    /// The collision at `position` in material `m` at `e` keV.
+    fn collision(&self, position: DVec3, e: f64, m: usize) -> Collision {
+        let at = self.knots.locate(e);
         let tot = self.table(m, at, TOTAL);
         let (pe, inc) = (
             self.table(m, at, PHOTOELECTRIC),
             self.table(m, at, INCOHERENT),
         );
-        Some(Collision {
-            position: p + d * t,
+        Collision {
+            position,
             energy_kev: e,
             material: m,
             p_photo: pe / tot,
             p_compton: inc / tot,
             p_rayleigh: 1.0 - (pe + inc) / tot,
-        })
+        }
     }
 
     /// Woodcock tracking with the global majorant: the parameter of the real collision and
@@ -453,6 +523,18 @@ impl Medium {
             p = c.position;
             d = nd;
             e = ne;
+        }
+    }
+}
+
+/// Records a chord's `(voxel, length_mm)` pairs in order ([`Medium::fly_forced`]).
+struct SegmentList<'a>(&'a mut Vec<(usize, f64)>);
+
+impl tomograf_sim::trace::PathAccumulator for SegmentList<'_> {
+    #[inline]
+    fn segment(&mut self, voxel: usize, length_mm: f64) {
+        if length_mm > 0.0 {
+            self.0.push((voxel, length_mm));
         }
     }
 }
