@@ -278,15 +278,25 @@ pub fn load_trainer(dir: &Path, device: &Device) -> Result<(Trainer, State)> {
     let (config, state) = read_meta(dir)?;
     let mean = require_mean(dir)?;
     let codes = read_codes(dir)?;
-    let mut t = Trainer::new(config, state.proj_scale, mean, codes.items, device)?;
-    let p = dir.join("generator.bpk");
-    t.field = t.field.try_load_file(&p).map_err(|e| bpk_err(&p, e))?;
+    let mut t = load_networks(
+        Trainer::new(config, state.proj_scale, mean, codes.items, device)?,
+        dir,
+    )?;
     if let Some(table) = t.codes.take() {
         let p = dir.join("codes.bpk");
         t.codes = Some(table.try_load_file(&p).map_err(|e| bpk_err(&p, e))?);
         let p = dir.join("opt_codes.bpk");
         t.opt_codes = t.opt_codes.load(&p).map_err(|e| bpk_err(&p, e))?;
     }
+    t.iteration = state.iteration;
+    Ok((t, state))
+}
+
+/// Puts a checkpoint's generator and discriminators, with their optimiser states, into `t`
+/// (what [`load_trainer`] and [`load_trainer_for`] share; the codes are each one's own).
+fn load_networks(mut t: Trainer, dir: &Path) -> Result<Trainer> {
+    let p = dir.join("generator.bpk");
+    t.field = t.field.try_load_file(&p).map_err(|e| bpk_err(&p, e))?;
     let p = dir.join("d1.bpk");
     t.d1 = t.d1.try_load_file(&p).map_err(|e| bpk_err(&p, e))?;
     let p = dir.join("d2.bpk");
@@ -297,8 +307,7 @@ pub fn load_trainer(dir: &Path, device: &Device) -> Result<(Trainer, State)> {
     t.opt_d1 = t.opt_d1.load(&p).map_err(|e| bpk_err(&p, e))?;
     let p = dir.join("opt_d2.bpk");
     t.opt_d2 = t.opt_d2.load(&p).map_err(|e| bpk_err(&p, e))?;
-    t.iteration = state.iteration;
-    Ok((t, state))
+    Ok(t)
 }
 
 /// A trainer that carries a checkpoint's training on to another data set (fine-tuning):
@@ -329,19 +338,10 @@ pub fn load_trainer_for(
         state.density_scale,
         density_scale
     );
-    let mut t = Trainer::new(config, state.proj_scale, prior, item_ids, device)?;
-    let p = dir.join("generator.bpk");
-    t.field = t.field.try_load_file(&p).map_err(|e| bpk_err(&p, e))?;
-    let p = dir.join("d1.bpk");
-    t.d1 = t.d1.try_load_file(&p).map_err(|e| bpk_err(&p, e))?;
-    let p = dir.join("d2.bpk");
-    t.d2 = t.d2.try_load_file(&p).map_err(|e| bpk_err(&p, e))?;
-    let p = dir.join("opt_g.bpk");
-    t.opt_g = t.opt_g.load(&p).map_err(|e| bpk_err(&p, e))?;
-    let p = dir.join("opt_d1.bpk");
-    t.opt_d1 = t.opt_d1.load(&p).map_err(|e| bpk_err(&p, e))?;
-    let p = dir.join("opt_d2.bpk");
-    t.opt_d2 = t.opt_d2.load(&p).map_err(|e| bpk_err(&p, e))?;
+    let mut t = load_networks(
+        Trainer::new(config, state.proj_scale, prior, item_ids, device)?,
+        dir,
+    )?;
     t.iteration = state.iteration;
     Ok(t)
 }
