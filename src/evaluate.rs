@@ -117,6 +117,7 @@ pub fn run(args: EvaluateArgs) -> Result<()> {
         scatter_prior_data: args.scatter_prior_data.as_deref(),
         progress: &bar,
         all_figures: args.all_figures,
+        replace: false,
     };
     let made = evaluate(&e)?;
     if shard.1 > 1 {

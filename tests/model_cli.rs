@@ -307,6 +307,40 @@ fn a_checkpoint_is_fine_tuned_on_another_set() {
     // The run folder now holds its own checkpoint: --resume continues it.
     ok(&fine_tune(&["--resume", "--iterations", "6"]));
     assert_eq!(losses(&run_b).len(), 3);
+
+    // An evaluation folder holds one checkpoint's scores: the fine-tuned checkpoint is
+    // refused there, by name, and so is the resumed one in the same folder.
+    let eval = tmp.path().join("eval");
+    let evaluate = |ck: &Path, eval: &Path| {
+        tomograf(&[
+            "evaluate",
+            b.to_str().unwrap(),
+            "--checkpoint",
+            ck.to_str().unwrap(),
+            "--views",
+            "1",
+            "--iterations",
+            "1",
+            "--items",
+            "1",
+            "--no-baselines",
+            "-o",
+            eval.to_str().unwrap(),
+        ])
+    };
+    ok(&evaluate(&init, &eval));
+    ok(&evaluate(&init, &eval));
+    let tuned = run_b.join("checkpoint");
+    let refused = |out: std::process::Output| {
+        assert!(!out.status.success());
+        let e = String::from_utf8_lossy(&out.stderr);
+        assert!(e.contains("(another checkpoint)"), "{e}");
+    };
+    refused(evaluate(&tuned, &eval));
+    let eval_b = tmp.path().join("eval-b");
+    ok(&evaluate(&tuned, &eval_b));
+    ok(&fine_tune(&["--resume", "--iterations", "7"]));
+    refused(evaluate(&tuned, &eval_b));
 }
 
 #[test]

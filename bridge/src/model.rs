@@ -174,6 +174,7 @@ pub fn evaluate<'py>(
             scatter_prior_data: None,
             progress: &reporter,
             all_figures,
+            replace: false,
         })?;
         merge(&output, false)
     });

@@ -131,6 +131,7 @@ pub fn demo(d: &Demo, progress: &dyn Progress) -> Result<String> {
         scatter_prior_data: None,
         progress,
         all_figures: false,
+        replace: true,
     })?;
     let (md, _) = merge(&d.output, false)?;
     progress.note(&format!(

@@ -85,6 +85,16 @@ pub struct Job {
     /// set's CTs (absent: not, and in folders written before they were).
     #[serde(default, skip_serializing_if = "std::ops::Not::not")]
     pub data_mean: bool,
+    /// SHA-256 of what inference reads from the checkpoint
+    /// ([`checkpoint::fingerprint`]): scores of one checkpoint are never taken for
+    /// another's, whatever its folder is called (absent without a checkpoint).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub checkpoint_sha256: Option<String>,
+    /// SHA-256 of the scored items' `item.json` files in order: another data set whose item
+    /// ids are the same is not taken for this one (absent only in folders written before it
+    /// was recorded, which are refused).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub items_sha256: Option<String>,
 }
 
 fn is_none(c: &ScatterCorrection) -> bool {
@@ -139,6 +149,9 @@ pub struct Evaluation<'a> {
     pub progress: &'a dyn Progress,
     /// Figures and the reconstruction for every item scored, not only the data set's first.
     pub all_figures: bool,
+    /// A folder holding another evaluation's scores has them removed and re-scored, not
+    /// refused (the demo, whose output folder is its own).
+    pub replace: bool,
 }
 
 /// Scores this shard's items not yet scored under `e.output/items/`; returns how many it
@@ -149,7 +162,7 @@ pub fn evaluate(e: &Evaluation) -> Result<usize> {
     let items = load_items(e.data, e.split, e.items, e.views)?;
     let device = backend::device(e.backend.unwrap_or(backend::default_name()))?;
     let job = Job {
-        items: items.iter().map(|i| i.id.clone()).collect(),
+        items: job_ids(&items),
         views: e.views.to_vec(),
         model: e.checkpoint.is_some(),
         classical: e.classical,
@@ -163,6 +176,13 @@ pub fn evaluate(e: &Evaluation) -> Result<usize> {
         scatter_correction: e.scatter_correction,
         baselines: e.baselines.cloned(),
         data_mean: e.checkpoint.is_none() && e.train_data.is_some(),
+        checkpoint_sha256: e
+            .checkpoint
+            .map(|ck| {
+                checkpoint::fingerprint(ck).with_context(|| format!("checkpoint {}", ck.display()))
+            })
+            .transpose()?,
+        items_sha256: Some(items_fingerprint(e.data, &job_ids(&items))?),
     };
     if let Some(b) = e.baselines {
         for &count in e.views {
@@ -202,7 +222,7 @@ pub fn evaluate(e: &Evaluation) -> Result<usize> {
     std::fs::create_dir_all(e.output.join("items"))
         .with_context(|| format!("cannot create {}", e.output.display()))?;
     tomograf_datasets::atomic::remove_stale_temporaries(e.output)?;
-    check_job(e.output, &job)?;
+    check_job(e.output, &job, e.replace, e.progress)?;
     // The PCA-MAP prior of the training set's CTs, and without a checkpoint their mean (the
     // mean volume and SART-TV from it are then scored from it: the baselines alone).
     let (pca, data_mean) = match e.train_data {
@@ -420,25 +440,87 @@ fn item_path(output: &Path, id: &str) -> PathBuf {
     output.join("items").join(format!("{id}.csv"))
 }
 
+fn job_ids(items: &[Item]) -> Vec<String> {
+    items.iter().map(|i| i.id.clone()).collect()
+}
+
+/// SHA-256 (hex) of the items' `item.json` files under `data`, in `ids`' order.
+fn items_fingerprint(data: &Path, ids: &[String]) -> Result<String> {
+    use sha2::{Digest, Sha256};
+    let mut h = Sha256::new();
+    for id in ids {
+        let p = data.join(id).join("item.json");
+        let bytes = std::fs::read(&p).with_context(|| format!("cannot read {}", p.display()))?;
+        h.update(id.as_bytes());
+        h.update((bytes.len() as u64).to_le_bytes());
+        h.update(&bytes);
+    }
+    Ok(h.finalize().iter().map(|b| format!("{b:02x}")).collect())
+}
+
 /// Writes `job.json`, or checks that the one already there asks for the same evaluation.
-fn check_job(output: &Path, job: &Job) -> Result<()> {
+/// A folder holding another evaluation's scores is refused, naming what differs; with
+/// `replace` (the demo, whose folder is its own) its scores are removed instead.
+fn check_job(output: &Path, job: &Job, replace: bool, progress: &dyn Progress) -> Result<()> {
     let path = output.join("job.json");
     if let Ok(bytes) = std::fs::read(&path) {
         let old: Job = serde_json::from_slice(&bytes)
             .with_context(|| format!("{} is not an evaluation's job.json", path.display()))?;
-        if old != *job {
+        if old == *job {
+            return Ok(());
+        }
+        let why = job_difference(&old, job);
+        if !replace {
             bail!(
-                "{} holds results of another evaluation (other items, views, methods, seed or \
-                 inference settings); choose another --output or remove it",
+                "{} holds results of another evaluation ({why}); choose another --output or \
+                 remove it",
                 output.display()
             );
         }
-        return Ok(());
+        progress.note(&format!(
+            "{} held results of another evaluation ({why}): they are removed and re-scored",
+            output.display()
+        ));
+        let items = output.join("items");
+        std::fs::remove_dir_all(&items)
+            .with_context(|| format!("cannot remove {}", items.display()))?;
+        std::fs::create_dir_all(&items)
+            .with_context(|| format!("cannot create {}", items.display()))?;
     }
     Ok(tomograf_datasets::atomic::write_json(
         &path,
         &serde_json::to_value(job)?,
     )?)
+}
+
+/// What differs between two jobs, in words: the fields by name, or that the old one was
+/// written before checkpoints and items were recorded.
+fn job_difference(old: &Job, new: &Job) -> String {
+    if old.items_sha256.is_none() {
+        return "written before evaluations recorded their checkpoint and items, so its \
+                scores cannot be told to be this checkpoint's"
+            .into();
+    }
+    let (a, b) = (
+        serde_json::to_value(old).unwrap_or_default(),
+        serde_json::to_value(new).unwrap_or_default(),
+    );
+    let (Some(a), Some(b)) = (a.as_object(), b.as_object()) else {
+        return "other settings".into();
+    };
+    let mut keys: Vec<&String> = a.keys().chain(b.keys()).collect();
+    keys.sort();
+    keys.dedup();
+    let names: Vec<String> = keys
+        .into_iter()
+        .filter(|k| a.get(*k) != b.get(*k))
+        .map(|k| match k.as_str() {
+            "checkpoint_sha256" => "another checkpoint".to_string(),
+            "items_sha256" => "other items' contents".to_string(),
+            k => format!("other {}", k.replace('_', " ")),
+        })
+        .collect();
+    names.join(", ")
 }
 
 fn write_rows(path: &Path, rows: &[Row]) -> Result<()> {
@@ -652,6 +734,79 @@ fn paired_table(rows: &[Row]) -> Option<String> {
 mod tests {
     use super::*;
     use tomograf_model::metrics::Scores;
+
+    fn job(checkpoint: &str, items: &str) -> Job {
+        Job {
+            items: vec!["00000".into()],
+            views: vec![1],
+            model: true,
+            classical: false,
+            seed: 0,
+            iterations: None,
+            tune: None,
+            psnr_threshold: None,
+            refine_iterations: None,
+            refine_tv_step: None,
+            pca: None,
+            scatter_correction: ScatterCorrection::None,
+            baselines: None,
+            data_mean: false,
+            checkpoint_sha256: Some(checkpoint.into()),
+            items_sha256: Some(items.into()),
+        }
+    }
+
+    /// A folder scored with one checkpoint (or items) is refused to another, naming what
+    /// differs; a folder written before checkpoints were recorded is refused as such; with
+    /// `replace` the old scores go and the new job is written.
+    #[test]
+    fn scores_of_another_checkpoint_are_never_reused() {
+        let tmp = tempfile::tempdir().unwrap();
+        let out = tmp.path();
+        std::fs::create_dir_all(out.join("items")).unwrap();
+        let silent = &tomograf_scene::Silent;
+        check_job(out, &job("aa", "11"), false, silent).unwrap();
+        std::fs::write(out.join("items/00000.csv"), "old scores").unwrap();
+        check_job(out, &job("aa", "11"), false, silent).unwrap();
+        assert!(out.join("items/00000.csv").exists(), "the same job resumes");
+
+        let e = check_job(out, &job("bb", "11"), false, silent).unwrap_err();
+        assert!(format!("{e:#}").contains("(another checkpoint)"), "{e:#}");
+        let e = check_job(out, &job("aa", "22"), false, silent).unwrap_err();
+        assert!(
+            format!("{e:#}").contains("(other items' contents)"),
+            "{e:#}"
+        );
+        let mut other = job("aa", "11");
+        other.views = vec![2];
+        other.seed = 3;
+        let e = check_job(out, &other, false, silent).unwrap_err();
+        assert!(
+            format!("{e:#}").contains("(other seed, other views)"),
+            "{e:#}"
+        );
+        assert!(
+            out.join("items/00000.csv").exists(),
+            "a refusal removes nothing"
+        );
+
+        // A job.json from before the fields existed.
+        let mut old = serde_json::to_value(job("aa", "11")).unwrap();
+        let o = old.as_object_mut().unwrap();
+        o.remove("checkpoint_sha256");
+        o.remove("items_sha256");
+        std::fs::write(out.join("job.json"), old.to_string()).unwrap();
+        let e = check_job(out, &job("aa", "11"), false, silent).unwrap_err();
+        assert!(format!("{e:#}").contains("written before"), "{e:#}");
+
+        check_job(out, &job("bb", "11"), true, silent).unwrap();
+        assert!(
+            !out.join("items/00000.csv").exists(),
+            "replaced scores are removed"
+        );
+        assert!(out.join("items").is_dir());
+        check_job(out, &job("bb", "11"), false, silent).unwrap();
+    }
 
     /// One row written at both precisions: the bytes the two writers this replaced gave
     /// (their format strings, `{:.6},{:.6},{:.4},{},{:.3},{:.6},{:.6},{:.4}` and

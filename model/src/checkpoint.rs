@@ -20,6 +20,7 @@ use crate::train::Trainer;
 use burn::module::Module;
 use burn::tensor::Device;
 use serde::{Deserialize, Serialize};
+use sha2::{Digest, Sha256};
 use std::path::Path;
 
 /// What `state.json` holds.
@@ -371,6 +372,31 @@ pub fn load_generator(dir: &Path, device: &Device) -> Result<Generator> {
         prior,
         codes,
     })
+}
+
+/// The files inference reads from a checkpoint, in the order [`fingerprint`] hashes them.
+pub const INFERENCE_FILES: [&str; 5] = [
+    "config.toml",
+    "state.json",
+    "mean_volume.npy",
+    "codes.json",
+    "generator.bpk",
+];
+
+/// SHA-256 (hex) of what inference reads from the checkpoint in `dir` ([`INFERENCE_FILES`],
+/// each hashed with its name and length): two checkpoints that reconstruct alike share it,
+/// whatever their folders are called; a resumed or fine-tuned one does not. An evaluation
+/// records it so that scores of one checkpoint are never taken for another's.
+pub fn fingerprint(dir: &Path) -> Result<String> {
+    let mut h = Sha256::new();
+    for name in INFERENCE_FILES {
+        let p = dir.join(name);
+        let bytes = std::fs::read(&p).map_err(|e| err(&p, e))?;
+        h.update(name.as_bytes());
+        h.update((bytes.len() as u64).to_le_bytes());
+        h.update(&bytes);
+    }
+    Ok(h.finalize().iter().map(|b| format!("{b:02x}")).collect())
 }
 
 /// The mean training volume stored with a checkpoint, if any.

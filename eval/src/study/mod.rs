@@ -399,6 +399,7 @@ impl Study {
                     scatter_prior_data: prior_data.as_deref(),
                     progress: &Silent,
                     all_figures: false,
+                    replace: false,
                 })?;
             }
         }

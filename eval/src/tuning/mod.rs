@@ -100,6 +100,11 @@ struct Job {
     /// The checkpoint whose sweeps were searched, and its inference seed.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     checkpoint: Option<(PathBuf, u64)>,
+    /// SHA-256 of what inference reads from that checkpoint
+    /// ([`checkpoint::fingerprint`]): a retrained checkpoint in the same folder is another
+    /// search (absent without a checkpoint, and in folders written before it was recorded).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    checkpoint_sha256: Option<String>,
 }
 
 fn is_none(c: &ScatterCorrection) -> bool {
@@ -144,6 +149,12 @@ pub fn tune(t: &Tuning) -> Result<(BaselineSettings, String)> {
             .collect(),
         scatter_correction: t.scatter_correction,
         checkpoint: t.checkpoint.map(|c| (c.to_path_buf(), t.seed)),
+        checkpoint_sha256: t
+            .checkpoint
+            .map(|ck| {
+                checkpoint::fingerprint(ck).with_context(|| format!("checkpoint {}", ck.display()))
+            })
+            .transpose()?,
     };
     std::fs::create_dir_all(t.output.join("items"))
         .with_context(|| format!("cannot create {}", t.output.display()))?;
@@ -521,8 +532,8 @@ fn check_job(output: &Path, job: &Job) -> Result<()> {
             .with_context(|| format!("{} is not a tuning's job.json", path.display()))?;
         if old != *job {
             bail!(
-                "{} holds another search (other data, items, views or grid); choose another \
-                 --output or remove it",
+                "{} holds another search (other data, items, views, grid or checkpoint); \
+                 choose another --output or remove it",
                 output.display()
             );
         }
