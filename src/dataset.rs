@@ -39,6 +39,11 @@ pub struct DatasetArgs {
     /// Give the phantoms a pacemaker with leads.
     #[arg(long)]
     pub pacemaker: bool,
+    /// Make the phantoms' soft tissue heterogeneous as a real CT's: a spatially correlated
+    /// texture (16 mm lattice) of this standard deviation, HU, in muscle, organs, blood and
+    /// myocardium; 0: none (docs/datasets.md, "Soft-tissue heterogeneity").
+    #[arg(long, default_value_t = 0.0)]
+    pub heterogeneity: f64,
     /// Projections per full rotation (every 360/views degrees), besides AP and lateral.
     #[arg(long, default_value_t = 72)]
     pub views: usize,
@@ -153,13 +158,16 @@ pub fn job(args: &DatasetArgs) -> Result<DatasetJob> {
         .map(|path| ItemSource::File { path })
         .collect();
     let profile = Profile::parse(&args.profile)?;
+    let h = args.heterogeneity;
+    if !(h.is_finite() && (0.0..=200.0).contains(&h)) {
+        bail!("--heterogeneity {h} HU is outside 0–200 HU");
+    }
     tomograf_scene::dataset::check_phantom_count(args.seed, args.phantoms)
         .map_err(|e| anyhow::anyhow!("--phantoms / --seed: {e}"))?;
-    sources.extend(
-        (0..args.phantoms).map(|n| {
-            ItemSource::phantom(args.seed + n as u64, profile, args.table, args.pacemaker)
-        }),
-    );
+    sources.extend((0..args.phantoms).map(|n| {
+        ItemSource::phantom(args.seed + n as u64, profile, args.table, args.pacemaker)
+            .with_heterogeneity(args.heterogeneity)
+    }));
     if sources.is_empty() {
         bail!("nothing to do: give CT inputs or --phantoms N");
     }

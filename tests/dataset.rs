@@ -128,6 +128,10 @@ fn bad_arguments_are_clear_errors() {
         (vec!["--phantoms", "1", "--hu-window", "100,-100"], "window"),
         (vec![], "nothing to do"),
         (vec!["/nonexistent/ct.nii.gz"], "ct.nii.gz"),
+        (
+            vec!["--phantoms", "1", "--heterogeneity", "-3"],
+            "--heterogeneity -3 HU",
+        ),
     ] {
         let mut args = vec!["dataset", "-o", d];
         args.extend(extra.iter().copied());

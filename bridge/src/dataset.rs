@@ -30,12 +30,14 @@ use tomograf_scene::dataset::{ItemSettings, ItemSource, make_item as make};
 /// signal with noise seeded from the seed and ``index``. Distances in mm, HU for the
 /// window and ``crop_hu``. A CT is brought into the patient frame (LPS: ``i`` left, ``j``
 /// posterior, ``k`` superior) and everything but its body — couch, padding, stray voxels —
-/// is set to air before the crop, unless ``keep_table``. Returns the item folder.
+/// is set to air before the crop, unless ``keep_table``. ``heterogeneity_hu`` gives a
+/// phantom's soft tissue a correlated texture of that standard deviation (HU), as
+/// ``tomograf dataset --heterogeneity``. Returns the item folder.
 #[pyfunction]
 #[pyo3(signature = (output, *, ct=None, phantom_seed=None, profile="lidc", table=false,
     pacemaker=false, index=0, views=72, size=128, hu_window=(-1024.0, 2048.0),
     crop_hu=-900.0, energy_kev=60.0, sad_mm=1000.0, sid_mm=1500.0, split="train",
-    physics=None, keep_table=false))]
+    physics=None, keep_table=false, heterogeneity_hu=0.0))]
 #[allow(clippy::too_many_arguments)]
 pub fn make_item(
     py: Python<'_>,
@@ -56,6 +58,7 @@ pub fn make_item(
     split: &str,
     physics: Option<&Bound<'_, PyDict>>,
     keep_table: bool,
+    heterogeneity_hu: f64,
 ) -> PyResult<PathBuf> {
     let source = match (ct, phantom_seed) {
         (Some(path), None) => {
@@ -70,6 +73,7 @@ pub fn make_item(
         (None, Some(seed)) => {
             let profile = Profile::parse(profile).map_err(errors::dataset)?;
             ItemSource::phantom(seed, profile, table, pacemaker)
+                .with_heterogeneity(heterogeneity_hu)
         }
         _ => {
             return Err(errors::value(

@@ -166,6 +166,16 @@ impl ItemSource {
         spec.pacemaker = pacemaker;
         ItemSource::Phantom { spec }
     }
+
+    /// The same source with a phantom's soft tissue made heterogeneous: a correlated
+    /// texture of `hu` HU standard deviation ([`anatomy::heterogeneity`]); a CT file is
+    /// left as it is.
+    pub fn with_heterogeneity(mut self, hu: f64) -> Self {
+        if let ItemSource::Phantom { spec } = &mut self {
+            spec.heterogeneity_hu = hu;
+        }
+        self
+    }
 }
 
 /// Inputs expanded: files as given; a folder with DICOM files is one series, any other

@@ -374,6 +374,7 @@ def make_item(
     split: str = "train",
     physics: Optional[dict] = None,
     keep_table: bool = False,
+    heterogeneity_hu: float = 0.0,
 ) -> "PathLike[str]":
     """Makes one TomoGRAF data-set item in the folder `output`, the same files (and bytes)
     as item `index` of `tomograf dataset`: ct.nii.gz (cropped CT resampled to size³, [0, 1]
@@ -384,5 +385,7 @@ def make_item(
     item.json (written last). Source: exactly one of `ct` (NIfTI or DICOM folder) and
     `phantom_seed` (profile "lidc" or "full-chest"). A CT is brought into the patient frame
     (i left, j posterior, k superior) and reduced to its body (couch, padding and stray
-    voxels set to air) unless `keep_table`. Distances in mm. Returns the folder.
+    voxels set to air) unless `keep_table`. `heterogeneity_hu`: a phantom's soft tissue given a correlated
+    texture of that standard deviation (HU), as `tomograf dataset --heterogeneity`.
+    Distances in mm. Returns the folder.
     ValueError for bad settings, FileNotFoundError for a missing CT."""

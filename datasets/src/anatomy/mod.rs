@@ -47,7 +47,9 @@
 //! 15. LidcCropped field of view (padding outside it).
 //!
 //! Tissue labels and HU ranges are in [`Tissue`] and [`hu_range`]; every voxel's value
-//! lies in the range of its tissue, with a seeded texture of a few HU. [`generate_labeled`]
+//! lies in the range of its tissue, with a seeded texture of a few HU (with
+//! [`AnatomySpec::heterogeneity_hu`], soft tissues also carry a correlated texture of that
+//! size and lie in [`heterogeneity::RANGE_HU`] instead: [`heterogeneity`]). [`generate_labeled`]
 //! also returns organ-level [`Structure`] labels and the sampled [`Patient`] (sizes,
 //! landmarks, nodule positions); [`describe`] returns the patient without voxels.
 //!
@@ -92,6 +94,7 @@ mod body;
 mod devices;
 mod great_vessels;
 mod heart;
+pub mod heterogeneity;
 mod lungs;
 mod mediastinum;
 mod patient;
@@ -126,6 +129,12 @@ fn check(spec: &AnatomySpec) -> Result<()> {
     {
         return Err(DatasetError::Invalid(format!(
             "anatomy: voxel spacing {s} mm is not a finite positive number"
+        )));
+    }
+    let h = spec.heterogeneity_hu;
+    if !(h.is_finite() && (0.0..=200.0).contains(&h)) {
+        return Err(DatasetError::Invalid(format!(
+            "anatomy: soft-tissue heterogeneity {h} HU is outside 0–200 HU"
         )));
     }
     Ok(())
@@ -274,17 +283,27 @@ fn render(spec: &AnatomySpec, device_meshes: Option<&mut Vec<DeviceMesh>>) -> Re
     let seed = tissue::mix64(spec.seed ^ patient::stream::TEXTURE.rotate_left(40));
     let [nx, ny, _] = spec.dims;
     let plane = nx * ny;
+    let hetero = spec.heterogeneity_hu as f32;
+    let hetero_seed = tissue::mix64(seed ^ 0x4845_5445_524F);
     let mut data = vec![0f32; mats.len()];
     data.par_chunks_mut(plane)
         .zip(mats.par_chunks(plane))
         .enumerate()
         .for_each(|(k, (out, m))| {
+            let z = grid.coord(2, k);
             for j in 0..ny {
                 let y = grid.coord(1, j);
                 for i in 0..nx {
                     let idx = i + nx * j;
                     let n = tissue::gauss(seed, (k * plane + idx) as u64);
-                    out[idx] = sc.materials[m[idx] as usize].hu(y, n);
+                    let material = &sc.materials[m[idx] as usize];
+                    out[idx] = material.hu(y, n);
+                    if hetero > 0.0 && heterogeneity::applies_to(material.tissue) {
+                        let p = DVec3::new(grid.coord(0, i), y, z);
+                        let t = hetero * heterogeneity::value_noise(hetero_seed, p);
+                        let (lo, hi) = heterogeneity::RANGE_HU;
+                        out[idx] = (out[idx] + t).clamp(lo, hi);
+                    }
                 }
             }
         });

@@ -56,6 +56,15 @@ pub struct AnatomySpec {
     pub dims: [usize; 3],
     /// Voxel size along x, y, z in mm.
     pub spacing_mm: [f64; 3],
+    /// Standard deviation (HU) of a spatially correlated texture added to muscle, organs,
+    /// blood and myocardium ([`super::heterogeneity`]); 0: none (the default, and every spec
+    /// written before it existed).
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub heterogeneity_hu: f64,
+}
+
+fn is_zero(v: &f64) -> bool {
+    *v == 0.0
 }
 
 impl AnatomySpec {
@@ -68,6 +77,7 @@ impl AnatomySpec {
             pacemaker: false,
             dims,
             spacing_mm,
+            heterogeneity_hu: 0.0,
         }
     }
 }
