@@ -135,6 +135,14 @@ fn phantom_devices_as_meshes_end_to_end() {
     // Devices without a procedural patient, or nothing to write, are clear errors.
     let out = tomograf(&["phantom", "-o", "x.nii", "--mesh-devices", "d"]);
     assert!(String::from_utf8_lossy(&out.stderr).contains("procedural patient"));
+    // A seed for the analytic thorax, which has none, was ignored; it is refused.
+    let out = tomograf(&["phantom", "-o", "x.nii", "--seed", "3"]);
+    assert!(!out.status.success());
+    let e = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        e.contains("--seed") && e.contains("procedural patient"),
+        "{e}"
+    );
     let out = tomograf(&[
         "phantom",
         "-o",

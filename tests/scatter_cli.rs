@@ -181,7 +181,7 @@ fn the_scatter_bench_runs_on_a_ct_and_reuses_its_reference() {
     ]));
     let cache = dir.path().join("ref.npy");
     let page = dir.path().join("speed.md");
-    let run = || {
+    let run_on = |ct: &std::path::Path| {
         ok(&tomograf(&[
             "bench",
             "--scatter",
@@ -198,6 +198,7 @@ fn the_scatter_bench_runs_on_a_ct_and_reuses_its_reference() {
         ]));
         std::fs::read_to_string(&page).unwrap()
     };
+    let run = || run_on(&ct);
     let first = run();
     assert!(first.contains("512 histories, 16² points ("), "{first}");
     let rows: Vec<&str> = first
@@ -229,6 +230,26 @@ fn the_scatter_bench_runs_on_a_ct_and_reuses_its_reference() {
     assert_eq!(first.matches("analog sampling").count(), 1, "{first}");
     let second = run();
     assert!(second.contains("(read from the cache)"), "{second}");
+    // The cache knows the CT by its contents: moved, it is still read; another CT at the
+    // same path is not.
+    let moved = dir.path().join("moved.nii.gz");
+    std::fs::rename(&ct, &moved).unwrap();
+    let fourth = run_on(&moved);
+    assert!(fourth.contains("(read from the cache)"), "{fourth}");
+    ok(&tomograf(&[
+        "phantom",
+        "-o",
+        moved.to_str().unwrap(),
+        "--dims",
+        "48,40,24",
+        "--spacing",
+        "7,7,10",
+        "--profile",
+        "lidc",
+    ]));
+    let fifth = run_on(&moved);
+    assert!(!fifth.contains("(read from the cache)"), "{fifth}");
+    std::fs::rename(&moved, &ct).unwrap();
     // Another view of the orbit, its orbits alone; a view the orbit lacks is named.
     let third = tomograf(&[
         "bench",

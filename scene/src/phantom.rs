@@ -66,6 +66,13 @@ pub fn write_phantom(p: &PhantomFile, progress: &dyn Progress) -> Result<()> {
                      procedural patient: give profile (--profile) lidc or full-chest"
                 );
             }
+            if p.seed != 0 {
+                bail!(
+                    "seed (--seed) {} needs a procedural patient (the analytic thorax has no \
+                     seed): give profile (--profile) lidc or full-chest",
+                    p.seed
+                );
+            }
             phantom_volume(dims, spacing)?
         }
     };
