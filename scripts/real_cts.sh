@@ -12,7 +12,8 @@
 # shipped checkpoints score them from 1, 2 and 5 views beside the mean volume, PCA-MAP,
 # SART-TV (from zero and from the mean) and FDK, each method's prior from its checkpoint's
 # own training set (remade here: 32 lidc phantoms, seed 0; and those with 32 full-chest
-# phantoms, seed 300000). results.md gives TomoGRAF minus each method paired over the five
+# phantoms, seed 300000, and for the mixed checkpoint those 64 again shape-augmented with
+# heterogeneous soft tissue). results.md gives TomoGRAF minus each method paired over the five
 # CTs with 95 % t-intervals.
 #
 # Writes OUT/eval-demo/results.md, OUT/eval-mixed/results.md (and every CT's slice figures) and
@@ -33,9 +34,17 @@ $bin dataset -o "$out/train-lidc" --phantoms 32 --size 64 --views 36 --profile l
 $bin dataset -o "$out/train-fc" --phantoms 32 --seed 300000 --size 64 --views 36 \
     --profile full-chest --split train
 python3 scripts/merge_sets.py "$out/train-mix" "$out/train-lidc" "$out/train-fc"
+# The mixed checkpoint's own (scripts/prior_realistic.sh, candidate d): those 64 and the same
+# 64 shape-augmented with heterogeneous soft tissue.
+$bin dataset -o "$out/train-ahet-lidc" --phantoms 32 --size 64 --views 36 --profile lidc \
+    --split train --augment 11 --heterogeneity 60
+$bin dataset -o "$out/train-ahet-fc" --phantoms 32 --seed 300000 --size 64 --views 36 \
+    --profile full-chest --split train --augment 11 --heterogeneity 60
+python3 scripts/merge_sets.py "$out/train-mixhet" "$out/train-lidc" "$out/train-fc" \
+    "$out/train-ahet-lidc" "$out/train-ahet-fc"
 $bin dataset "${cts[@]}" -o "$out/items" --size 64 --views 10 --preset kv-flat-panel-120kvp \
     --split test --like model/checkpoints/demo
-for run in demo:model/checkpoints/demo:train-lidc mixed:model/checkpoints/lidc-full-chest:train-mix; do
+for run in demo:model/checkpoints/demo:train-lidc mixed:model/checkpoints/lidc-full-chest:train-mixhet; do
     IFS=: read -r name checkpoint train <<< "$run"
     # Two shards of one thread each: two items at a time on two cores.
     for k in 0 1; do
