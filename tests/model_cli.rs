@@ -438,13 +438,14 @@ fn model_bench_prints_ratios_against_its_baselines() {
 /// `full-chest` phantoms, trained for 20 000 iterations, with the demo checkpoint's
 /// inference settings. It loads and reconstructs a 64³ full-chest phantom from one view to
 /// a finite volume, and its settings differ from the demo checkpoint's in nothing but what
-/// it learnt and for how long.
+/// it learnt, for how long, and the open gate from 5 views its own validation chose.
 #[test]
 fn the_mixed_population_checkpoint_reconstructs() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("model/checkpoints");
     let mixed = root.join("lidc-full-chest");
     // The same settings but for how long each trained: the first `iterations = ` line (the
-    // training's; the one in [infer] is the inference cap) is left out.
+    // training's; the one in [infer] is the inference cap) is left out, and the open gate
+    // from 5 views the mixed checkpoint's validation chose (its comment and its line).
     let config = |d: &Path| {
         let text = std::fs::read_to_string(d.join("config.toml")).unwrap();
         let trained = text.lines().position(|l| l.starts_with("iterations = "));
@@ -457,10 +458,16 @@ fn the_mixed_population_checkpoint_reconstructs() {
             .enumerate()
             .filter(|&(i, _)| Some(i) != trained)
             .map(|(_, l)| l)
+            .take_while(|l| !l.starts_with("# Chosen on validation phantoms matched to real CTs"))
             .collect::<Vec<_>>()
             .join("\n")
     };
     assert_eq!(config(&mixed), config(&root.join("demo")), "config.toml");
+    let text = std::fs::read_to_string(mixed.join("config.toml")).unwrap();
+    assert!(
+        text.trim_end().ends_with("refine_always_from_views = 5"),
+        "{text}"
+    );
     let tmp = tempfile::tempdir().unwrap();
     let data = tmp.path().join("data");
     ok(&tomograf(&[

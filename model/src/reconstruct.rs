@@ -9,8 +9,9 @@
 //!
 //! 3. With `refine_iterations` > 0, when some reference view's full-image PSNR against the
 //!    network volume's projection is below `refine_below_db` (the prior could not explain
-//!    the views: anatomy outside the training population), SART-TV (sim's defaults) runs
-//!    that many sweeps from the network's volume ([`crate::refine`]: where they start).
+//!    the views: anatomy outside the training population), or always from
+//!    `refine_always_from_views` views on, SART-TV (sim's defaults) runs that many sweeps
+//!    from the network's volume ([`crate::refine`]: where they start).
 //!    The network's own volume is kept beside the result.
 //!
 //! Each iteration fits one randomly drawn reference view with eq. 13's loss,
@@ -137,7 +138,12 @@ pub fn reconstruct(
     let proj_scale = generator.state.proj_scale;
     let mut network = None;
     if infer.refine_iterations > 0 {
-        let unexplained = psnr.iter().any(|&p| p < infer.refine_below_db);
+        // From `refine_always_from_views` views on the sweeps run whatever the PSNR, from the
+        // whole network volume.
+        let always = infer
+            .refine_always_from_views
+            .is_some_and(|n| refs.len() >= n);
+        let unexplained = always || psnr.iter().any(|&p| p < infer.refine_below_db);
         let mut net = NetworkVolume {
             volume: volume.clone(),
             psnr: psnr.clone(),
@@ -150,7 +156,12 @@ pub fn reconstruct(
             let t0 = std::time::Instant::now();
             let prior = &generator.prior;
             let explained = psnr.iter().any(|&p| p >= infer.refine_below_db);
-            let weights = if infer.refine_start == RefineStart::HeldOut
+            let weights = if always {
+                crate::refine::StartWeights {
+                    network: 1.0,
+                    mean: 0.0,
+                }
+            } else if infer.refine_start == RefineStart::HeldOut
                 && !explained
                 && (2..=infer.held_out_max_views).contains(&refs.len())
             {

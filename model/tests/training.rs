@@ -362,8 +362,9 @@ fn refinement_brings_the_network_volume_to_the_views() {
     let ck = dir.path().join("ck");
     let dev = device();
     let truth = other.ct.as_ref().unwrap();
-    let run_from = |refine: usize, below_db: f64, weight: f64| {
+    let run_always = |refine: usize, below_db: f64, weight: f64, always: Option<usize>| {
         let mut infer = config.infer.clone();
+        infer.refine_always_from_views = always;
         infer.refine_start_weight = weight;
         infer.tune = Tune::Codes;
         infer.iterations = 2;
@@ -383,6 +384,8 @@ fn refinement_brings_the_network_volume_to_the_views() {
         )
         .unwrap()
     };
+    let run_from =
+        |refine: usize, below_db: f64, weight: f64| run_always(refine, below_db, weight, None);
     let run = |refine: usize, below_db: f64| run_from(refine, below_db, 1.0);
     let rmse = |v: &[f32]| {
         let s: f64 = v
@@ -415,6 +418,14 @@ fn refinement_brings_the_network_volume_to_the_views() {
     let gated = run(10, -100.0);
     assert!(!gated.network.as_ref().unwrap().refined);
     assert_eq!(gated.volume.data(), plain.volume.data());
+    // From `refine_always_from_views` views on they are, from the whole network volume
+    // whatever the configured start weight (here ½); with fewer views the gate decides.
+    let always = run_always(10, -100.0, 0.5, Some(2));
+    assert!(always.network.as_ref().unwrap().refined);
+    assert_eq!(always.volume.data(), refined.volume.data());
+    let fewer = run_always(10, -100.0, 0.5, Some(3));
+    assert!(!fewer.network.as_ref().unwrap().refined);
+    assert_eq!(fewer.volume.data(), plain.volume.data());
     // With zero-rate codes and an untrained generator, no refinement = the mean volume.
     let mean = item.ct.as_ref().unwrap().data();
     let off = plain
