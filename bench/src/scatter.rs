@@ -176,31 +176,6 @@ pub fn scene(ct: &Path, quick: bool) -> Result<Scene> {
     Ok(toml::from_str(&text)?)
 }
 
-/// SHA-256 (hex) of a CT file, or of a DICOM folder's files (names and bytes, sorted by
-/// name).
-fn content_sha256(path: &Path) -> Result<String> {
-    use sha2::{Digest, Sha256};
-    let mut h = Sha256::new();
-    let read = |p: &Path| std::fs::read(p).with_context(|| format!("cannot read {}", p.display()));
-    if path.is_dir() {
-        let mut files: Vec<_> = std::fs::read_dir(path)
-            .with_context(|| format!("cannot list {}", path.display()))?
-            .filter_map(|e| e.ok().map(|e| e.path()))
-            .filter(|p| p.is_file())
-            .collect();
-        files.sort();
-        for f in files {
-            h.update(f.file_name().unwrap_or_default().as_encoded_bytes());
-            let bytes = read(&f)?;
-            h.update((bytes.len() as u64).to_le_bytes());
-            h.update(&bytes);
-        }
-    } else {
-        h.update(read(path)?);
-    }
-    Ok(h.finalize().iter().map(|b| format!("{b:02x}")).collect())
-}
-
 fn load_reference(cache: &Path, key: &str, n: usize) -> Option<Vec<f64>> {
     let stored = std::fs::read_to_string(cache.with_extension("txt")).ok()?;
     if stored.trim() != key {
@@ -251,7 +226,7 @@ pub fn section(ct: &Path, o: &ScatterOptions) -> Result<String> {
     // at the same path does not.
     let key = format!(
         "ct-sha256={} photons={} rows={} cols={} view={at}",
-        content_sha256(ct)?,
+        tomograf_scene::dataset::sha256_of(ct)?,
         o.reference_photons,
         view.rows,
         view.cols

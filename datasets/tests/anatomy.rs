@@ -35,6 +35,15 @@ fn full(seed: u64) -> &'static Labeled {
     })[seed as usize]
 }
 
+/// The phantom of `spec` generated on a pool of `threads` threads.
+fn on_threads(threads: usize, spec: &AnatomySpec) -> Labeled {
+    rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()
+        .unwrap()
+        .install(|| generate_labeled(spec).unwrap())
+}
+
 /// World centre of every voxel, in storage order.
 fn positions(l: &Labeled) -> impl Iterator<Item = DVec3> + '_ {
     let v = &l.volume;
@@ -86,14 +95,7 @@ fn same_spec_same_bytes_and_seeds_differ() {
 #[test]
 fn thread_count_does_not_change_the_result() {
     let s = with_devices(5, Profile::LidcCropped);
-    let run = |threads: usize| {
-        rayon::ThreadPoolBuilder::new()
-            .num_threads(threads)
-            .build()
-            .unwrap()
-            .install(|| generate_labeled(&s).unwrap())
-    };
-    let (one, two) = (run(1), run(2));
+    let (one, two) = (on_threads(1, &s), on_threads(2, &s));
     assert_eq!(one.volume.data(), two.volume.data());
     assert_eq!(one.tissue, two.tissue);
     assert_eq!(one.structure, two.structure);
@@ -454,14 +456,7 @@ fn soft_tissue_heterogeneity_changes_soft_tissue_only() {
     let plain = generate_labeled(&spec(4, Profile::LidcCropped)).unwrap();
     let mut s = spec(4, Profile::LidcCropped);
     s.heterogeneity_hu = 60.0;
-    let run = |threads: usize| {
-        rayon::ThreadPoolBuilder::new()
-            .num_threads(threads)
-            .build()
-            .unwrap()
-            .install(|| generate_labeled(&s).unwrap())
-    };
-    let (het, het2) = (run(1), run(2));
+    let (het, het2) = (on_threads(1, &s), on_threads(2, &s));
     assert_eq!(het.volume.data(), het2.volume.data());
     assert_eq!(het.tissue, plain.tissue);
     let soft = |t: Tissue| {

@@ -455,7 +455,7 @@ fn items_fingerprint(data: &Path, ids: &[String]) -> Result<String> {
         h.update((bytes.len() as u64).to_le_bytes());
         h.update(&bytes);
     }
-    Ok(h.finalize().iter().map(|b| format!("{b:02x}")).collect())
+    Ok(format!("{:x}", h.finalize()))
 }
 
 /// Writes `job.json`, or checks that the one already there asks for the same evaluation.

@@ -210,8 +210,9 @@ pub fn expand_inputs(inputs: &[PathBuf]) -> Result<Vec<PathBuf>> {
     Ok(out)
 }
 
-/// SHA-256 of a file, or of a folder's files (sorted names and contents).
-fn sha256_of(path: &Path) -> Result<String> {
+/// SHA-256 (hex) of a file, or of a folder's files (sorted names and contents): how an item
+/// and the scatter bench's reference cache know a CT by its contents.
+pub fn sha256_of(path: &Path) -> Result<String> {
     let mut h = Sha256::new();
     if path.is_dir() {
         let mut files: Vec<PathBuf> = std::fs::read_dir(path)?
