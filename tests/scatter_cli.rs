@@ -205,11 +205,17 @@ fn the_scatter_bench_runs_on_a_ct_and_reuses_its_reference() {
         .lines()
         .filter(|l| l.starts_with("| Monte Carlo") || l.starts_with("| estimate"))
         .collect();
-    assert_eq!(rows.len(), 20, "{first}");
+    assert_eq!(rows.len(), 23, "{first}");
+    // The reference's own noise, from its two halves, is stated.
+    assert!(
+        first.contains("in two halves of their own histories; its own noise"),
+        "{first}"
+    );
     for r in &rows {
         let cells: Vec<&str> = r.split('|').map(str::trim).collect();
-        // setting | s | × | line-integral | scatter (the worst round) | bias
-        for c in &cells[2..6] {
+        // setting | s | × | line-integral | scatter (the worst round) | converged: line
+        // integral, scatter | bias
+        for c in &cells[2..8] {
             let (mean, worst) = c.split_once(" (").unwrap_or((c, ""));
             for x in [mean, worst].into_iter().filter(|x| !x.is_empty()) {
                 let v: f64 = x.trim_end_matches(['%', '×', ' ', ')']).parse().unwrap();
@@ -221,12 +227,12 @@ fn the_scatter_bench_runs_on_a_ct_and_reuses_its_reference() {
     // Monte Carlo through 4, 8 and 16 mm cells and the old estimate through 8 mm.
     let with_bias = rows
         .iter()
-        .filter(|r| !r.split('|').map(str::trim).nth(6).unwrap_or("").is_empty())
+        .filter(|r| !r.split('|').map(str::trim).nth(8).unwrap_or("").is_empty())
         .count();
     assert_eq!(with_bias, 4, "{first}");
-    // Four orbits: 1500 and 3500 histories, the latter also with analog sampling (the
+    // Five orbits: 900, 1500 and 3500 histories, the last also with analog sampling (the
     // ablation), and the estimate.
-    assert_eq!(first.matches("Orbit of 4 views").count(), 4, "{first}");
+    assert_eq!(first.matches("Orbit of 4 views").count(), 5, "{first}");
     assert_eq!(first.matches("analog sampling").count(), 1, "{first}");
     let second = run();
     assert!(second.contains("(read from the cache)"), "{second}");

@@ -12,7 +12,11 @@
 //!   stores is off by), here before the detector's blur, gain and quantisation;
 //! * `scatter rms` the same of the scatter image alone.
 //!
-//! Both include the reference's own noise. Times are wall seconds of the scatter alone on
+//! Both include the reference's own noise. The reference is made as two halves with their own
+//! random streams; half the RMS of their difference is the noise of their mean (the
+//! reference), and the squared error less that noise's square estimates the error against
+//! the converged answer (the candidate's and the reference's noise are independent, so their
+//! squares add): the `converged` columns. Times are wall seconds of the scatter alone on
 //! all threads (the primary, the same for every row, is given once), median of `rounds`
 //! runs taken in turn (A, B, C, A, B, C), after the per-CT set-up, which is timed on its
 //! own. Then the orbit: every view of the 72 with the chosen settings, from a fresh engine,
@@ -51,12 +55,12 @@ pub struct ScatterOptions {
 }
 
 /// The angular windows (degrees each side) the orbit's Monte Carlo rows are fitted over.
-const WINDOWS_DEG: [f64; 6] = [0.0, 15.0, 20.0, 25.0, 30.0, 35.0];
+const WINDOWS_DEG: [f64; 7] = [0.0, 15.0, 20.0, 25.0, 30.0, 35.0, 45.0];
 
 /// The rungs' seed (every rung draws the same histories, so a rung with detection cells
 /// differs from the same rung at full resolution by the cells' bias alone).
 const SEED: u64 = 0x5ca7;
-/// The reference's seed.
+/// The reference's halves' seeds (this and the next).
 const REFERENCE_SEED: u64 = 0x7e7e_7e7e;
 
 /// One rung of the ladder.
@@ -176,13 +180,43 @@ pub fn scene(ct: &Path, quick: bool) -> Result<Scene> {
     Ok(toml::from_str(&text)?)
 }
 
-fn load_reference(cache: &Path, key: &str, n: usize) -> Option<Vec<f64>> {
+/// The reference's two halves, as cached: a `[2, rows, cols]` array.
+fn load_reference(cache: &Path, key: &str, n: usize) -> Option<[Vec<f64>; 2]> {
     let stored = std::fs::read_to_string(cache.with_extension("txt")).ok()?;
     if stored.trim() != key {
         return None;
     }
     let (data, _) = read_npy(cache).ok()?;
-    (data.len() == n).then(|| data.into_iter().map(f64::from).collect())
+    if data.len() != 2 * n {
+        return None;
+    }
+    let half = |k: usize| {
+        data[k * n..(k + 1) * n]
+            .iter()
+            .map(|&v| f64::from(v))
+            .collect()
+    };
+    Some([half(0), half(1)])
+}
+
+/// The reference's own noise, relative: RMS((A − B)/2)/RMS(reference) of its halves A and
+/// B, each under `f` (the identity, or the line integrals).
+fn reference_noise(halves: &[Vec<f64>; 2], f: impl Fn(&[f64]) -> Vec<f64>) -> f64 {
+    let (a, b) = (f(&halves[0]), f(&halves[1]));
+    let d: f64 = a.iter().zip(&b).map(|(x, y)| (x - y) * (x - y)).sum();
+    let m: f64 = a.iter().zip(&b).map(|(x, y)| (x + y) * (x + y)).sum();
+    (d / m).sqrt()
+}
+
+/// The error against the converged answer: the RMS of `errors` (relative) with the
+/// reference's noise `noise` removed in quadrature (0 where the noise exceeds it).
+fn converged(errors: impl Iterator<Item = f64>, noise: f64) -> f64 {
+    let (mut sum, mut k) = (0.0, 0.0);
+    for e in errors {
+        sum += e * e;
+        k += 1.0;
+    }
+    (sum / k - noise * noise).max(0.0).sqrt()
 }
 
 /// The markdown section.
@@ -225,13 +259,13 @@ pub fn section(ct: &Path, o: &ScatterOptions) -> Result<String> {
     // The CT by its contents, not its path: a file moved keeps its reference, another file
     // at the same path does not.
     let key = format!(
-        "ct-sha256={} photons={} rows={} cols={} view={at}",
+        "ct-sha256={} photons={} halves=2 rows={} cols={} view={at}",
         tomograf_scene::dataset::sha256_of(ct)?,
         o.reference_photons,
         view.rows,
         view.cols
     );
-    let (reference, ref_s) = match o
+    let (halves, ref_s) = match o
         .reference_cache
         .as_deref()
         .and_then(|c| load_reference(c, &key, n))
@@ -239,15 +273,24 @@ pub fn section(ct: &Path, o: &ScatterOptions) -> Result<String> {
         Some(r) => (r, None),
         None => {
             // Its own random streams: the rungs' histories are not a part of it.
-            let (r, s) = scatter(&engine, &mc(o.reference_photons, 0.0), view, REFERENCE_SEED)?;
+            let half = mc(o.reference_photons.div_ceil(2), 0.0);
+            let (a, sa) = scatter(&engine, &half, view, REFERENCE_SEED)?;
+            let (b, sb) = scatter(&engine, &half, view, REFERENCE_SEED + 1)?;
             if let Some(c) = &o.reference_cache {
-                let f: Vec<f32> = r.iter().map(|&v| v as f32).collect();
-                write_npy(c, &f, &[view.rows, view.cols])?;
+                let f: Vec<f32> = a.iter().chain(&b).map(|&v| v as f32).collect();
+                write_npy(c, &f, &[2, view.rows, view.cols])?;
                 std::fs::write(c.with_extension("txt"), &key)?;
             }
-            (r, Some(s))
+            ([a, b], Some(sa + sb))
         }
     };
+    let reference: Vec<f64> = halves[0]
+        .iter()
+        .zip(&halves[1])
+        .map(|(a, b)| 0.5 * (a + b))
+        .collect();
+    let noise_s = reference_noise(&halves, |s| s.to_vec());
+    let noise_li = reference_noise(&halves, |s| line_integrals(s));
     let ref_li = line_integrals(&reference);
     let spr = reference.iter().sum::<f64>() / primary.iter().sum::<f64>();
 
@@ -257,6 +300,9 @@ pub fn section(ct: &Path, o: &ScatterOptions) -> Result<String> {
         mc(q(6_250), 4.0),
         mc(q(6_250), 8.0),
         mc(q(6_250), 16.0),
+        mc(q(10_000), 8.0),
+        mc_multiple(q(10_000), 8.0, 12),
+        mc_multiple(q(12_500), 8.0, 12),
         mc(q(1_500), 8.0),
         mc(q(1_500), 16.0),
         mc_multiple(q(6_250), 8.0, 8),
@@ -329,7 +375,9 @@ pub fn section(ct: &Path, o: &ScatterOptions) -> Result<String> {
     writeln!(
         md,
         "Per-CT set-up (materials, tables, majorants) {setup:.2} s; the primary {primary_s:.3} s; \
-         detection grids {}. Reference: full-resolution Monte Carlo, {} histories, 16² points{}.\n",
+         detection grids {}. Reference: full-resolution Monte Carlo, {} histories, 16² points{}, \
+         in two halves of their own histories; its own noise (half the RMS of the halves' \
+         difference, relative) {:.2} % of the line integrals, {:.2} % of the scatter.\n",
         grid_s
             .iter()
             .map(|(c, d, s)| format!("{c} mm → {}×{}×{} cells in {s:.2} s", d[0], d[1], d[2]))
@@ -339,13 +387,16 @@ pub fn section(ct: &Path, o: &ScatterOptions) -> Result<String> {
         match ref_s {
             Some(s) => format!(" ({s:.0} s)"),
             None => " (read from the cache)".into(),
-        }
+        },
+        100.0 * noise_li,
+        100.0 * noise_s,
     )?;
     if !rungs.is_empty() {
         writeln!(
             md,
-            "| setting | scatter s | × vs first row | line-integral rms | scatter rms (worst of {}) | cells' bias |\n\
-             |---|---:|---:|---:|---:|---:|",
+            "| setting | scatter s | × vs first row | line-integral rms | scatter rms (worst of {}) | \
+             converged: line-integral rms | converged: scatter rms | cells' bias |\n\
+             |---|---:|---:|---:|---:|---:|---:|---:|",
             o.rounds.max(1)
         )?;
         for (i, r) in rungs.iter().enumerate() {
@@ -361,12 +412,14 @@ pub fn section(ct: &Path, o: &ScatterOptions) -> Result<String> {
             let worst_s = errors[i].iter().map(|e| e.1).fold(0.0, f64::max);
             writeln!(
                 md,
-                "| {} | {s:.2} | {:.1}× | {:.2} % | {:.2} % ({:.2} %) | {} |",
+                "| {} | {s:.2} | {:.1}× | {:.2} % | {:.2} % ({:.2} %) | {:.2} % | {:.2} % | {} |",
                 r.label,
                 base / s,
                 100.0 * mean_li,
                 100.0 * mean_s,
                 100.0 * worst_s,
+                100.0 * converged(errors[i].iter().map(|e| e.0), noise_li),
+                100.0 * converged(errors[i].iter().map(|e| e.1), noise_s),
                 full.map_or("".into(), |f| format!(
                     "{:.2} %",
                     100.0 * rms(&images[i], &images[f])
@@ -379,7 +432,8 @@ pub fn section(ct: &Path, o: &ScatterOptions) -> Result<String> {
              against the reference's (what `tomograf tradeoff` measures, but before the detector's \
              blur, gain and quantisation); `scatter rms`: of the scatter image alone; both the mean \
              over the rounds, each round its own histories (the worst round in brackets), and both \
-             include the reference's own noise. `cells' bias`: the scatter image against the same histories traced at full \
+             include the reference's own noise. `converged`: the RMS over the rounds with the \
+             reference's noise removed in quadrature, the error against the converged answer. `cells' bias`: the scatter image against the same histories traced at full \
              resolution (no noise in it: the histories are the same)."
         )?;
     }
@@ -388,10 +442,12 @@ pub fn section(ct: &Path, o: &ScatterOptions) -> Result<String> {
     // round its own histories. The view's scatter is then also fitted in angle with its
     // neighbours' (physics::scatter::orbit) over each window of WINDOWS_DEG. The settings
     // are taken in turn within each round (A, B, C, A, B, C), so that their times share the
-    // machine's load; the 3500-history orbit also with the engine's analog sampling (its
+    // machine's load; 900 histories is the data-set setting of ≤ 0.5 s per view; the
+    // 3500-history orbit also with the engine's analog sampling (its
     // sampling before 2026-12-01), the ablation of the strata and the forced first collision.
     let widest = WINDOWS_DEG.iter().fold(0.0f64, |a, &b| a.max(b));
     let orbits = [
+        (mc(q(900), 8.0), false),
         (mc(q(1_500), 8.0), false),
         (mc_multiple(q(3_500), 8.0, 8), false),
         (mc_multiple(q(3_500), 8.0, 8), true),
@@ -443,7 +499,7 @@ pub fn section(ct: &Path, o: &ScatterOptions) -> Result<String> {
             "\nOrbit of {} views, {}{}: {s:.1} s with the set-up (median of {}), **{:.2} s per \
              view**. View {at} against the reference, each view alone and fitted in angle with its \
              neighbours (`angular_window_deg`), mean of the rounds (the worst in brackets):\n\n\
-             | angular window | views in the fit | line-integral rms | scatter rms |\n|---:|---:|---:|---:|",
+             | angular window | views in the fit | line-integral rms | scatter rms | converged: line-integral rms | converged: scatter rms |\n|---:|---:|---:|---:|---:|---:|",
             views.len(),
             label(model),
             if *analog {
@@ -458,7 +514,7 @@ pub fn section(ct: &Path, o: &ScatterOptions) -> Result<String> {
             let k = e.len() as f64;
             writeln!(
                 md,
-                "| {} | {} | {:.2} % ({:.2} %) | {:.2} % ({:.2} %) |",
+                "| {} | {} | {:.2} % ({:.2} %) | {:.2} % ({:.2} %) | {:.2} % | {:.2} % |",
                 if *w == 0.0 {
                     "none".to_string()
                 } else {
@@ -469,6 +525,8 @@ pub fn section(ct: &Path, o: &ScatterOptions) -> Result<String> {
                 100.0 * e.iter().map(|x| x.0).fold(0.0, f64::max),
                 100.0 * e.iter().map(|x| x.1).sum::<f64>() / k,
                 100.0 * e.iter().map(|x| x.1).fold(0.0, f64::max),
+                100.0 * converged(e.iter().map(|x| x.0), noise_li),
+                100.0 * converged(e.iter().map(|x| x.1), noise_s),
             )?;
         }
     }
@@ -485,4 +543,25 @@ fn prepare(
     let p = a.prepare(hu, seed)?;
     let engine = p.scatter_engine().context("scatter is modelled")?.clone();
     Ok((p, engine))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Halves that differ by ±d about a mean m: the mean's noise is d/m, exactly.
+    #[test]
+    fn the_reference_noise_is_half_its_halves_difference() {
+        let a = vec![1.1, 2.2, 3.3];
+        let b = vec![0.9, 1.8, 2.7];
+        assert!((reference_noise(&[a, b], |s| s.to_vec()) - 0.1).abs() < 1e-12);
+    }
+
+    /// Errors of 5 % with a reference noise of 3 %: 4 % against the converged answer; a
+    /// noise above the error gives 0, not a NaN.
+    #[test]
+    fn the_converged_error_removes_the_reference_noise_in_quadrature() {
+        assert!((converged([0.05, 0.05].into_iter(), 0.03) - 0.04).abs() < 1e-12);
+        assert_eq!(converged([0.01].into_iter(), 0.03), 0.0);
+    }
 }
