@@ -31,26 +31,15 @@ out=$(realpath "$out")
 cargo build --release --quiet
 bin=$PWD/target/release/tomograf
 export MIMALLOC_PURGE_DELAY=-1
-common="--size 64 --views 10 --split val --preset kv-flat-panel-120kvp --heterogeneity 60"
-[ -f "$out/val/val-real-lidc/manifest.jsonl" ] || $bin dataset -o "$out/val/val-real-lidc" \
-    --phantoms 6 --seed 71000 --profile lidc --augment 16 $common
-[ -f "$out/val/val-real-fc/manifest.jsonl" ] || $bin dataset -o "$out/val/val-real-fc" \
-    --phantoms 6 --seed 81000 --profile full-chest --augment 13 $common
-train() { # NAME SEED PROFILE EXTRA…
-    local name=$1 seed=$2 profile=$3; shift 3
-    [ -f "$out/$name/manifest.jsonl" ] || $bin dataset -o "$out/$name" --phantoms 32 \
-        --seed "$seed" --size 64 --views 36 --profile "$profile" --split train "$@"
-}
-train train-lidc 0 lidc
-train train-fc 300000 full-chest
-train train-aug-lidc 0 lidc --augment 11
-train train-aug-fc 300000 full-chest --augment 11
-train train-ahet-lidc 0 lidc --augment 11 --heterogeneity 60
-train train-ahet-fc 300000 full-chest --augment 11 --heterogeneity 60
+. scripts/realistic_sets.sh
+val_real_sets
+train_set train-lidc 0 lidc
+train_set train-fc 300000 full-chest
+train_set train-aug-lidc 0 lidc --augment 11
+train_set train-aug-fc 300000 full-chest --augment 11
+train_mixhet
 python3 scripts/merge_sets.py "$out/train-mixaug" "$out/train-lidc" "$out/train-fc" \
     "$out/train-aug-lidc" "$out/train-aug-fc"
-python3 scripts/merge_sets.py "$out/train-mixhet" "$out/train-lidc" "$out/train-fc" \
-    "$out/train-ahet-lidc" "$out/train-ahet-fc"
 $bin --threads 1 train "$out/train-mixaug" -o "$out/c" --init "$parent" --resume \
     --iterations 24000 > "$out/c.log" 2>&1 &
 $bin --threads 1 train "$out/train-mixhet" -o "$out/d" --init "$parent" --resume \
@@ -58,15 +47,7 @@ $bin --threads 1 train "$out/train-mixhet" -o "$out/d" --init "$parent" --resume
 wait
 # Each run's checkpoint keeps PARENT's inference settings.
 for run in c d; do
-    python3 - "$out/$run/checkpoint/config.toml" "$parent/config.toml" <<'EOF2'
-import re, sys
-mine, parent = (open(p).read() for p in sys.argv[1:3])
-head = lambda t: t[: t.index("[infer]")]
-same = lambda t: re.sub(r"(?m)^iterations = \d+$", "", head(t), count=1)
-assert same(mine) == same(parent), "the training settings differ"
-trained = re.search(r"(?m)^iterations = (\d+)$", mine).group(1)
-open(sys.argv[1], "w").write(re.sub(r"(?m)^iterations = \d+$", f"iterations = {trained}", parent, count=1))
-EOF2
+    keep_parent_infer "$out/$run/checkpoint/config.toml" "$parent/config.toml"
 done
 for arm in "a:$parent" "c:$out/c/checkpoint" "d:$out/d/checkpoint"; do
     IFS=: read -r name ck <<< "$arm"

@@ -1,0 +1,47 @@
+# Sourced by scripts/prior_realistic.sh and scripts/prior_longer.sh (needs $bin and $out):
+# the validation sets matched to the real CTs' statistics, the mixed checkpoint's training
+# sets, and how a fine-tuned run keeps its parent's inference settings. Each set already
+# made (its manifest written) is kept.
+
+# val-real-lidc and val-real-fc: 6 phantoms each, matched to the five real CTs' measured
+# statistics (docs/real-ct/validation-real-stats.md, "The sets").
+val_real_sets() {
+    local common="--size 64 --views 10 --split val --preset kv-flat-panel-120kvp --heterogeneity 60"
+    [ -f "$out/val/val-real-lidc/manifest.jsonl" ] || $bin dataset -o "$out/val/val-real-lidc" \
+        --phantoms 6 --seed 71000 --profile lidc --augment 16 $common
+    [ -f "$out/val/val-real-fc/manifest.jsonl" ] || $bin dataset -o "$out/val/val-real-fc" \
+        --phantoms 6 --seed 81000 --profile full-chest --augment 13 $common
+}
+
+# train_set NAME SEED PROFILE EXTRA…: 32 training phantoms (64³, 36 views) into $out/NAME.
+train_set() {
+    local name=$1 seed=$2 profile=$3; shift 3
+    [ -f "$out/$name/manifest.jsonl" ] || $bin dataset -o "$out/$name" --phantoms 32 \
+        --seed "$seed" --size 64 --views 36 --profile "$profile" --split train "$@"
+}
+
+# train-mixhet: the shipped mixed checkpoint's training set (32 lidc + 32 full-chest
+# phantoms, and the same 64 with --augment 11 --heterogeneity 60).
+train_mixhet() {
+    train_set train-lidc 0 lidc
+    train_set train-fc 300000 full-chest
+    train_set train-ahet-lidc 0 lidc --augment 11 --heterogeneity 60
+    train_set train-ahet-fc 300000 full-chest --augment 11 --heterogeneity 60
+    [ -f "$out/train-mixhet/manifest.jsonl" ] || python3 scripts/merge_sets.py "$out/train-mixhet" \
+        "$out/train-lidc" "$out/train-fc" "$out/train-ahet-lidc" "$out/train-ahet-fc"
+}
+
+# keep_parent_infer RUN_CONFIG PARENT_CONFIG: the fine-tuned run's config.toml becomes its
+# parent's (inference settings included) with the run's own training iteration count; any
+# other difference in the training settings is an error.
+keep_parent_infer() {
+    python3 - "$1" "$2" <<'EOF2'
+import re, sys
+mine, parent = (open(p).read() for p in sys.argv[1:3])
+head = lambda t: t[: t.index("[infer]")]
+same = lambda t: re.sub(r"(?m)^iterations = \d+$", "", head(t), count=1)
+assert same(mine) == same(parent), "the training settings differ"
+trained = re.search(r"(?m)^iterations = (\d+)$", mine).group(1)
+open(sys.argv[1], "w").write(re.sub(r"(?m)^iterations = \d+$", f"iterations = {trained}", parent, count=1))
+EOF2
+}
