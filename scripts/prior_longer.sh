@@ -1,22 +1,27 @@
 #!/usr/bin/env bash
 # The shipped mixed checkpoint trained longer, chosen (or not) on the validation phantoms
-# matched to real CTs (docs/real-ct/validation-real-stats.md, decision 4).
+# matched to real CTs (docs/real-ct/validation-real-stats.md, decisions 4 and 5).
 #
 #   scripts/prior_longer.sh [ITERATIONS] [OUT]
 #
-# The 24 000-iteration model/checkpoints/lidc-full-chest (candidate d of
-# scripts/prior_realistic.sh; its loss was still falling) is continued (`train --init …
-# --resume`, its optimiser state kept) to ITERATIONS (default 32 000) on its own training set
-# (train-mixhet: 32 lidc + 32 full-chest phantoms and the same 64 with --augment 11
-# --heterogeneity 60), then both are scored on the two validation sets of
-# scripts/prior_realistic.sh (6 + 6 phantoms matched to the real CTs' statistics) from 1 and 2
-# views, and scripts/validation_rule.py, fixed before any score, decides: the longer run
-# replaces the shipped one only with a resolved paired lead in body PSNR. The shipped
-# checkpoint's inference settings are kept. About 40 min of training (one thread) and 40 of
-# scoring on 2 cores.
+# model/checkpoints/lidc-full-chest is continued to ITERATIONS (default 40 000) on its own
+# training set (train-mixhet: 32 lidc + 32 full-chest phantoms and the same 64 with
+# --augment 11 --heterogeneity 60) with everything it learned kept: the run folder
+# OUT/longer starts as a copy of the checkpoint and its metrics, and `train --resume` goes
+# on from there — generator, discriminators, optimiser states and the per-item codes (the
+# resume checks that the items are the ones the codes were learned for, same ids in the
+# same order). Then both are scored on the two validation sets of scripts/prior_realistic.sh
+# (6 + 6 phantoms matched to the real CTs' statistics) from 1 and 2 views, and
+# scripts/validation_rule.py, fixed before any score, decides: the longer run replaces the
+# shipped one only with a resolved paired lead in body PSNR. About 8000 iterations per
+# 45 min of training (one thread) and 20 min of scoring per checkpoint on 2 cores.
+#
+# Decision 4 (24 000 → 32 000 iterations) was made with the script of commit 888f7a47,
+# which continued with `train --init` and so drew fresh codes (the generator loss jumped
+# 0.050 → 0.157 and took ~2000 iterations to recover); decision 5 keeps the codes.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-iterations=${1:-32000}
+iterations=${1:-40000}
 out=${2:-prior-longer}
 mkdir -p "$out"
 out=$(realpath "$out")
@@ -35,10 +40,16 @@ score() { # NAME CHECKPOINT
     done
 }
 score shipped "$parent" > "$out/score-shipped.log" 2>&1 &
-$bin --threads 1 train "$out/train-mixhet" -o "$out/longer" --init "$parent" --resume \
+if [ ! -d "$out/longer/checkpoint" ]; then
+    mkdir -p "$out/longer"
+    cp -r "$parent" "$out/longer/checkpoint"
+    cp "$parent-metrics.csv" "$out/longer/metrics.csv"
+fi
+$bin --threads 1 train "$out/train-mixhet" -o "$out/longer" --resume \
     --iterations "$iterations" > "$out/longer.log" 2>&1
 wait
-# The longer run keeps the shipped checkpoint's inference settings.
+# The longer run keeps the shipped checkpoint's inference settings (a no-op check when
+# resuming its copy).
 keep_parent_infer "$out/longer/checkpoint/config.toml" "$parent/config.toml"
 score longer "$out/longer/checkpoint"
 arm() { echo "$1=$out/eval-$1-val-real-lidc,$out/eval-$1-val-real-fc"; }

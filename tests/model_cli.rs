@@ -341,6 +341,76 @@ fn a_checkpoint_is_fine_tuned_on_another_set() {
     ok(&evaluate(&tuned, &eval_b));
     ok(&fine_tune(&["--resume", "--iterations", "7"]));
     refused(evaluate(&tuned, &eval_b));
+
+    // Set b re-made with other phantoms under the same ids: resuming run b on it is
+    // refused, naming the item whose content changed under its code.
+    let b2 = tmp.path().join("b2");
+    ok(&tomograf(&[
+        "dataset",
+        "-o",
+        b2.to_str().unwrap(),
+        "--phantoms",
+        "3",
+        "--seed",
+        "8",
+        "--size",
+        "16",
+        "--views",
+        "10",
+    ]));
+    let out = tomograf(&[
+        "train",
+        b2.to_str().unwrap(),
+        "-o",
+        run_b.to_str().unwrap(),
+        "--resume",
+        "--iterations",
+        "8",
+    ]);
+    assert!(!out.status.success());
+    let e = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        e.contains("item 00000") && e.contains("learned its code on"),
+        "{e}"
+    );
+
+    // --init on the very items the checkpoint learned its codes on keeps them (and their
+    // optimiser state): the run is the checkpoint resumed, loss for loss.
+    let (run_c, run_d) = (tmp.path().join("run-c"), tmp.path().join("run-d"));
+    let out = tomograf(&[
+        "train",
+        a.to_str().unwrap(),
+        "-o",
+        run_c.to_str().unwrap(),
+        "--init",
+        init.to_str().unwrap(),
+        "--iterations",
+        "5",
+    ]);
+    ok(&out);
+    let e = String::from_utf8_lossy(&out.stderr);
+    assert!(e.contains("their codes are kept"), "{e}");
+    std::fs::create_dir_all(run_d.join("checkpoint")).unwrap();
+    for f in std::fs::read_dir(&init).unwrap() {
+        let f = f.unwrap().path();
+        std::fs::copy(&f, run_d.join("checkpoint").join(f.file_name().unwrap())).unwrap();
+    }
+    std::fs::copy(run_a.join("metrics.csv"), run_d.join("metrics.csv")).unwrap();
+    ok(&tomograf(&[
+        "train",
+        a.to_str().unwrap(),
+        "-o",
+        run_d.to_str().unwrap(),
+        "--resume",
+        "--iterations",
+        "5",
+    ]));
+    let resumed = losses(&run_d);
+    assert_eq!(losses(&run_c), resumed[resumed.len() - 2..]);
+    assert_eq!(
+        std::fs::read(run_c.join("checkpoint/codes.bpk")).unwrap(),
+        std::fs::read(run_d.join("checkpoint/codes.bpk")).unwrap()
+    );
 }
 
 #[test]

@@ -34,7 +34,8 @@ pub struct Training<'a> {
     pub resume: bool,
     /// Start from this checkpoint instead of fresh networks: fine-tune it on `data`
     /// ([`checkpoint::load_trainer_for`]: its configuration — `config` is not read — its
-    /// networks and its iteration count, fresh codes for `data`'s items and `data`'s mean
+    /// networks and its iteration count, fresh codes for `data`'s items — or its learned
+    /// ones when `data` holds the very items it learned them on — and `data`'s mean
     /// volume). `iterations` counts on from the checkpoint's. Once the run folder holds a
     /// checkpoint, `resume` continues that one.
     pub init: Option<&'a Path>,
@@ -94,25 +95,37 @@ pub fn train(args: &Training, progress: &dyn Progress) -> Result<()> {
         .with_context(|| format!("loading the data set {}", args.data.display()))?;
     let scale = items[0].scale;
     let ids: Vec<String> = items.iter().map(|i| i.id.clone()).collect();
+    let digests: Vec<String> = items.iter().map(data::Item::content_sha256).collect();
     let mut trainer = if resumable {
-        let (t, state) = checkpoint::load_trainer(&ck, &device)
+        let (mut t, state) = checkpoint::load_trainer(&ck, &device)
             .with_context(|| format!("resuming from {}", ck.display()))?;
+        check_same_contents(&t, &items, &digests, &ck)?;
+        // A checkpoint written before digests were recorded learns them now.
+        t.item_sha256 = digests;
         progress.note(&format!("resuming at iteration {}", state.iteration));
         t
     } else if let Some(init) = args.init {
         let mean = MeanVolume::from_volumes(items.iter().filter_map(|i| i.ct.as_ref()))?;
-        let t = checkpoint::load_trainer_for(init, args.seed, mean, scale, ids, &device)
-            .with_context(|| format!("fine-tuning {}", init.display()))?;
+        let (t, kept) =
+            checkpoint::load_trainer_for(init, args.seed, mean, scale, ids, digests, &device)
+                .with_context(|| format!("fine-tuning {}", init.display()))?;
         progress.note(&format!(
-            "fine-tuning {} from its iteration {} on {} new item(s)",
+            "fine-tuning {} from its iteration {} on {} {}",
             init.display(),
             t.iteration,
-            items.len()
+            items.len(),
+            if kept {
+                "item(s) it learned codes for: their codes are kept"
+            } else {
+                "new item(s)"
+            }
         ));
         t
     } else {
         let mean = MeanVolume::from_volumes(items.iter().filter_map(|i| i.ct.as_ref()))?;
-        Trainer::new(config, projection_scale(&items)?, mean, ids, &device)?
+        let mut t = Trainer::new(config, projection_scale(&items)?, mean, ids, &device)?;
+        t.item_sha256 = digests;
+        t
     };
     if let Some(n) = args.iterations {
         trainer.config.iterations = n;
@@ -183,6 +196,39 @@ pub fn train(args: &Training, progress: &dyn Progress) -> Result<()> {
         ck.display(),
         csv_path.display()
     ));
+    Ok(())
+}
+
+/// A resumed run's items hold what its codes were learned on: an item whose content
+/// changed under the same id (a data set re-made with other settings) is refused, naming
+/// it. Checkpoints without recorded digests are not checked.
+fn check_same_contents(
+    t: &Trainer,
+    items: &[data::Item],
+    digests: &[String],
+    ck: &Path,
+) -> Result<()> {
+    if t.item_sha256.is_empty() || t.codes.is_none() {
+        return Ok(());
+    }
+    for ((item, new), (id, old)) in items
+        .iter()
+        .zip(digests)
+        .zip(t.item_ids.iter().zip(&t.item_sha256))
+    {
+        if item.id == *id && new != old {
+            bail!(
+                "item {} ({}) is not the one {} learned its code on: its projections or CT \
+                 changed since (content digest {} then, {} now); resume on the same data \
+                 set, or fine-tune with --init into another run folder",
+                item.id,
+                item.dir.display(),
+                ck.display(),
+                &old[..12.min(old.len())],
+                &new[..12.min(new.len())]
+            );
+        }
+    }
     Ok(())
 }
 

@@ -39,6 +39,11 @@ pub struct State {
 pub struct CodeTable {
     /// Training item ids, one per row.
     pub items: Vec<String>,
+    /// SHA-256 of each training item's content
+    /// ([`Item::content_sha256`](crate::data::Item::content_sha256)), one per row; absent
+    /// in checkpoints written before it was recorded.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub item_sha256: Vec<String>,
     /// Shape codes, one row per item (empty for random codes).
     pub shape: Vec<Vec<f32>>,
     /// Appearance codes, one row per item (empty for random codes).
@@ -136,6 +141,7 @@ pub fn save(trainer: &Trainer, density_scale: DensityScale, dir: &Path) -> Resul
     };
     let table = CodeTable {
         items: trainer.item_ids.clone(),
+        item_sha256: trainer.item_sha256.clone(),
         shape,
         app,
         stats: trainer.code_stats(),
@@ -279,18 +285,38 @@ pub fn load_trainer(dir: &Path, device: &Device) -> Result<(Trainer, State)> {
     let (config, state) = read_meta(dir)?;
     let mean = require_mean(dir)?;
     let codes = read_codes(dir)?;
+    check_digests(dir, &codes)?;
     let mut t = load_networks(
         Trainer::new(config, state.proj_scale, mean, codes.items, device)?,
         dir,
     )?;
+    t.item_sha256 = codes.item_sha256;
+    let mut t = load_codes(t, dir)?;
+    t.iteration = state.iteration;
+    Ok((t, state))
+}
+
+/// A `codes.json` whose digests, when it has them, are one per item.
+fn check_digests(dir: &Path, codes: &CodeTable) -> Result<()> {
+    ensure!(
+        codes.item_sha256.is_empty() || codes.item_sha256.len() == codes.items.len(),
+        "{}: {} item digests for {} items: the file is corrupt",
+        dir.join("codes.json").display(),
+        codes.item_sha256.len(),
+        codes.items.len()
+    );
+    Ok(())
+}
+
+/// Puts the checkpoint's learned codes and their optimiser state into `t` (per-item codes).
+fn load_codes(mut t: Trainer, dir: &Path) -> Result<Trainer> {
     if let Some(table) = t.codes.take() {
         let p = dir.join("codes.bpk");
         t.codes = Some(table.try_load_file(&p).map_err(|e| bpk_err(&p, e))?);
         let p = dir.join("opt_codes.bpk");
         t.opt_codes = t.opt_codes.load(&p).map_err(|e| bpk_err(&p, e))?;
     }
-    t.iteration = state.iteration;
-    Ok((t, state))
+    Ok(t)
 }
 
 /// Puts a checkpoint's generator and discriminators, with their optimiser states, into `t`
@@ -318,14 +344,23 @@ fn load_networks(mut t: Trainer, dir: &Path) -> Result<Trainer> {
 /// set's mean volume, as the field's anchor. `seed` (default: the checkpoint's) seeds the
 /// new codes and the run's sampling. The new items must share the checkpoint's density
 /// scale (HU window and energy): the generator learned in those units.
+///
+/// When the new items are the very items the checkpoint's codes were learned on — the same
+/// ids in the same order with the same content digests `item_sha256`
+/// ([`Item::content_sha256`](crate::data::Item::content_sha256)), as recorded in its
+/// `codes.json` — their learned codes and the code optimiser's state are kept instead of
+/// drawn afresh (training on further: fresh codes would undo what the codes had learned).
+/// The returned flag says whether they were. A checkpoint without recorded digests always
+/// gets fresh codes.
 pub fn load_trainer_for(
     dir: &Path,
     seed: Option<u64>,
     prior: MeanVolume,
     density_scale: DensityScale,
     item_ids: Vec<String>,
+    item_sha256: Vec<String>,
     device: &Device,
-) -> Result<Trainer> {
+) -> Result<(Trainer, bool)> {
     recover(dir)?;
     let (mut config, state) = read_meta(dir)?;
     if let Some(seed) = seed {
@@ -339,12 +374,28 @@ pub fn load_trainer_for(
         state.density_scale,
         density_scale
     );
+    ensure!(
+        item_sha256.len() == item_ids.len(),
+        "{} item digests for {} items",
+        item_sha256.len(),
+        item_ids.len()
+    );
+    let codes = read_codes(dir)?;
+    check_digests(dir, &codes)?;
+    let same_items = !codes.item_sha256.is_empty()
+        && codes.items == item_ids
+        && codes.item_sha256 == item_sha256;
     let mut t = load_networks(
         Trainer::new(config, state.proj_scale, prior, item_ids, device)?,
         dir,
     )?;
+    t.item_sha256 = item_sha256;
+    let kept = same_items && t.codes.is_some();
+    if kept {
+        t = load_codes(t, dir)?;
+    }
     t.iteration = state.iteration;
-    Ok(t)
+    Ok((t, kept))
 }
 
 /// Loads what inference needs: the generator, its prior and the training codes.

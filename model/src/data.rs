@@ -48,6 +48,39 @@ impl Item {
         &self.projections[i * n..(i + 1) * n]
     }
 
+    /// SHA-256 (hex) of what training reads from the item: its line integrals (with the
+    /// detector size and view count) and its CT (size, voxel spacing and values; a marker
+    /// when it has none). Two folders holding the same data give the same digest, whatever
+    /// their paths; a checkpoint's per-item codes are kept only for items whose digest is
+    /// the one they were learned on (`codes.json`).
+    pub fn content_sha256(&self) -> String {
+        use sha2::{Digest, Sha256};
+        let mut h = Sha256::new();
+        for n in [
+            self.rows,
+            self.cols,
+            self.poses.len(),
+            self.projections.len(),
+        ] {
+            h.update((n as u64).to_le_bytes());
+        }
+        hash_f32(&mut h, &self.projections);
+        match &self.ct {
+            None => h.update(b"no ct"),
+            Some(ct) => {
+                h.update(b"ct");
+                for n in ct.dims() {
+                    h.update((n as u64).to_le_bytes());
+                }
+                for s in ct.spacing().to_array() {
+                    h.update(s.to_bits().to_le_bytes());
+                }
+                hash_f32(&mut h, ct.data());
+            }
+        }
+        format!("{:x}", h.finalize())
+    }
+
     /// Index of the projection taken at pose `(θ, φ)` (degrees, to 1e-6), if any.
     pub fn find_pose(&self, pose: Pose) -> Option<usize> {
         self.poses.iter().position(|p| {
@@ -57,6 +90,17 @@ impl Item {
                 < 1e-6
                 && (p.phi_deg - pose.phi_deg).abs() < 1e-6
         })
+    }
+}
+
+/// Feeds `values` (little-endian bytes) to `h`, a block at a time.
+fn hash_f32(h: &mut sha2::Sha256, values: &[f32]) {
+    use sha2::Digest;
+    let mut block = Vec::with_capacity(4096);
+    for chunk in values.chunks(1024) {
+        block.clear();
+        block.extend(chunk.iter().flat_map(|v| v.to_le_bytes()));
+        h.update(&block);
     }
 }
 

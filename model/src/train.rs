@@ -120,6 +120,10 @@ pub struct Trainer {
     pub codes: Option<Codes>,
     /// The ids of the items the code table's rows belong to, in row order.
     pub item_ids: Vec<String>,
+    /// The digests of those items' contents ([`crate::data::Item::content_sha256`]), in
+    /// row order; empty when unknown (set by the caller; checkpoints written before the
+    /// digests were recorded have none).
+    pub item_sha256: Vec<String>,
     /// The mean training volume the field's density is a residual on.
     pub prior: MeanVolume,
     /// D1 (sub-volumes).
@@ -242,6 +246,7 @@ impl Trainer {
             field,
             codes,
             item_ids,
+            item_sha256: Vec::new(),
             prior,
             d1,
             d2,

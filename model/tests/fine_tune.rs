@@ -23,6 +23,10 @@ fn ids(items: &[Item]) -> Vec<String> {
     items.iter().map(|i| i.id.clone()).collect()
 }
 
+fn digests(items: &[Item]) -> Vec<String> {
+    items.iter().map(Item::content_sha256).collect()
+}
+
 #[test]
 fn fine_tuning_starts_from_the_checkpoints_networks_with_the_new_items_codes_and_mean() {
     let dev = device();
@@ -45,16 +49,25 @@ fn fine_tuning_starts_from_the_checkpoints_networks_with_the_new_items_codes_and
     }
     checkpoint::save(&t, old[0].scale, &ck).unwrap();
 
-    let mut f =
-        checkpoint::load_trainer_for(&ck, None, mean_of(&new), new[0].scale, ids(&new), &dev)
-            .unwrap();
+    let (mut f, kept) = checkpoint::load_trainer_for(
+        &ck,
+        None,
+        mean_of(&new),
+        new[0].scale,
+        ids(&new),
+        digests(&new),
+        &dev,
+    )
+    .unwrap();
+    assert!(!kept, "other items get fresh codes");
     assert_eq!(f.iteration, 3, "the iteration count goes on");
     assert_eq!(f.proj_scale, scale, "the checkpoint's projection scale");
     // Saved as loaded: the networks and their optimisers are the checkpoint's, byte for
     // byte; the codes are a fresh run's on the new items; the mean is the new items'.
     let saved = dir.path().join("fine");
     checkpoint::save(&f, new[0].scale, &saved).unwrap();
-    let fresh = Trainer::new(config.clone(), scale, mean_of(&new), ids(&new), &dev).unwrap();
+    let mut fresh = Trainer::new(config.clone(), scale, mean_of(&new), ids(&new), &dev).unwrap();
+    fresh.item_sha256 = digests(&new);
     let fresh_dir = dir.path().join("fresh");
     checkpoint::save(&fresh, new[0].scale, &fresh_dir).unwrap();
     let bytes = |d: &std::path::Path, name: &str| std::fs::read(d.join(name)).unwrap();
@@ -99,9 +112,16 @@ fn fine_tuning_starts_from_the_checkpoints_networks_with_the_new_items_codes_and
     assert!(e.contains("are not the 3 items"), "{e}");
 
     // Another seed draws other codes.
-    let seeded =
-        checkpoint::load_trainer_for(&ck, Some(99), mean_of(&new), new[0].scale, ids(&new), &dev)
-            .unwrap();
+    let (seeded, _) = checkpoint::load_trainer_for(
+        &ck,
+        Some(99),
+        mean_of(&new),
+        new[0].scale,
+        ids(&new),
+        digests(&new),
+        &dev,
+    )
+    .unwrap();
     let seeded_dir = dir.path().join("seeded");
     checkpoint::save(&seeded, new[0].scale, &seeded_dir).unwrap();
     assert!(bytes(&seeded_dir, "codes.bpk") != bytes(&saved, "codes.bpk"));
@@ -112,12 +132,78 @@ fn fine_tuning_starts_from_the_checkpoints_networks_with_the_new_items_codes_and
         mu_per_unit: new[0].scale.mu_per_unit * 2.0,
         ..new[0].scale
     };
-    let e = checkpoint::load_trainer_for(&ck, None, mean_of(&new), other, ids(&new), &dev)
-        .err()
-        .expect("another density scale is refused")
-        .to_string();
+    let e = checkpoint::load_trainer_for(
+        &ck,
+        None,
+        mean_of(&new),
+        other,
+        ids(&new),
+        digests(&new),
+        &dev,
+    )
+    .err()
+    .expect("another density scale is refused")
+    .to_string();
     assert!(
         e.contains("density scale") && e.contains("made alike"),
         "{e}"
     );
+}
+
+/// Fine-tuned on the very items it learned its codes on (same ids, same content digests),
+/// a checkpoint keeps those codes and their optimiser state; a checkpoint without digests,
+/// or one item's content changed under its id, gets fresh codes.
+#[test]
+fn the_same_items_keep_their_learned_codes() {
+    let dev = device();
+    let config = TrainConfig::load("tiny").unwrap();
+    let items = vec![common::item(16, 4, 16, 0.0), common::item(16, 4, 16, -0.5)];
+    let scale = projection_scale(&items).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let bytes = |d: &std::path::Path, name: &str| std::fs::read(d.join(name)).unwrap();
+    let load = |ck: &std::path::Path, items: &[Item]| {
+        checkpoint::load_trainer_for(
+            ck,
+            None,
+            mean_of(items),
+            items[0].scale,
+            ids(items),
+            digests(items),
+            &dev,
+        )
+        .unwrap()
+    };
+    let saved_as_loaded = |t: &Trainer, name: &str| {
+        let d = dir.path().join(name);
+        checkpoint::save(t, items[0].scale, &d).unwrap();
+        d
+    };
+    let mut t = Trainer::new(config.clone(), scale, mean_of(&items), ids(&items), &dev).unwrap();
+    for _ in 0..3 {
+        t.step(&items).unwrap();
+    }
+    // Without recorded digests: fresh codes.
+    let bare = saved_as_loaded(&t, "bare");
+    let (f, kept) = load(&bare, &items);
+    assert!(!kept);
+    let fresh = saved_as_loaded(&f, "fresh");
+    assert!(bytes(&fresh, "codes.bpk") != bytes(&bare, "codes.bpk"));
+
+    t.item_sha256 = digests(&items);
+    let ck = saved_as_loaded(&t, "checkpoint");
+    let (f, kept) = load(&ck, &items);
+    assert!(kept, "the same items keep their codes");
+    let again = saved_as_loaded(&f, "again");
+    for name in ["codes.bpk", "opt_codes.bpk", "codes.json", "generator.bpk"] {
+        assert!(bytes(&again, name) == bytes(&ck, name), "{name}");
+    }
+
+    // One item's projections changed under the same id: fresh codes again.
+    let mut changed = items.clone();
+    changed[1].projections[7] += 0.25;
+    assert_eq!(ids(&changed), ids(&items));
+    let (f, kept) = load(&ck, &changed);
+    assert!(!kept, "an item whose content changed gets a fresh code");
+    let redrawn = saved_as_loaded(&f, "redrawn");
+    assert!(bytes(&redrawn, "codes.bpk") == bytes(&fresh, "codes.bpk"));
 }
