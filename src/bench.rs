@@ -51,8 +51,11 @@ pub struct BenchArgs {
     #[arg(long, requires = "scatter", default_value_t = 0)]
     pub view: usize,
     /// With --scatter: the 72-view orbits only (the one-view ladder skipped).
-    #[arg(long, requires = "scatter")]
+    #[arg(long, requires = "scatter", conflicts_with = "ladder_only")]
     pub orbit_only: bool,
+    /// With --scatter: the one-view ladder only (the orbits skipped).
+    #[arg(long, requires = "scatter")]
+    pub ladder_only: bool,
     /// With --scatter: runs of each setting, taken in turn (the median is reported).
     #[arg(long, requires = "scatter", default_value_t = 2)]
     pub rounds: usize,
@@ -69,6 +72,7 @@ pub fn run(args: BenchArgs) -> Result<()> {
             quick: o.quick,
             rounds: args.rounds,
             orbit_only: args.orbit_only,
+            ladder_only: args.ladder_only,
             view: args.view,
             reference_photons: args.reference_photons,
             reference_cache: args.reference_cache.clone(),
@@ -82,7 +86,13 @@ pub fn run(args: BenchArgs) -> Result<()> {
             } else {
                 String::new()
             },
-            if args.orbit_only { " --orbit-only" } else { "" },
+            if args.orbit_only {
+                " --orbit-only"
+            } else if args.ladder_only {
+                " --ladder-only"
+            } else {
+                ""
+            },
             scatter::section(ct, &so)?
         );
         return write_page("Scatter at data-set speed", &md, out);

@@ -205,7 +205,15 @@ fn the_scatter_bench_runs_on_a_ct_and_reuses_its_reference() {
         .lines()
         .filter(|l| l.starts_with("| Monte Carlo") || l.starts_with("| estimate"))
         .collect();
-    assert_eq!(rows.len(), 23, "{first}");
+    assert_eq!(rows.len(), 29, "{first}");
+    // Six rungs split at the first collision (×2 and ×4).
+    assert_eq!(
+        rows.iter()
+            .filter(|r| r.contains(" at the first collision"))
+            .count(),
+        6,
+        "{first}"
+    );
     // The reference's own noise, from its two halves, is stated.
     assert!(
         first.contains("in two halves of their own histories; its own noise"),
@@ -230,9 +238,17 @@ fn the_scatter_bench_runs_on_a_ct_and_reuses_its_reference() {
         .filter(|r| !r.split('|').map(str::trim).nth(8).unwrap_or("").is_empty())
         .count();
     assert_eq!(with_bias, 4, "{first}");
-    // Five orbits: 900, 1500 and 3500 histories, the last also with analog sampling (the
-    // ablation), and the estimate.
-    assert_eq!(first.matches("Orbit of 4 views").count(), 5, "{first}");
+    // Seven orbits: 900, 1500 and 3500 histories, the last also with analog sampling (the
+    // ablation), the estimate, and 900 and 1500 histories split ×2.
+    assert_eq!(first.matches("Orbit of 4 views").count(), 7, "{first}");
+    assert_eq!(
+        first
+            .lines()
+            .filter(|l| l.starts_with("Orbit of 4 views") && l.contains(" split ×2 at the first"))
+            .count(),
+        2,
+        "{first}"
+    );
     assert_eq!(first.matches("analog sampling").count(), 1, "{first}");
     let second = run();
     assert!(second.contains("(read from the cache)"), "{second}");
@@ -280,6 +296,27 @@ fn the_scatter_bench_runs_on_a_ct_and_reuses_its_reference() {
             && third.contains("View 1 against the reference")
             && !third.contains("| setting |"),
         "{third}"
+    );
+    // The ladder alone.
+    ok(&tomograf(&[
+        "bench",
+        "--scatter",
+        ct.to_str().unwrap(),
+        "--quick",
+        "--ladder-only",
+        "--reference-photons",
+        "512",
+        "--rounds",
+        "1",
+        "--out",
+        page.to_str().unwrap(),
+    ]));
+    let ladder = std::fs::read_to_string(&page).unwrap();
+    assert!(
+        ladder.contains("--ladder-only")
+            && ladder.contains("| setting |")
+            && !ladder.contains("Orbit of"),
+        "{ladder}"
     );
     let bad = tomograf(&[
         "bench",

@@ -9,9 +9,10 @@
 //! round, and the share of the total's squared deviation; then how much of each round's
 //! deviation is a scale of the whole image. SAMPLING `analog` runs the engine's sampling
 //! before 2026-12-01 (`ScatterEngine::with_analog_sampling`), `strata` (the default) today's.
-//! Not a test; one process.
+//! SPLIT (default 1) splits every history into that many branches at its first collision
+//! (the Monte Carlo's `split`). Not a test; one process.
 //!
-//! `cargo run --release -p tomograf-bench --example scatter_tail -- CT [VIEW] [HISTORIES] [ROUNDS] [SAMPLING]`
+//! `cargo run --release -p tomograf-bench --example scatter_tail -- CT [VIEW] [HISTORIES] [ROUNDS] [SAMPLING] [SPLIT]`
 
 use anyhow::{Context, Result};
 use tomograf_physics::scatter::ScatterModel;
@@ -30,6 +31,7 @@ fn main() -> Result<()> {
         "analog" => true,
         other => anyhow::bail!("SAMPLING {other:?}: strata or analog"),
     };
+    let split: u32 = args.get(5).map_or(Ok(1), |s| s.parse())?;
     let scene = tomograf_bench::scatter::scene(&ct, false)?;
     let (mut acq, seed) = acquisition(&scene)?.context("the scene has no physics")?;
     acq.detector.quantum_noise = false;
@@ -45,6 +47,7 @@ fn main() -> Result<()> {
         max_order: 50,
         detection_cell_mm: 8.0,
         angular_window_deg: 0.0,
+        split,
     };
     let model = acq.scatter.clone();
     let prepared = acq.prepare(&hu, seed)?;
@@ -79,8 +82,8 @@ fn main() -> Result<()> {
         .collect();
     let norm = (total.iter().map(|x| x * x).sum::<f64>() / n as f64).sqrt();
     println!(
-        "CT {}, view {at}, {photons} histories × {rounds} rounds, {} sampling ({seconds:.2} s \
-         each, {} threads); mean components' share of the total: Compton {:.3}, Rayleigh {:.3}, multiple {:.3}",
+        "CT {}, view {at}, {photons} histories × {rounds} rounds, {} sampling, split {split} \
+         ({seconds:.2} s each, {} threads); mean components' share of the total: Compton {:.3}, Rayleigh {:.3}, multiple {:.3}",
         ct.display(),
         if analog {
             "analog"

@@ -45,6 +45,7 @@ fn mc(photons: u64, grid: usize) -> ScatterModel {
         max_order: 50,
         detection_cell_mm: 0.0,
         angular_window_deg: 0.0,
+        split: 1,
     }
 }
 

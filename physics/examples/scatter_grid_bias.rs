@@ -33,6 +33,7 @@ fn scatter(hu: &Volume, view: &View, grid: usize, seed: u64) -> Vec<f64> {
         max_order: 50,
         detection_cell_mm: 0.0,
         angular_window_deg: 0.0,
+        split: 1,
     };
     let p = a.prepare(hu, seed).unwrap();
     let s = p.scatter(view, 0).unwrap().unwrap();

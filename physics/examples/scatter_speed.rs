@@ -40,6 +40,7 @@ fn main() {
             max_order: 50,
             detection_cell_mm: 0.0,
             angular_window_deg: 0.0,
+            split: 1,
         };
         let p = a.prepare(&hu, 7).unwrap();
         let t0 = cpu_seconds();

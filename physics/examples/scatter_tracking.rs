@@ -84,6 +84,7 @@ fn main() {
         max_order: 50,
         detection_cell_mm: 0.0,
         angular_window_deg: 0.0,
+        split: 1,
     };
     let spectrum = a.spectrum.spectrum().unwrap();
     let (energies, fluence) = (spectrum.energies_kev(), spectrum.fluence());

@@ -52,6 +52,7 @@ fn scatter_adds_its_expected_images_and_none_adds_nothing() {
         max_order: 20,
         detection_cell_mm: 0.0,
         angular_window_deg: 0.0,
+        split: 1,
     };
     let prepared = with.prepare(&hu, 3).unwrap();
     let (p1, _) = prepared.expected(Projector::Siddon, &v).unwrap();
@@ -138,6 +139,7 @@ fn detection_cells_change_only_the_forced_detection_paths() {
             max_order: 20,
             detection_cell_mm: cell,
             angular_window_deg: 0.0,
+            split: 1,
         };
         let p = a.prepare(&hu, 5).unwrap();
         p.scatter(&v, 0).unwrap().unwrap().total().mean
@@ -172,6 +174,7 @@ fn detection_cells_out_of_range_are_refused_by_name() {
             max_order: 5,
             detection_cell_mm: bad,
             angular_window_deg: 0.0,
+            split: 1,
         };
         let e = m.validate().unwrap_err().to_string();
         assert!(e.contains("detection_cell_mm"), "{e}");
@@ -192,6 +195,7 @@ fn orbit_acquisition(window: f64) -> Acquisition {
         max_order: 10,
         detection_cell_mm: 0.0,
         angular_window_deg: window,
+        split: 1,
     };
     a
 }

@@ -43,6 +43,7 @@ fn scatter_correction_from_the_object_removes_the_scatter() {
         max_order: 20,
         detection_cell_mm: 0.0,
         angular_window_deg: 0.0,
+        split: 1,
     };
     let prepared = a.prepare(&hu, 3).unwrap();
     // Noiseless −log with and without scatter: the expected images over the open field.

@@ -23,7 +23,7 @@ use super::estimate::smooth;
 use super::estimator::{Component, Response, ScoreGrid, Tally, score, to_image};
 use super::strata::Strata;
 use super::transport::{E_CUTOFF_KEV, Medium};
-use super::{MAX_GRID, MAX_PHOTONS, ScatterModel};
+use super::{MAX_GRID, MAX_PHOTONS, MAX_SPLIT, ScatterModel};
 use crate::detector::ExpectedImage;
 use crate::polychromatic::pixel_exposure_factor;
 use rand::{Rng, SeedableRng};
@@ -212,7 +212,7 @@ impl ScatterEngine {
         seed: u64,
     ) -> Result<Option<ScatterImages>> {
         model.validate()?;
-        let (photons, grid, multiple_grid, max_order, smoothing, cell_mm) = match *model {
+        let (photons, grid, multiple_grid, max_order, smoothing, cell_mm, split) = match *model {
             ScatterModel::None => return Ok(None),
             ScatterModel::Estimate {
                 photons,
@@ -227,6 +227,7 @@ impl ScatterEngine {
                 50,
                 smoothing,
                 detection_cell_mm,
+                1,
             ),
             ScatterModel::MonteCarlo {
                 photons,
@@ -234,6 +235,7 @@ impl ScatterEngine {
                 multiple_grid,
                 max_order,
                 detection_cell_mm,
+                split,
                 ..
             } => (
                 photons,
@@ -242,6 +244,7 @@ impl ScatterEngine {
                 max_order,
                 0.0,
                 detection_cell_mm,
+                split,
             ),
         };
         // 0: the single-scatter grid's points.
@@ -259,7 +262,7 @@ impl ScatterEngine {
                 single: grid,
                 multiple: multiple_grid,
             },
-            max_order,
+            (max_order, split),
             smoothing,
             detection.as_deref(),
             seed,
@@ -286,12 +289,27 @@ impl ScatterEngine {
             single: grid,
             multiple: grid,
         };
-        self.simulate_through(aim, view, photons, points, max_order, smoothing, None, seed)
+        self.simulate_through(
+            aim,
+            view,
+            photons,
+            points,
+            (max_order, 1),
+            smoothing,
+            None,
+            seed,
+        )
     }
 
     /// [`ScatterEngine::simulate`] with forced detection traced through `detection`
     /// (`None`: the full-resolution composition), photons scattered once scored on
     /// `points.single` points per side and those scattered again on `points.multiple`.
+    /// `orders` is (most scatters per history, branches each history splits into at its
+    /// first collision): with `split` > 1 the primary's path, its forced first collision
+    /// and the single-scatter scores are paid once, then `split` independent scatters from
+    /// that site, each with 1/`split` of the weight (and of its Russian roulette
+    /// threshold), follow the later flights that make the multiple-scatter image. Unbiased;
+    /// 1 does not split.
     #[allow(clippy::too_many_arguments)]
     pub fn simulate_through(
         &self,
@@ -299,7 +317,8 @@ impl ScatterEngine {
         view: &View,
         photons: u64,
         points: ScoringPoints,
-        max_order: u32,
+        orders: (u32, u32),
+
         smoothing: f64,
         detection: Option<&DetectionGrid>,
         seed: u64,
@@ -324,10 +343,16 @@ impl ScatterEngine {
                  grid = {multiple_grid} (1 to {MAX_GRID})"
             )));
         }
+        let (max_order, split) = orders;
         if max_order == 0 {
             return Err(SimError::OutOfRange(
                 "scatter: max_order must be ≥ 1".into(),
             ));
+        }
+        if !(1..=MAX_SPLIT).contains(&split) {
+            return Err(SimError::OutOfRange(format!(
+                "scatter: split = {split}; give 1 to {MAX_SPLIT} branches (1: no splitting)"
+            )));
         }
         let mut pix_cdf = Vec::with_capacity(aim.rows * aim.cols);
         let mut f_tot = 0.0;
@@ -376,8 +401,8 @@ impl ScatterEngine {
                         source,
                         (target - source).normalize(),
                         e,
-                        w0,
-                        max_order,
+                        (w0, w0, 0),
+                        (max_order, split),
                         (&sgrid, &mut tally),
                         mgrid.as_ref().zip(mtally.as_mut()),
                         detection,
@@ -465,15 +490,18 @@ impl ScatterEngine {
 
     /// One history with forced detection at each collision; its first collision forced
     /// ([`Medium::fly_forced`]) at the depth drawn from `first.0` (`first.1`: scratch),
-    /// unless the engine samples analog; later flights analog.
+    /// unless the engine samples analog; later flights analog. `start` is (weight, the
+    /// weight Russian roulette is measured against, scatters so far): `(w0, w0, 0)` for a
+    /// photon from the source; a branch of a split history starts after its first scatter.
+    /// `orders`: (most scatters, branches at the first collision).
     #[allow(clippy::too_many_arguments)]
     fn history<R: Rng>(
         &self,
         mut p: glam::DVec3,
         mut d: glam::DVec3,
         mut e: f64,
-        w0: f64,
-        max_order: u32,
+        start: (f64, f64, u32),
+        orders: (u32, u32),
         single: (&ScoreGrid, &mut Tally),
         mut multiple: Option<(&ScoreGrid, &mut Tally)>,
         detection: Option<&DetectionGrid>,
@@ -481,8 +509,8 @@ impl ScatterEngine {
         rng: &mut R,
     ) {
         let (sgrid, stally) = single;
-        let mut w = w0;
-        let mut order = 0;
+        let (mut w, w0, mut order) = start;
+        let (max_order, split) = orders;
         let (u_depth, segments) = first;
         while order < max_order {
             let flight = if order == 0 && !self.analog {
@@ -516,6 +544,38 @@ impl ScatterEngine {
                 tally,
             );
             w *= 1.0 - c.p_photo;
+            if order == 0 && split > 1 && max_order > 1 {
+                // Split: the branches share this site; each is a history of its own from
+                // its scatter on, with its share of the weight.
+                let k = f64::from(split);
+                for _ in 0..split {
+                    let (nd, ne, _) = self.medium.scatter(&c, d, rng);
+                    if ne < E_CUTOFF_KEV {
+                        continue;
+                    }
+                    let mut wb = w / k;
+                    if wb < ROULETTE * w0 / k {
+                        if rng.random::<f64>() < 0.5 {
+                            wb *= 2.0;
+                        } else {
+                            continue;
+                        }
+                    }
+                    self.history(
+                        c.position,
+                        nd,
+                        ne,
+                        (wb, w0 / k, 1),
+                        orders,
+                        (sgrid, &mut *stally),
+                        multiple.as_mut().map(|(g, t)| (*g, &mut **t)),
+                        detection,
+                        (f64::NAN, &mut *segments),
+                        rng,
+                    );
+                }
+                return;
+            }
             let (nd, ne, _) = self.medium.scatter(&c, d, rng);
             order += 1;
             if ne < E_CUTOFF_KEV {
