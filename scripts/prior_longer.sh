@@ -13,8 +13,8 @@
 # same order). Then both are scored on the two validation sets of scripts/prior_realistic.sh
 # (6 + 6 phantoms matched to the real CTs' statistics) from 1 and 2 views, and
 # scripts/validation_rule.py, fixed before any score, decides: the longer run replaces the
-# shipped one only with a resolved paired lead in body PSNR. About 8000 iterations per
-# 45 min of training (one thread) and 20 min of scoring per checkpoint on 2 cores.
+# shipped one only with a resolved paired lead in body PSNR. About 50 min per 8000
+# iterations of training (one thread) and 10 min of scoring per checkpoint on 2 cores.
 #
 # Decision 4 (24 000 → 32 000 iterations) was made with the script of commit 888f7a47,
 # which continued with `train --init` and so drew fresh codes (the generator loss jumped
