@@ -95,6 +95,23 @@ fn main() -> Result<()> {
         mean[1].iter().sum::<f64>() / total.iter().sum::<f64>(),
         mean[2].iter().sum::<f64>() / total.iter().sum::<f64>(),
     );
+    // Each component's image total per round: the mean over the rounds and its standard
+    // error (to compare settings that should agree, e.g. split against unsplit).
+    let totals: Vec<String> = ["single Compton", "single Rayleigh", "multiple"]
+        .iter()
+        .enumerate()
+        .map(|(c, name)| {
+            let t: Vec<f64> = runs.iter().map(|r| r[c].iter().sum::<f64>()).collect();
+            let k = t.len() as f64;
+            let m = t.iter().sum::<f64>() / k;
+            let sd = (t.iter().map(|x| (x - m).powi(2)).sum::<f64>() / (k - 1.0).max(1.0)).sqrt();
+            format!("{name} {m:.5e} ± {:.2} %", 100.0 * sd / k.sqrt() / m)
+        })
+        .collect();
+    println!(
+        "image totals, mean of the rounds ± standard error: {}\n",
+        totals.join(", ")
+    );
     println!(
         "| component | deviation rms / total rms: mean of rounds | worst round | share of the total's squared deviation |"
     );
