@@ -238,15 +238,15 @@ fn the_scatter_bench_runs_on_a_ct_and_reuses_its_reference() {
         .filter(|r| !r.split('|').map(str::trim).nth(8).unwrap_or("").is_empty())
         .count();
     assert_eq!(with_bias, 4, "{first}");
-    // Seven orbits: 900, 1500 and 3500 histories, the last also with analog sampling (the
-    // ablation), the estimate, and 900 and 1500 histories split ×2.
-    assert_eq!(first.matches("Orbit of 4 views").count(), 7, "{first}");
+    // Eight orbits: 900, 1500 and 3500 histories, the last also with analog sampling (the
+    // ablation), the estimate, and 900, 1500 and 2200 histories split ×2.
+    assert_eq!(first.matches("Orbit of 4 views").count(), 8, "{first}");
     assert_eq!(
         first
             .lines()
             .filter(|l| l.starts_with("Orbit of 4 views") && l.contains(" split ×2 at the first"))
             .count(),
-        2,
+        3,
         "{first}"
     );
     assert_eq!(first.matches("analog sampling").count(), 1, "{first}");

@@ -46,8 +46,11 @@ pub struct DetectionGrid {
     fine_dims: [usize; 3],
     /// The material indices present, in the order of `densities`' per-cell entries.
     materials: Vec<usize>,
-    /// Mean partial density of each present material (g/cm³), `materials.len()` per cell,
-    /// cells i fastest.
+    /// Entries per cell: `materials.len()` rounded up to 4, 8 or 16 (the padding is 0), so
+    /// the walk's inner loop has a fixed length the compiler unrolls.
+    lanes: usize,
+    /// Mean partial density of each present material (g/cm³), `lanes` per cell, cells i
+    /// fastest.
     densities: Vec<f32>,
 }
 
@@ -82,7 +85,7 @@ impl DetectionGrid {
             .enumerate()
             .filter_map(|(m, &p)| p.then_some(m))
             .collect();
-        let nm = materials.len().max(1);
+        let nm = lanes_for(materials.len());
         let mut slot = [usize::MAX; MAX_MATERIALS];
         for (k, &m) in materials.iter().enumerate() {
             slot[m] = k;
@@ -127,6 +130,7 @@ impl DetectionGrid {
             dims,
             fine_dims,
             materials,
+            lanes: nm,
             densities,
         })
     }
@@ -162,33 +166,59 @@ impl DetectionGrid {
         ) else {
             return out;
         };
-        let nm = self.materials.len().max(1);
-        let mut acc = CellPaths {
-            densities: &self.densities,
-            nm,
-            sums: [0.0; MAX_MATERIALS],
+        let sums = match self.lanes {
+            4 => self.walk::<4>(&g),
+            8 => self.walk::<8>(&g),
+            _ => self.walk::<MAX_MATERIALS>(&g),
         };
-        siddon::trace(self.dims, &g, &mut acc);
         for (k, &m) in self.materials.iter().enumerate() {
-            out[m] = acc.sums[k];
+            out[m] = sums[k];
         }
         out
     }
 }
 
-/// Sums each present material's ρ̄·ℓ over the cells a ray crosses.
-struct CellPaths<'a> {
-    densities: &'a [f32],
-    nm: usize,
-    sums: [f64; MAX_MATERIALS],
+impl DetectionGrid {
+    /// Each lane's Σρ̄ℓ along the clipped ray `g` (cell coordinates), `N` = `self.lanes`.
+    fn walk<const N: usize>(&self, g: &GridRay) -> [f64; MAX_MATERIALS] {
+        let (cells, rest) = self.densities.as_chunks::<N>();
+        debug_assert!(rest.is_empty());
+        let mut acc = CellPaths::<N> {
+            cells,
+            sums: [0.0; N],
+        };
+        siddon::trace(self.dims, g, &mut acc);
+        let mut out = [0.0; MAX_MATERIALS];
+        out[..N].copy_from_slice(&acc.sums);
+        out
+    }
 }
 
-impl PathAccumulator for CellPaths<'_> {
+/// Entries per cell for `materials` present materials: 4, 8 or [`MAX_MATERIALS`].
+fn lanes_for(materials: usize) -> usize {
+    match materials {
+        0..=4 => 4,
+        5..=8 => 8,
+        _ => MAX_MATERIALS,
+    }
+}
+
+/// Sums each lane's ρ̄·ℓ over the cells a ray crosses (`N` lanes a cell, a fixed length so
+/// the loop unrolls). Every lane adds its segments in the walk's order, as one material
+/// at a time would.
+struct CellPaths<'a, const N: usize> {
+    cells: &'a [[f32; N]],
+    sums: [f64; N],
+}
+
+impl<const N: usize> PathAccumulator for CellPaths<'_, N> {
     #[inline(always)]
     fn segment(&mut self, cell: usize, length_mm: f64) {
-        let d = &self.densities[cell * self.nm..][..self.nm];
-        for (s, &rho) in self.sums.iter_mut().zip(d) {
-            *s += f64::from(rho) * length_mm;
+        let d = &self.cells[cell];
+        // Indexed over the constant N: the form measured (docs/scatter-speed-unrolled.md).
+        #[allow(clippy::needless_range_loop)]
+        for l in 0..N {
+            self.sums[l] += f64::from(d[l]) * length_mm;
         }
     }
 }
@@ -202,13 +232,22 @@ mod tests {
     /// A 12 × 10 × 8 grid of 1.5 × 2 × 3 mm voxels, rotated, with two materials in a
     /// pattern that varies voxel to voxel.
     fn composition() -> Composition {
+        composition_of(2)
+    }
+
+    /// The same grid with `materials` materials in turn.
+    fn composition_of(materials: usize) -> Composition {
         let dims = [12, 10, 8];
         let mut labels = Vec::new();
         let mut density = Vec::new();
         for k in 0..dims[2] {
             for j in 0..dims[1] {
                 for i in 0..dims[0] {
-                    labels.push(((i + 2 * j + k) % 3 == 0) as u8 as f32);
+                    labels.push(if materials == 2 {
+                        ((i + 2 * j + k) % 3 == 0) as u8 as f32
+                    } else {
+                        ((i + 2 * j + 5 * k) % materials) as f32
+                    });
                     density.push(if (i * 7 + j * 3 + k) % 5 == 0 {
                         0.0
                     } else {
@@ -228,12 +267,39 @@ mod tests {
             )
             .unwrap()
         };
-        Composition::from_labels(
-            &grid(labels),
-            &grid(density),
-            vec!["water".into(), "bone".into()],
-        )
-        .unwrap()
+        let names = if materials == 2 {
+            vec!["water".into(), "bone".into()]
+        } else {
+            (0..materials).map(|m| format!("material {m}")).collect()
+        };
+        Composition::from_labels(&grid(labels), &grid(density), names).unwrap()
+    }
+
+    #[test]
+    fn every_lane_count_traces_each_materials_own_path() {
+        // 2, 6 and 11 materials: 4, 8 and 16 entries a cell; one voxel a cell, so each
+        // material's Σρℓ is the full-resolution walk's, added in the same order.
+        for (materials, lanes) in [(2, 4), (6, 8), (11, MAX_MATERIALS)] {
+            let c = composition_of(materials);
+            let g = DetectionGrid::with_factor(&c, [1, 1, 1]).unwrap();
+            assert_eq!((g.materials.len(), g.lanes), (materials, lanes));
+            let centre = c.packed().centre();
+            for d in [
+                DVec3::new(40.0, -2.0, 3.5),
+                DVec3::new(6.5, 45.0, -10.0),
+                DVec3::new(-4.5, 45.0, 32.5),
+            ] {
+                let (a, b) = (centre - d, centre + d);
+                let (x, y) = (g.paths(a, b), full_paths(&c, a, b));
+                assert!(y.iter().filter(|&&v| v > 0.0).count() >= 2.min(materials));
+                for m in 0..MAX_MATERIALS {
+                    assert!(
+                        (x[m] - y[m]).abs() <= 1e-12 * (1.0 + y[m]),
+                        "{materials} {m}: {x:?} {y:?}"
+                    );
+                }
+            }
+        }
     }
 
     fn full_paths(c: &Composition, from: DVec3, to: DVec3) -> [f64; MAX_MATERIALS] {
@@ -286,7 +352,7 @@ mod tests {
             for (k, &m) in g.materials.iter().enumerate() {
                 let coarse: f64 = g
                     .densities
-                    .chunks(g.materials.len())
+                    .chunks(g.lanes)
                     .enumerate()
                     .map(|(cell, d)| f64::from(d[k]) * voxels(cell))
                     .sum();

@@ -258,6 +258,8 @@ pub fn score(
         (Component::Multiple as usize, Component::Multiple as usize)
     };
     let norms = medium.angular_norms(c);
+    // Rayleigh keeps the energy: its μ/ρ are the same towards every point.
+    let rayleigh_mu = medium.attenuations(c.energy_kev);
     for (p, &q) in grid.points.iter().enumerate() {
         let to = q - c.position;
         let d2 = to.length_squared();
@@ -272,7 +274,8 @@ pub fn score(
         let (pc, ec) = medium.compton_towards(c, &norms, mu);
         let vc = weight * c.p_compton * pc * solid * medium.transmission(&paths, ec);
         let pr = medium.rayleigh_towards(c, &norms, mu);
-        let mut vr = weight * c.p_rayleigh * pr * solid * medium.transmission(&paths, c.energy_kev);
+        let mut vr =
+            weight * c.p_rayleigh * pr * solid * medium.transmission_with(&paths, &rayleigh_mu);
         let mut vc = vc;
         if let Some(a) = anti {
             let (u, n, f) = (grid.u_axis, grid.normal, grid.focus[p]);

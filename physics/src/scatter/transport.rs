@@ -253,6 +253,29 @@ impl Medium {
         (-tau).exp()
     }
 
+    /// Each material's total μ/ρ (cm²/g) at `e` keV, for many [`Medium::transmission_with`]
+    /// at one energy (materials past the medium's list: 0).
+    pub fn attenuations(&self, e: f64) -> [f64; tomograf_sim::composition::MAX_MATERIALS] {
+        let at = self.knots.locate(e);
+        let mut out = [0.0; tomograf_sim::composition::MAX_MATERIALS];
+        for (m, o) in out.iter_mut().enumerate().take(self.materials.len()) {
+            *o = self.table(m, at, TOTAL);
+        }
+        out
+    }
+
+    /// [`Medium::transmission`] with the μ/ρ of [`Medium::attenuations`]: the same value,
+    /// bit for bit.
+    pub fn transmission_with(&self, sums: &[f64], mass_attenuation: &[f64]) -> f64 {
+        let mut tau = 0.0;
+        for (&s, &mu) in sums.iter().zip(mass_attenuation).take(self.materials.len()) {
+            if s > 0.0 {
+                tau += mu * s / 10.0;
+            }
+        }
+        (-tau).exp()
+    }
+
     /// Flies a photon from `p` along unit `d` to its next real collision (Woodcock):
     /// `None` if it leaves the volume first.
     pub fn fly<R: Rng>(&self, p: DVec3, d: DVec3, e: f64, rng: &mut R) -> Option<Collision> {
