@@ -85,7 +85,7 @@ impl DetectionGrid {
             .enumerate()
             .filter_map(|(m, &p)| p.then_some(m))
             .collect();
-        let nm = lanes_for(materials.len());
+        let lanes = lanes_for(materials.len());
         let mut slot = [usize::MAX; MAX_MATERIALS];
         for (k, &m) in materials.iter().enumerate() {
             slot[m] = k;
@@ -93,13 +93,13 @@ impl DetectionGrid {
         let data = packed.data();
         // Voxels in the cells of each axis (the last may have fewer).
         let count = |a: usize, c: usize| ((c + 1) * factor[a]).min(fine_dims[a]) - c * factor[a];
-        let mut densities = vec![0.0f32; dims[0] * dims[1] * dims[2] * nm];
+        let mut densities = vec![0.0f32; dims[0] * dims[1] * dims[2] * lanes];
         // One k-slab of cells per task: each sums its own block of fine voxels.
         densities
-            .par_chunks_mut(dims[0] * dims[1] * nm)
+            .par_chunks_mut(dims[0] * dims[1] * lanes)
             .enumerate()
             .for_each(|(ck, slab)| {
-                let mut acc = vec![0.0f64; dims[0] * dims[1] * nm];
+                let mut acc = vec![0.0f64; dims[0] * dims[1] * lanes];
                 let k_end = ((ck + 1) * factor[2]).min(fine_dims[2]);
                 for k in ck * factor[2]..k_end {
                     for j in 0..fine_dims[1] {
@@ -109,12 +109,12 @@ impl DetectionGrid {
                             let (rho, m) = unpack(v);
                             if rho > 0.0 {
                                 let cell = i / factor[0] + dims[0] * cj;
-                                acc[cell * nm + slot[m]] += f64::from(rho);
+                                acc[cell * lanes + slot[m]] += f64::from(rho);
                             }
                         }
                     }
                 }
-                for (cell, (d, a)) in slab.chunks_mut(nm).zip(acc.chunks(nm)).enumerate() {
+                for (cell, (d, a)) in slab.chunks_mut(lanes).zip(acc.chunks(lanes)).enumerate() {
                     let (ci, cj) = (cell % dims[0], cell / dims[0]);
                     let n = (count(0, ci) * count(1, cj) * count(2, ck)) as f64;
                     for (x, y) in d.iter_mut().zip(a) {
@@ -130,7 +130,7 @@ impl DetectionGrid {
             dims,
             fine_dims,
             materials,
-            lanes: nm,
+            lanes,
             densities,
         })
     }
@@ -152,10 +152,10 @@ impl DetectionGrid {
         let f = self.factor.map(|f| f as f64);
         let g0 = (self.to_grid * (ray.origin - self.origin) + 0.5).to_array();
         let gd = (self.to_grid * ray.direction).to_array();
-        let mut out = [0.0; MAX_MATERIALS];
+        let missed = [0.0; MAX_MATERIALS];
         // Clipped to the full-resolution grid's box, then walked through the cells.
         let Some(fine) = GridRay::clip_grid(self.fine_dims, g0, gd, ray.t_min, ray.t_max) else {
-            return out;
+            return missed;
         };
         let Some(g) = GridRay::clip_grid(
             self.dims,
@@ -164,22 +164,17 @@ impl DetectionGrid {
             fine.t_enter,
             fine.t_exit,
         ) else {
-            return out;
+            return missed;
         };
-        let sums = match self.lanes {
+        match self.lanes {
             4 => self.walk::<4>(&g),
             8 => self.walk::<8>(&g),
             _ => self.walk::<MAX_MATERIALS>(&g),
-        };
-        for (k, &m) in self.materials.iter().enumerate() {
-            out[m] = sums[k];
         }
-        out
     }
-}
 
-impl DetectionGrid {
-    /// Each lane's Σρ̄ℓ along the clipped ray `g` (cell coordinates), `N` = `self.lanes`.
+    /// [`DetectionGrid::paths`] along the clipped ray `g` (cell coordinates) with `N` =
+    /// `self.lanes` entries a cell, each lane's sum put at its material's index.
     fn walk<const N: usize>(&self, g: &GridRay) -> [f64; MAX_MATERIALS] {
         let (cells, rest) = self.densities.as_chunks::<N>();
         debug_assert!(rest.is_empty());
@@ -189,7 +184,9 @@ impl DetectionGrid {
         };
         siddon::trace(self.dims, g, &mut acc);
         let mut out = [0.0; MAX_MATERIALS];
-        out[..N].copy_from_slice(&acc.sums);
+        for (&m, &sum) in self.materials.iter().zip(&acc.sums) {
+            out[m] = sum;
+        }
         out
     }
 }
