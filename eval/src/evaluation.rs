@@ -357,15 +357,16 @@ pub fn evaluate(e: &Evaluation) -> Result<usize> {
                     if let Some(scores) = &net.held_out {
                         let s: Vec<String> = scores
                             .iter()
-                            .map(|(w, db)| {
-                                format!(
+                            .map(|(w, db)| match w {
+                                Some(w) => format!(
                                     "{:.2} × network + {:.2} × mean: {db:.2}",
                                     w.network, w.mean
-                                )
+                                ),
+                                None => format!("no sweeps: {db:.2}"),
                             })
                             .collect();
                         e.progress.note(&format!(
-                            "  left-out views' projection PSNR (dB) per start: {}",
+                            "  left-out views' projection PSNR (dB) per candidate: {}",
                             s.join("; ")
                         ));
                     }

@@ -164,6 +164,11 @@ pub struct InferConfig {
     /// start, chosen by a view left out").
     #[serde(default = "default_held_out_max_views")]
     pub held_out_max_views: usize,
+    /// What decides whether the sweeps run from two to `held_out_max_views` views:
+    /// `projection` (the default), `refine_below_db` on the views the network was fitted
+    /// to; `held-out`, views left out of the network's fit ([`RefineGate::HeldOut`]).
+    #[serde(default, skip_serializing_if = "RefineGate::is_projection")]
+    pub refine_gate: RefineGate,
     /// From this many reference views on, the sweeps run whatever the views' projection PSNR
     /// and start from the whole network volume (`None`: the gate alone decides). With many
     /// views the network can explain every view's projection above `refine_below_db`
@@ -193,6 +198,30 @@ pub enum RefineStart {
     /// right from one that has been bent to the views. Other view counts: the configured
     /// weights.
     HeldOut,
+}
+
+/// What decides whether the data-consistency sweeps run.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum RefineGate {
+    /// The sweeps run when some reference view's projection PSNR against the network
+    /// volume is below `refine_below_db` (a view the prior could not explain).
+    #[default]
+    Projection,
+    /// From two to `held_out_max_views` views, views left out of the network's fit decide:
+    /// the network volume without sweeps and the sweeps from the whole network volume are
+    /// candidates beside the starts of [`RefineStart::HeldOut`], and the one whose volumes
+    /// best predict the left-out views is used ([`crate::held_out`]). A network can explain
+    /// the views it was fitted to without being right inside; a view it was not fitted to
+    /// tells. Other view counts: the projection gate.
+    HeldOut,
+}
+
+impl RefineGate {
+    /// Whether this is the default, projection gate (left out of a written config).
+    pub fn is_projection(&self) -> bool {
+        *self == RefineGate::Projection
+    }
 }
 
 fn default_lr_codes() -> f64 {
@@ -592,6 +621,22 @@ mod tests {
         c.infer.refine_always_from_views = Some(0);
         let e = c.validate().unwrap_err().to_string();
         assert!(e.contains("refine_always_from_views is 0"), "{e}");
+        // The gate: projection by default and left out of a written config; "held-out" read
+        // back; an unknown gate named.
+        let c = TrainConfig::load("tiny").unwrap();
+        assert_eq!(c.infer.refine_gate, RefineGate::Projection);
+        let text = toml::to_string(&c).unwrap();
+        assert!(!text.contains("refine_gate"), "{text}");
+        let held = text.replace("[infer]\n", "[infer]\nrefine_gate = \"held-out\"\n");
+        assert_eq!(
+            TrainConfig::parse(&held).unwrap().infer.refine_gate,
+            RefineGate::HeldOut
+        );
+        let e =
+            TrainConfig::parse(&text.replace("[infer]\n", "[infer]\nrefine_gate = \"views\"\n"))
+                .unwrap_err()
+                .to_string();
+        assert!(e.contains("views") && e.contains("held-out"), "{e}");
         let o = InferOverrides {
             refine_tv_step: Some(f64::NAN),
             ..InferOverrides::default()

@@ -10,8 +10,9 @@
 //! 3. With `refine_iterations` > 0, when some reference view's full-image PSNR against the
 //!    network volume's projection is below `refine_below_db` (the prior could not explain
 //!    the views: anatomy outside the training population), or always from
-//!    `refine_always_from_views` views on, SART-TV (sim's defaults) runs that many sweeps
-//!    from the network's volume ([`crate::refine`]: where they start).
+//!    `refine_always_from_views` views on, or as views left out of the fit decide
+//!    (`refine_gate = "held-out"`, [`crate::held_out`]), SART-TV (sim's defaults) runs that
+//!    many sweeps from the network's volume ([`crate::refine`]: where they start).
 //!    The network's own volume is kept beside the result.
 //!
 //! Each iteration fits one randomly drawn reference view with eq. 13's loss,
@@ -21,7 +22,7 @@
 //! each view's full-image PSNR reaches the threshold, or at the iteration cap.
 
 use crate::checkpoint::Generator;
-use crate::config::{InferConfig, RefineStart};
+use crate::config::{InferConfig, RefineGate, RefineStart};
 use crate::error::Result;
 use crate::held_out;
 use crate::refine::{StartWeights, start_weights, sweep_from};
@@ -64,15 +65,17 @@ pub struct NetworkVolume {
     /// Full-image PSNR (dB) of each reference view against its projection, as
     /// [`Reconstruction::psnr`].
     pub psnr: Vec<f64>,
-    /// Whether the sweeps ran (some view's PSNR was below `refine_below_db`).
+    /// Whether the sweeps ran (some view's PSNR was below `refine_below_db`, or the gate of
+    /// `refine_always_from_views` or `refine_gate` opened).
     pub refined: bool,
     /// The weights of the sweeps' start (network volume, mean volume), when they ran.
     pub start: Option<StartWeights>,
-    /// Seconds the sweeps took (with the refits of a start chosen by left-out views).
+    /// Seconds the sweeps took (with the refits of a start or gate chosen by left-out
+    /// views, also when those chose no sweeps).
     pub refine_seconds: f64,
-    /// With a start chosen by left-out views: each candidate start and its PSNR (dB) on
+    /// When left-out views chose: each candidate (`None`: no sweeps) and its PSNR (dB) on
     /// the left-out views ([`held_out::HeldOutChoice::scores`]).
-    pub held_out: Option<Vec<(StartWeights, f64)>>,
+    pub held_out: Option<held_out::CandidateScores>,
 }
 
 /// Refuses an inference whose estimated peak
@@ -110,6 +113,60 @@ fn check_memory(
     Ok(peak)
 }
 
+/// Whether the data-consistency sweeps run after the network's fit to `refs` (its volume
+/// `network`, its views' projection PSNR `psnr`) and from which start (`None`: they do
+/// not), with the left-out views' scores when those decided:
+/// - from `refine_always_from_views` views on, always, from the whole network volume;
+/// - with `refine_gate = "held-out"` and two to `held_out_max_views` views, as the left-out
+///   views choose among no sweeps and the starts ([`held_out::gate_candidates`]);
+/// - else when some view is unexplained (`refine_below_db`), from the start
+///   [`start_weights`] gives, or — with `refine_start = "held-out"`, two to
+///   `held_out_max_views` views and no view explained — the one left-out views choose.
+#[allow(clippy::too_many_arguments)]
+fn sweeps_start(
+    generator: &Generator,
+    refs: &[Reference],
+    grid: &Volume,
+    infer: &InferConfig,
+    seed: u64,
+    device: &Device,
+    psnr: &[f64],
+    network: &Volume,
+) -> Result<(Option<StartWeights>, Option<held_out::CandidateScores>)> {
+    let held_out_views = (2..=infer.held_out_max_views).contains(&refs.len());
+    if infer
+        .refine_always_from_views
+        .is_some_and(|n| refs.len() >= n)
+    {
+        let whole = StartWeights {
+            network: 1.0,
+            mean: 0.0,
+        };
+        return Ok((Some(whole), None));
+    }
+    if infer.refine_gate == RefineGate::HeldOut && held_out_views {
+        let choice = held_out::choose(generator, refs, grid, infer, seed, device, true)?;
+        return Ok((choice.weights, Some(choice.scores)));
+    }
+    if !psnr.iter().any(|&p| p < infer.refine_below_db) {
+        return Ok((None, None));
+    }
+    let explained = psnr.iter().any(|&p| p >= infer.refine_below_db);
+    if infer.refine_start == RefineStart::HeldOut && !explained && held_out_views {
+        let choice = held_out::choose(generator, refs, grid, infer, seed, device, false)?;
+        return Ok((choice.weights, Some(choice.scores)));
+    }
+    let w = start_weights(
+        refs,
+        network,
+        &generator.prior,
+        &generator.state.density_scale,
+        infer,
+        psnr,
+    )?;
+    Ok((Some(w), None))
+}
+
 /// Fits `generator` to `refs` (code first, then — as `infer.tune` says — the generator) and
 /// renders the volume on `grid` (its geometry only); then, when `infer` asks for them and
 /// some view is unexplained, the data-consistency sweeps ([`crate::refine`], and
@@ -138,44 +195,29 @@ pub fn reconstruct(
     let proj_scale = generator.state.proj_scale;
     let mut network = None;
     if infer.refine_iterations > 0 {
-        // From `refine_always_from_views` views on the sweeps run whatever the PSNR, from the
-        // whole network volume.
-        let always = infer
-            .refine_always_from_views
-            .is_some_and(|n| refs.len() >= n);
-        let unexplained = always || psnr.iter().any(|&p| p < infer.refine_below_db);
+        let t0 = std::time::Instant::now();
+        let (weights, held_out) =
+            sweeps_start(&generator, refs, grid, infer, seed, device, &psnr, &volume)?;
         let mut net = NetworkVolume {
             volume: volume.clone(),
             psnr: psnr.clone(),
-            refined: unexplained,
-            start: None,
+            refined: weights.is_some(),
+            start: weights,
             refine_seconds: 0.0,
-            held_out: None,
+            held_out,
         };
-        if unexplained {
-            let t0 = std::time::Instant::now();
-            let prior = &generator.prior;
-            let explained = psnr.iter().any(|&p| p >= infer.refine_below_db);
-            let weights = if always {
-                crate::refine::StartWeights {
-                    network: 1.0,
-                    mean: 0.0,
-                }
-            } else if infer.refine_start == RefineStart::HeldOut
-                && !explained
-                && (2..=infer.held_out_max_views).contains(&refs.len())
-            {
-                let choice = held_out::choose(&generator, refs, grid, infer, seed, device)?;
-                net.held_out = Some(choice.scores);
-                choice.weights
-            } else {
-                start_weights(refs, &net.volume, prior, &density_scale, infer, &psnr)?
-            };
-            volume = sweep_from(refs, &net.volume, prior, &density_scale, infer, weights)?;
-            net.start = Some(weights);
-            net.refine_seconds = t0.elapsed().as_secs_f64();
+        if let Some(w) = weights {
+            volume = sweep_from(
+                refs,
+                &net.volume,
+                &generator.prior,
+                &density_scale,
+                infer,
+                w,
+            )?;
             psnr = projection_psnr(&volume, &density_scale, refs, proj_scale)?;
         }
+        net.refine_seconds = t0.elapsed().as_secs_f64();
         network = Some(net);
     }
     let stats = &generator.codes.stats;

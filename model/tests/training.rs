@@ -4,11 +4,12 @@ mod common;
 
 use tomograf_model::baseline::MeanVolume;
 use tomograf_model::checkpoint;
-use tomograf_model::config::{TrainConfig, Tune};
+use tomograf_model::config::{RefineGate, TrainConfig, Tune};
 use tomograf_model::data::Item;
 use tomograf_model::field::{Codes, Tuned};
 use tomograf_model::prior::CodeStats;
 use tomograf_model::reconstruct::{Reference, reconstruct, render_volume};
+use tomograf_model::refine::StartWeights;
 use tomograf_model::train::{Trainer, projection_scale};
 use tomograf_sim::Pose;
 
@@ -493,6 +494,7 @@ fn a_left_out_view_chooses_the_start_of_the_sweeps() {
     let net = two.network.as_ref().unwrap();
     let scores = net.held_out.as_ref().expect("left-out views scored");
     assert_eq!(scores.len(), 3);
+    let scores: Vec<(StartWeights, f64)> = scores.iter().map(|&(w, db)| (w.unwrap(), db)).collect();
     assert_eq!((scores[0].0.network, scores[0].0.mean), (0.5, 0.0));
     let chosen = net.start.unwrap();
     assert_ne!((chosen.network, chosen.mean), (0.5, 0.0), "{scores:?}");
@@ -517,6 +519,72 @@ fn a_left_out_view_chooses_the_start_of_the_sweeps() {
     assert!(net.held_out.is_none());
     let w = net.start.unwrap();
     assert_eq!((w.network, w.mean), (0.5, 0.0));
+}
+
+/// `refine_gate = "held-out"`: views left out of the fit decide whether the sweeps run.
+/// The untrained network renders its training item (the mean volume) whatever the views
+/// show. The two views are opposed (0° and 180°), so the sweeps on one can predict the
+/// other. With views of another item the projection gate, told every view is explained
+/// (`refine_below_db` = −100 dB), keeps the sweeps from running; the left-out views see
+/// that the unswept network volume predicts them worse than the sweeps and open it. With
+/// views of the training item itself the unswept volume is the truth and is kept.
+#[test]
+fn left_out_views_decide_whether_the_sweeps_run() {
+    let (item, other, config, dir) = one_item_checkpoint();
+    let ck = dir.path().join("ck");
+    let dev = device();
+    let run = |shown: &Item, gate: RefineGate| {
+        let mut infer = config.infer.clone();
+        infer.refine_start = tomograf_model::config::RefineStart::HeldOut;
+        infer.refine_gate = gate;
+        infer.held_out_max_views = 2;
+        infer.refine_start_weight = 0.5;
+        infer.refine_start_mean_weight = 0.0;
+        infer.tune = Tune::Codes;
+        infer.iterations = 2;
+        infer.lr_codes = 0.0;
+        infer.psnr_threshold = 99.0;
+        infer.refine_iterations = 5;
+        infer.refine_below_db = -100.0;
+        let generator = checkpoint::load_generator(&ck, &dev).unwrap();
+        let truth = shown.ct.as_ref().unwrap();
+        reconstruct(
+            generator,
+            &refs_of(shown, &[0, 2]),
+            truth,
+            &infer,
+            7,
+            &dev,
+            |_, _| {},
+        )
+        .unwrap()
+    };
+    // The projection gate: every view "explained", no sweeps, nothing left out.
+    let shut = run(&other, RefineGate::Projection);
+    let net = shut.network.as_ref().unwrap();
+    assert!(!net.refined && net.held_out.is_none() && net.start.is_none());
+    // The held-out gate on views of another item: some sweeps, the best-scored candidate.
+    let open = run(&other, RefineGate::HeldOut);
+    let net = open.network.as_ref().unwrap();
+    let scores = net.held_out.as_ref().expect("left-out views scored");
+    assert_eq!(scores.len(), 5, "{scores:?}");
+    assert_eq!(scores[0].0, None);
+    assert!(net.refined, "{scores:?}");
+    let top = scores.iter().map(|s| s.1).fold(f64::NEG_INFINITY, f64::max);
+    assert!(
+        scores.iter().any(|s| s.0 == net.start && s.1 == top),
+        "{:?} {scores:?}",
+        net.start
+    );
+    assert!(scores[0].1 + 1.0 < top, "{scores:?}");
+    assert_ne!(open.volume.data(), shut.volume.data());
+    // On views of the training item the unswept network volume predicts the left-out views
+    // best: no sweeps, the network's volume returned.
+    let kept = run(&item, RefineGate::HeldOut);
+    let net = kept.network.as_ref().unwrap();
+    let scores = net.held_out.as_ref().expect("left-out views scored");
+    assert!(!net.refined && net.start.is_none(), "{scores:?}");
+    assert_eq!(kept.volume.data(), net.volume.data());
 }
 
 #[test]
