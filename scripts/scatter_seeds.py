@@ -3,15 +3,15 @@
 (docs/scatter.md, "One view over many seeds").
 
     python3 scripts/scatter_seeds.py CT REFERENCE.npy [--photons 14000] [--seeds 16]
-        [--split 1] [--bin target/release/tomograf] > A.md
+        [--split 1] [--cell-mm 8] [--bin target/release/tomograf] > A.md
     python3 scripts/scatter_seeds.py --paired A.md B.md
 
 CT: the NIfTI file `tomograf bench --scatter CT --reference-cache REFERENCE.npy` made its
 reference for (view 0, AP). For each seed 1..SEEDS, renders the bench's scene (256² panel of
 430 mm, SAD 1000 / SID 1500, kv-flat-panel-120kvp; Monte Carlo, 16² points, 8² for multiple
-scatter, 8 mm cells; the history count and split given) with `tomograf project --scene`, its
-`scatter` image written (the preset's acquisition seed = the seed: the scatter histories are
-drawn from it), and prints per seed the image's mean over the reference's (the scatter's
+scatter, 8 mm cells or `--cell-mm` (0: full resolution); the history count and split given)
+with `tomograf project --scene`, its `scatter` image written (the preset's acquisition seed =
+the seed: the scatter histories are drawn from it), and prints per seed the image's mean over the reference's (the scatter's
 overall level) and its relative RMS error with the reference's own noise removed in
 quadrature (the bench's "converged scatter rms"), then the mean, standard deviation and
 worst over the seeds. The bench scores each rung over 2–3 rounds; this asks how far those
@@ -62,8 +62,7 @@ photons = {photons}
 split = {split}
 grid = 16
 multiple_grid = 8
-detection_cell_mm = 8.0
-images = ["scatter"]
+{cells}images = ["scatter"]
 [output]
 formats = ["npy"]
 """
@@ -107,6 +106,7 @@ def main():
     ap.add_argument("--photons", type=int, default=14000)
     ap.add_argument("--seeds", type=int, default=16)
     ap.add_argument("--split", type=int, default=1)
+    ap.add_argument("--cell-mm", type=float, default=8.0)
     ap.add_argument("--bin", default="target/release/tomograf")
     a = ap.parse_args()
     shape, ref2 = read_npy(a.reference)
@@ -119,14 +119,18 @@ def main():
     noise2 = sum((x - y) ** 2 for x, y in zip(h0, h1)) / 4 / ref_sq
     ct = str(pathlib.Path(a.ct).resolve())
     print(f"{a.ct}, AP, {a.photons} histories" + (f" split ×{a.split}" if a.split > 1 else "")
-          + f", 16² points (8² multiple), 8 mm cells; reference {a.reference} "
+          + ", 16² points (8² multiple), "
+          + (f"{a.cell_mm:g} mm cells" if a.cell_mm > 0 else "full resolution")
+          + f"; reference {a.reference} "
           f"(its own noise {100 * math.sqrt(noise2):.2f} %)\n")
     print("| seed | level (mean / reference's) | converged scatter rms |\n|---:|---:|---:|")
     errs, levels = [], []
     with tempfile.TemporaryDirectory() as tmp:
         for seed in range(1, a.seeds + 1):
             scene = pathlib.Path(tmp, "scene.toml")
-            scene.write_text(SCENE.format(ct=ct, seed=seed, photons=a.photons, split=a.split))
+            cells = f"detection_cell_mm = {a.cell_mm}\n" if a.cell_mm > 0 else ""
+            scene.write_text(SCENE.format(ct=ct, seed=seed, photons=a.photons, split=a.split,
+                                          cells=cells))
             out = pathlib.Path(tmp, f"out{seed}")
             subprocess.run([a.bin, "project", "--scene", str(scene), "-o", str(out)],
                            check=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
