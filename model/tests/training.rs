@@ -455,6 +455,22 @@ fn refinement_brings_the_network_volume_to_the_views() {
     );
 }
 
+/// Inference settings for the left-out-view tests: the one-item checkpoint's, codes only at
+/// zero rate for two iterations (the network renders its mean volume), 5 sweeps, the start
+/// chosen by left-out views among ½ × network, ½ + ½ and the mean.
+fn held_out_infer(config: &TrainConfig) -> tomograf_model::config::InferConfig {
+    let mut infer = config.infer.clone();
+    infer.refine_start = tomograf_model::config::RefineStart::HeldOut;
+    infer.refine_start_weight = 0.5;
+    infer.refine_start_mean_weight = 0.0;
+    infer.tune = Tune::Codes;
+    infer.iterations = 2;
+    infer.lr_codes = 0.0;
+    infer.psnr_threshold = 99.0;
+    infer.refine_iterations = 5;
+    infer
+}
+
 /// `refine_start = "held-out"`: with views of the mean training volume itself (the
 /// one-item model's mean) a start holding the whole mean predicts a left-out view better
 /// than half the network's volume (the configured start), and is chosen; with one view the
@@ -466,16 +482,8 @@ fn a_left_out_view_chooses_the_start_of_the_sweeps() {
     let dev = device();
     let truth = item.ct.as_ref().unwrap();
     let run_capped = |views: &[usize], max_views: usize| {
-        let mut infer = config.infer.clone();
-        infer.refine_start = tomograf_model::config::RefineStart::HeldOut;
+        let mut infer = held_out_infer(&config);
         infer.held_out_max_views = max_views;
-        infer.refine_start_weight = 0.5;
-        infer.refine_start_mean_weight = 0.0;
-        infer.tune = Tune::Codes;
-        infer.iterations = 2;
-        infer.lr_codes = 0.0;
-        infer.psnr_threshold = 99.0;
-        infer.refine_iterations = 5;
         infer.refine_below_db = f64::INFINITY;
         let generator = checkpoint::load_generator(&ck, &dev).unwrap();
         reconstruct(
@@ -534,17 +542,9 @@ fn left_out_views_decide_whether_the_sweeps_run() {
     let ck = dir.path().join("ck");
     let dev = device();
     let run = |shown: &Item, gate: RefineGate| {
-        let mut infer = config.infer.clone();
-        infer.refine_start = tomograf_model::config::RefineStart::HeldOut;
+        let mut infer = held_out_infer(&config);
         infer.refine_gate = gate;
         infer.held_out_max_views = 2;
-        infer.refine_start_weight = 0.5;
-        infer.refine_start_mean_weight = 0.0;
-        infer.tune = Tune::Codes;
-        infer.iterations = 2;
-        infer.lr_codes = 0.0;
-        infer.psnr_threshold = 99.0;
-        infer.refine_iterations = 5;
         infer.refine_below_db = -100.0;
         let generator = checkpoint::load_generator(&ck, &dev).unwrap();
         let truth = shown.ct.as_ref().unwrap();
