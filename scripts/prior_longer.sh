@@ -2,7 +2,7 @@
 # The shipped mixed checkpoint trained longer, chosen (or not) on the validation phantoms
 # matched to real CTs (docs/real-ct/validation-real-stats.md, decisions 4 and 5).
 #
-#   scripts/prior_longer.sh [ITERATIONS] [OUT]
+#   scripts/prior_longer.sh [ITERATIONS] [OUT] [SETS]
 #
 # model/checkpoints/lidc-full-chest is continued to ITERATIONS (default 40 000) on its own
 # training set (train-mixhet: 32 lidc + 32 full-chest phantoms and the same 64 with
@@ -15,6 +15,9 @@
 # scripts/validation_rule.py, fixed before any score, decides: the longer run replaces the
 # shipped one only with a resolved paired lead in body PSNR. About 50 min per 8000
 # iterations of training (one thread) and 10 min of scoring per checkpoint on 2 cores.
+# SETS: `small` (default; the 6 + 6 phantoms, decision 5) or `large` (decision 7: 18 + 18
+# phantoms of the same populations on seeds of their own, val_real_sets_large; about
+# 20 min of scoring per checkpoint on 2 cores).
 #
 # Decision 4 (24 000 → 32 000 iterations) was made with the script of commit 888f7a47,
 # which continued with `train --init` and so drew fresh codes (the generator loss jumped
@@ -23,6 +26,7 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 iterations=${1:-40000}
 out=${2:-prior-longer}
+sets=${3:-small}
 mkdir -p "$out"
 out=$(realpath "$out")
 parent=$PWD/model/checkpoints/lidc-full-chest
@@ -30,11 +34,15 @@ cargo build --release --quiet
 bin=$PWD/target/release/tomograf
 export MIMALLOC_PURGE_DELAY=-1
 . scripts/realistic_sets.sh
-val_real_sets
+case $sets in
+    small) val_real_sets; names="val-real-lidc val-real-fc" ;;
+    large) val_real_sets_large; names="val-real-lidc-18 val-real-fc-18" ;;
+    *) echo "SETS: small or large, not $sets" >&2; exit 2 ;;
+esac
 train_mixhet
 # The shipped run scored on one thread while the longer one trains on the other.
 score() { # NAME CHECKPOINT
-    for v in val-real-lidc val-real-fc; do
+    for v in $names; do
         [ -f "$out/eval-$1-$v/results.csv" ] || $bin --threads 1 evaluate "$out/val/$v" \
             --checkpoint "$2" --views 1,2 --no-baselines -o "$out/eval-$1-$v"
     done
@@ -52,5 +60,5 @@ wait
 # resuming its copy).
 keep_parent_infer "$out/longer/checkpoint/config.toml" "$parent/config.toml"
 score longer "$out/longer/checkpoint"
-arm() { echo "$1=$out/eval-$1-val-real-lidc,$out/eval-$1-val-real-fc"; }
+arm() { local s="" v; for v in $names; do s="$s,$out/eval-$1-$v"; done; echo "$1=${s#,}"; }
 python3 scripts/validation_rule.py "$(arm shipped)" "$(arm longer)" | tee "$out/decision.md"

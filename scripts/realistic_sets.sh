@@ -13,6 +13,16 @@ val_real_sets() {
         --phantoms 6 --seed 81000 --profile full-chest --augment 13 $common
 }
 
+# val-real-lidc-18 and val-real-fc-18 (decision 7): the same two populations, 18 phantoms
+# each, seeds of their own (lidc 73000…, full-chest 83000…), made before any score on them.
+val_real_sets_large() {
+    local common="--size 64 --views 10 --split val --preset kv-flat-panel-120kvp --heterogeneity 60"
+    [ -f "$out/val/val-real-lidc-18/manifest.jsonl" ] || $bin dataset -o "$out/val/val-real-lidc-18" \
+        --phantoms 18 --seed 73000 --profile lidc --augment 16 $common
+    [ -f "$out/val/val-real-fc-18/manifest.jsonl" ] || $bin dataset -o "$out/val/val-real-fc-18" \
+        --phantoms 18 --seed 83000 --profile full-chest --augment 13 $common
+}
+
 # train_set NAME SEED PROFILE EXTRA…: 32 training phantoms (64³, 36 views) into $out/NAME.
 train_set() {
     local name=$1 seed=$2 profile=$3; shift 3
