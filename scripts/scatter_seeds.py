@@ -3,7 +3,8 @@
 (docs/scatter.md, "One view over many seeds").
 
     python3 scripts/scatter_seeds.py CT REFERENCE.npy [--photons 14000] [--seeds 16]
-        [--split 1] [--cell-mm 8] [--bin target/release/tomograf] > A.md
+        [--split 1] [--sparse] [--sampler latin-hypercube|sobol] [--cell-mm 8]
+        [--bin target/release/tomograf] > A.md
     python3 scripts/scatter_seeds.py --paired A.md B.md
 
 CT: the NIfTI file `tomograf bench --scatter CT --reference-cache REFERENCE.npy` made its
@@ -60,6 +61,8 @@ seed = {seed}
 model = "monte-carlo"
 photons = {photons}
 split = {split}
+sparse_multiple = {sparse}
+sampler = "{sampler}"
 grid = 16
 multiple_grid = 8
 {cells}images = ["scatter"]
@@ -106,6 +109,9 @@ def main():
     ap.add_argument("--photons", type=int, default=14000)
     ap.add_argument("--seeds", type=int, default=16)
     ap.add_argument("--split", type=int, default=1)
+    ap.add_argument("--sparse", action="store_true",
+                    help="sparse_multiple = true (each later collision scores a quarter of the points)")
+    ap.add_argument("--sampler", default="latin-hypercube", choices=["latin-hypercube", "sobol"])
     ap.add_argument("--cell-mm", type=float, default=8.0)
     ap.add_argument("--bin", default="target/release/tomograf")
     a = ap.parse_args()
@@ -119,6 +125,7 @@ def main():
     noise2 = sum((x - y) ** 2 for x, y in zip(h0, h1)) / 4 / ref_sq
     ct = str(pathlib.Path(a.ct).resolve())
     print(f"{a.ct}, AP, {a.photons} histories" + (f" split ×{a.split}" if a.split > 1 else "")
+          + (", sparse multiple" if a.sparse else "") + f", {a.sampler} start"
           + ", 16² points (8² multiple), "
           + (f"{a.cell_mm:g} mm cells" if a.cell_mm > 0 else "full resolution")
           + f"; reference {a.reference} "
@@ -130,6 +137,7 @@ def main():
             scene = pathlib.Path(tmp, "scene.toml")
             cells = f"detection_cell_mm = {a.cell_mm}\n" if a.cell_mm > 0 else ""
             scene.write_text(SCENE.format(ct=ct, seed=seed, photons=a.photons, split=a.split,
+                                          sparse=str(a.sparse).lower(), sampler=a.sampler,
                                           cells=cells))
             out = pathlib.Path(tmp, f"out{seed}")
             subprocess.run([a.bin, "project", "--scene", str(scene), "-o", str(out)],

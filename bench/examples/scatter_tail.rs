@@ -48,6 +48,8 @@ fn main() -> Result<()> {
         detection_cell_mm: 8.0,
         angular_window_deg: 0.0,
         split,
+        sparse_multiple: false,
+        sampler: Default::default(),
     };
     let model = acq.scatter.clone();
     let prepared = acq.prepare(&hu, seed)?;

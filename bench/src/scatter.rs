@@ -85,6 +85,8 @@ fn mc_multiple(photons: u64, cell: f64, multiple: usize) -> ScatterModel {
         detection_cell_mm: cell,
         angular_window_deg: 0.0,
         split: 1,
+        sparse_multiple: false,
+        sampler: Default::default(),
     }
 }
 

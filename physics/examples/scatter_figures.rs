@@ -46,6 +46,8 @@ fn mc(photons: u64, grid: usize) -> ScatterModel {
         detection_cell_mm: 0.0,
         angular_window_deg: 0.0,
         split: 1,
+        sparse_multiple: false,
+        sampler: Default::default(),
     }
 }
 

@@ -34,6 +34,8 @@ fn scatter(hu: &Volume, view: &View, grid: usize, seed: u64) -> Vec<f64> {
         detection_cell_mm: 0.0,
         angular_window_deg: 0.0,
         split: 1,
+        sparse_multiple: false,
+        sampler: Default::default(),
     };
     let p = a.prepare(hu, seed).unwrap();
     let s = p.scatter(view, 0).unwrap().unwrap();

@@ -41,6 +41,8 @@ fn main() {
             detection_cell_mm: 0.0,
             angular_window_deg: 0.0,
             split: 1,
+            sparse_multiple: false,
+            sampler: Default::default(),
         };
         let p = a.prepare(&hu, 7).unwrap();
         let t0 = cpu_seconds();

@@ -85,6 +85,8 @@ fn main() {
         detection_cell_mm: 0.0,
         angular_window_deg: 0.0,
         split: 1,
+        sparse_multiple: false,
+        sampler: Default::default(),
     };
     let spectrum = a.spectrum.spectrum().unwrap();
     let (energies, fluence) = (spectrum.energies_kev(), spectrum.fluence());

@@ -53,6 +53,8 @@ fn scatter_adds_its_expected_images_and_none_adds_nothing() {
         detection_cell_mm: 0.0,
         angular_window_deg: 0.0,
         split: 1,
+        sparse_multiple: false,
+        sampler: Default::default(),
     };
     let prepared = with.prepare(&hu, 3).unwrap();
     let (p1, _) = prepared.expected(Projector::Siddon, &v).unwrap();
@@ -140,6 +142,8 @@ fn detection_cells_change_only_the_forced_detection_paths() {
             detection_cell_mm: cell,
             angular_window_deg: 0.0,
             split: 1,
+            sparse_multiple: false,
+            sampler: Default::default(),
         };
         let p = a.prepare(&hu, 5).unwrap();
         p.scatter(&v, 0).unwrap().unwrap().total().mean
@@ -175,6 +179,8 @@ fn detection_cells_out_of_range_are_refused_by_name() {
             detection_cell_mm: bad,
             angular_window_deg: 0.0,
             split: 1,
+            sparse_multiple: false,
+            sampler: Default::default(),
         };
         let e = m.validate().unwrap_err().to_string();
         assert!(e.contains("detection_cell_mm"), "{e}");
@@ -196,6 +202,8 @@ fn orbit_acquisition(window: f64) -> Acquisition {
         detection_cell_mm: 0.0,
         angular_window_deg: window,
         split: 1,
+        sparse_multiple: false,
+        sampler: Default::default(),
     };
     a
 }

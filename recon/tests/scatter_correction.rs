@@ -44,6 +44,8 @@ fn scatter_correction_from_the_object_removes_the_scatter() {
         detection_cell_mm: 0.0,
         angular_window_deg: 0.0,
         split: 1,
+        sparse_multiple: false,
+        sampler: Default::default(),
     };
     let prepared = a.prepare(&hu, 3).unwrap();
     // Noiseless −log with and without scatter: the expected images over the open field.

@@ -21,9 +21,10 @@ use super::anti_scatter_grid::{AntiScatterGrid, GridTransmission};
 use super::detection_grid::DetectionGrid;
 use super::estimate::smooth;
 use super::estimator::{Component, Response, ScoreGrid, Tally, score, to_image};
+use super::sobol::{FIRST_SCATTER_DRAWS, Prefixed, SobolBatch};
 use super::strata::Strata;
 use super::transport::{E_CUTOFF_KEV, Medium};
-use super::{MAX_GRID, MAX_PHOTONS, MAX_SPLIT, ScatterModel};
+use super::{MAX_GRID, MAX_PHOTONS, MAX_SPLIT, Sampler, ScatterModel};
 use crate::detector::ExpectedImage;
 use crate::polychromatic::pixel_exposure_factor;
 use rand::{Rng, SeedableRng};
@@ -47,6 +48,32 @@ pub struct ScoringPoints {
     pub single: usize,
     /// Points per side of the multiple-scatter image.
     pub multiple: usize,
+}
+
+/// How each history is followed.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Histories {
+    /// Most scatters per history (≥ 1).
+    pub max_order: u32,
+    /// Branches each history splits into at its first collision (1: none).
+    pub split: u32,
+    /// Each collision after the first scores a random quarter of the points, ×4.
+    pub sparse_multiple: bool,
+    /// Where a batch draws its histories' start from.
+    pub sampler: Sampler,
+}
+
+impl Histories {
+    /// At most `max_order` scatters, `split` branches, every point scored, the default
+    /// sampler.
+    pub fn new(max_order: u32, split: u32) -> Self {
+        Self {
+            max_order,
+            split,
+            sparse_multiple: false,
+            sampler: Sampler::default(),
+        }
+    }
 }
 
 /// Detection grids by cell size (the size's bits).
@@ -212,7 +239,7 @@ impl ScatterEngine {
         seed: u64,
     ) -> Result<Option<ScatterImages>> {
         model.validate()?;
-        let (photons, grid, multiple_grid, max_order, smoothing, cell_mm, split) = match *model {
+        let (photons, grid, multiple_grid, histories, smoothing, cell_mm) = match *model {
             ScatterModel::None => return Ok(None),
             ScatterModel::Estimate {
                 photons,
@@ -224,10 +251,9 @@ impl ScatterEngine {
                 photons,
                 grid,
                 multiple_grid,
-                50,
+                Histories::new(50, 1),
                 smoothing,
                 detection_cell_mm,
-                1,
             ),
             ScatterModel::MonteCarlo {
                 photons,
@@ -236,15 +262,21 @@ impl ScatterEngine {
                 max_order,
                 detection_cell_mm,
                 split,
+                sparse_multiple,
+                sampler,
                 ..
             } => (
                 photons,
                 grid,
                 multiple_grid,
-                max_order,
+                Histories {
+                    max_order,
+                    split,
+                    sparse_multiple,
+                    sampler,
+                },
                 0.0,
                 detection_cell_mm,
-                split,
             ),
         };
         // 0: the single-scatter grid's points.
@@ -262,7 +294,7 @@ impl ScatterEngine {
                 single: grid,
                 multiple: multiple_grid,
             },
-            (max_order, split),
+            histories,
             smoothing,
             detection.as_deref(),
             seed,
@@ -294,7 +326,7 @@ impl ScatterEngine {
             view,
             photons,
             points,
-            (max_order, 1),
+            Histories::new(max_order, 1),
             smoothing,
             None,
             seed,
@@ -304,12 +336,12 @@ impl ScatterEngine {
     /// [`ScatterEngine::simulate`] with forced detection traced through `detection`
     /// (`None`: the full-resolution composition), photons scattered once scored on
     /// `points.single` points per side and those scattered again on `points.multiple`.
-    /// `orders` is (most scatters per history, branches each history splits into at its
-    /// first collision): with `split` > 1 the primary's path, its forced first collision
-    /// and the single-scatter scores are paid once, then `split` independent scatters from
-    /// that site, each with 1/`split` of the weight (and of its Russian roulette
-    /// threshold), follow the later flights that make the multiple-scatter image. Unbiased;
-    /// 1 does not split.
+    /// `histories` says how each is followed: with `split` > 1 the primary's path, its
+    /// forced first collision and the single-scatter scores are paid once, then `split`
+    /// independent scatters from that site, each with 1/`split` of the weight (and of its
+    /// Russian roulette threshold), follow the later flights that make the multiple-scatter
+    /// image (unbiased; 1 does not split); with `sparse_multiple` each collision after the
+    /// first scores a random quarter of its grid's points, ×4; `sampler` draws the start.
     #[allow(clippy::too_many_arguments)]
     pub fn simulate_through(
         &self,
@@ -317,8 +349,7 @@ impl ScatterEngine {
         view: &View,
         photons: u64,
         points: ScoringPoints,
-        orders: (u32, u32),
-
+        histories: Histories,
         smoothing: f64,
         detection: Option<&DetectionGrid>,
         seed: u64,
@@ -343,7 +374,9 @@ impl ScatterEngine {
                  grid = {multiple_grid} (1 to {MAX_GRID})"
             )));
         }
-        let (max_order, split) = orders;
+        let Histories {
+            max_order, split, ..
+        } = histories;
         if max_order == 0 {
             return Err(SimError::OutOfRange(
                 "scatter: max_order must be ≥ 1".into(),
@@ -362,6 +395,10 @@ impl ScatterEngine {
                 pix_cdf.push(f_tot);
             }
         }
+        // The cumulative exposure at each row's end.
+        let row_end: Vec<f64> = (0..aim.rows)
+            .map(|r| pix_cdf[(r + 1) * aim.cols - 1])
+            .collect();
         let n_tot = *self.cdf.last().expect("non-empty");
         let w0 = self.mas * n_tot * f_tot / photons as f64;
         let sgrid = ScoreGrid::new(view, grid);
@@ -378,37 +415,73 @@ impl ScatterEngine {
                 let n = BATCH.min(photons - b * BATCH) as usize;
                 // Latin hypercube over the batch: each of the pixel, the energy and the
                 // depth of the first collision draws from its own stratum of [0, 1).
-                let strata = (!self.analog).then(|| Strata::new(n, &mut rng));
+                // Each dimension of the start stratified over the batch (Latin hypercube), or
+                // the batch's points of a scrambled Sobol sequence.
+                let sobol = (!self.analog && histories.sampler == Sampler::Sobol)
+                    .then(|| SobolBatch::new(&mut rng));
+                let strata = (!self.analog && sobol.is_none()).then(|| Strata::new(n, &mut rng));
                 let mut segments = Vec::new();
                 for j in 0..n {
-                    let [u_pixel, u_energy, u_depth] = match &strata {
-                        Some(s) => s.draw(j, &mut rng),
-                        // No first-collision depth: the first flight is analog.
-                        None => [rng.random(), rng.random(), f64::NAN],
+                    let (p, u_energy, u_depth, jr, jc) = if let Some(sb) = &sobol {
+                        let s = sb.start(j, &mut rng);
+                        let u = s[0] * f_tot;
+                        let row = row_end.partition_point(|&c| c <= u).min(aim.rows - 1);
+                        let lo = if row == 0 { 0.0 } else { row_end[row - 1] };
+                        let u = lo + s[1] * (row_end[row] - lo);
+                        let seg = &pix_cdf[row * aim.cols..(row + 1) * aim.cols];
+                        let col = seg.partition_point(|&c| c <= u).min(aim.cols - 1);
+                        (row * aim.cols + col, s[3], s[2], s[4], s[5])
+                    } else {
+                        let [u_pixel, u_energy, u_depth] = match &strata {
+                            Some(s) => s.draw(j, &mut rng),
+                            // No first-collision depth: the first flight is analog.
+                            None => [rng.random(), rng.random(), f64::NAN],
+                        };
+                        let u = u_pixel * f_tot;
+                        let p = pix_cdf.partition_point(|&c| c <= u).min(pix_cdf.len() - 1);
+                        (
+                            p,
+                            u_energy,
+                            u_depth,
+                            rng.random::<f64>(),
+                            rng.random::<f64>(),
+                        )
                     };
-                    let u = u_pixel * f_tot;
-                    let p = pix_cdf.partition_point(|&c| c <= u).min(pix_cdf.len() - 1);
                     let (r, c) = ((p / aim.cols) as f64, (p % aim.cols) as f64);
-                    let target = aim
-                        .pixel_centre(r + rng.random::<f64>() - 0.5, c + rng.random::<f64>() - 0.5);
+                    let target = aim.pixel_centre(r + jr - 0.5, c + jc - 0.5);
                     let u = u_energy * n_tot;
                     let k = self
                         .cdf
                         .partition_point(|&c| c <= u)
                         .min(self.cdf.len() - 1);
                     let e = self.energies_kev[k];
-                    self.history(
-                        source,
-                        (target - source).normalize(),
-                        e,
-                        (w0, w0, 0),
-                        (max_order, split),
-                        (&sgrid, &mut tally),
-                        mgrid.as_ref().zip(mtally.as_mut()),
-                        detection,
-                        (u_depth, &mut segments),
-                        &mut rng,
-                    );
+                    let (dir, w) = ((target - source).normalize(), (w0, w0, 0));
+                    match &sobol {
+                        Some(sb) => self.history(
+                            source,
+                            dir,
+                            e,
+                            w,
+                            histories,
+                            (&sgrid, &mut tally),
+                            mgrid.as_ref().zip(mtally.as_mut()),
+                            detection,
+                            (u_depth, &mut segments),
+                            &mut Prefixed::new(*sb, j, FIRST_SCATTER_DRAWS, &mut rng),
+                        ),
+                        None => self.history(
+                            source,
+                            dir,
+                            e,
+                            w,
+                            histories,
+                            (&sgrid, &mut tally),
+                            mgrid.as_ref().zip(mtally.as_mut()),
+                            detection,
+                            (u_depth, &mut segments),
+                            &mut rng,
+                        ),
+                    }
                 }
                 (tally, mtally)
             })
@@ -493,7 +566,7 @@ impl ScatterEngine {
     /// unless the engine samples analog; later flights analog. `start` is (weight, the
     /// weight Russian roulette is measured against, scatters so far): `(w0, w0, 0)` for a
     /// photon from the source; a branch of a split history starts after its first scatter.
-    /// `orders`: (most scatters, branches at the first collision).
+    /// `histories`: most scatters, branches at the first collision, sparse scoring after it.
     #[allow(clippy::too_many_arguments)]
     fn history<R: Rng>(
         &self,
@@ -501,7 +574,7 @@ impl ScatterEngine {
         mut d: glam::DVec3,
         mut e: f64,
         start: (f64, f64, u32),
-        orders: (u32, u32),
+        histories: Histories,
         single: (&ScoreGrid, &mut Tally),
         mut multiple: Option<(&ScoreGrid, &mut Tally)>,
         detection: Option<&DetectionGrid>,
@@ -510,7 +583,12 @@ impl ScatterEngine {
     ) {
         let (sgrid, stally) = single;
         let (mut w, w0, mut order) = start;
-        let (max_order, split) = orders;
+        let Histories {
+            max_order,
+            split,
+            sparse_multiple,
+            ..
+        } = histories;
         let (u_depth, segments) = first;
         while order < max_order {
             let flight = if order == 0 && !self.analog {
@@ -542,6 +620,8 @@ impl ScatterEngine {
                 w,
                 order,
                 tally,
+                (order > 0 && sparse_multiple)
+                    .then(|| (rng.random_range(0..2usize), rng.random_range(0..2usize))),
             );
             w *= 1.0 - c.p_photo;
             if order == 0 && split > 1 && max_order > 1 {
@@ -566,7 +646,7 @@ impl ScatterEngine {
                         nd,
                         ne,
                         (wb, w0 / k, 1),
-                        orders,
+                        histories,
                         (sgrid, &mut *stally),
                         multiple.as_mut().map(|(g, t)| (*g, &mut **t)),
                         detection,

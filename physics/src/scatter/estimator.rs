@@ -202,6 +202,11 @@ impl Tally {
         (comp * self.channels + ch) * self.points + p
     }
 
+    /// Points per component and channel.
+    pub fn points_len(&self) -> usize {
+        self.points
+    }
+
     /// Adds `other` element-wise.
     pub fn add(&mut self, other: &Tally) {
         self.mean
@@ -248,6 +253,7 @@ pub fn score(
     weight: f64,
     order: u32,
     tally: &mut Tally,
+    subset: Option<(usize, usize)>,
 ) {
     let (comp_c, comp_r) = if order == 0 {
         (
@@ -260,7 +266,19 @@ pub fn score(
     let norms = medium.angular_norms(c);
     // Rayleigh keeps the energy: its μ/ρ are the same towards every point.
     let rayleigh_mu = medium.attenuations(c.energy_kev);
+    // A subset: the points whose (row, column) parities are `subset`'s, each scored ×4
+    // (every point is in the subset with probability ¼).
+    let weight = if subset.is_some() {
+        4.0 * weight
+    } else {
+        weight
+    };
     for (p, &q) in grid.points.iter().enumerate() {
+        if let Some((pr, pc)) = subset
+            && ((p / grid.cols) % 2 != pr || (p % grid.cols) % 2 != pc)
+        {
+            continue;
+        }
         let to = q - c.position;
         let d2 = to.length_squared();
         let dist = d2.sqrt();

@@ -11,6 +11,8 @@
 //! * [`engine`] — photons from the source, batches, seeds, the separate images;
 //! * [`strata`] — Latin hypercube strata of a batch's pixels, energies and first-collision
 //!   depths (the first collision forced: [`transport::Medium::fly_forced`]);
+//! * [`sobol`] — the same start (and the first scatter) from an Owen-scrambled Sobol
+//!   sequence instead ([`Sampler::Sobol`]);
 //! * [`orbit`] — each view's scatter fitted in gantry angle with its neighbours';
 //! * [`field`] — a point source collimated to a rectangular field;
 //! * [`region`] — analytic scoring regions (boxes, cylinders);
@@ -35,14 +37,32 @@ pub mod interaction_table;
 pub mod majorant;
 pub mod orbit;
 pub mod region;
+pub mod sobol;
 pub mod strata;
 pub mod transport;
 
 pub use anti_scatter_grid::AntiScatterGrid;
-pub use engine::{ScatterEngine, ScatterImages, ScoringPoints};
+pub use engine::{Histories, ScatterEngine, ScatterImages, ScoringPoints};
 
 use serde::{Deserialize, Serialize};
 use tomograf_sim::error::{Result, SimError};
+
+/// Where a batch of histories draws its start — the pixel aimed at, the energy, the depth of
+/// the forced first collision — from (a scene's `[scatter]` `sampler`). Both are unbiased;
+/// they differ in how evenly a batch covers those dimensions (docs/scatter.md, "Sobol
+/// points and sparse multiple scatter").
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "kebab-case")]
+pub enum Sampler {
+    /// Each dimension stratified on its own: a Latin hypercube over the batch ([`strata`]),
+    /// the pixel's index drawn row-major.
+    #[default]
+    LatinHypercube,
+    /// An Owen-scrambled Sobol sequence, one point per history ([`sobol`]): each dimension
+    /// stratified as by the Latin hypercube, the pixel's row and column and the depth also
+    /// jointly, and the first scatter's draws from the sequence too.
+    Sobol,
+}
 
 /// How scatter is modelled (a scene's `[scatter]` table, `model = "none" | "estimate" |
 /// "monte-carlo"`).
@@ -111,6 +131,15 @@ pub enum ScatterModel {
         /// collision").
         #[serde(default = "default_split")]
         split: u32,
+        /// Each collision after the first scores a random quarter of the multiple-scatter
+        /// points — those whose row and column parities it draws — each four times (default
+        /// false: every point). Unbiased; forced detection after the first collision then
+        /// costs a quarter, which pays for more branches (`split`).
+        #[serde(default)]
+        sparse_multiple: bool,
+        /// Where each batch draws its histories' start from (default `latin-hypercube`).
+        #[serde(default)]
+        sampler: Sampler,
     },
 }
 
@@ -160,6 +189,8 @@ impl ScatterModel {
             detection_cell_mm: 0.0,
             angular_window_deg: 0.0,
             split: 1,
+            sparse_multiple: false,
+            sampler: Sampler::default(),
         }
     }
 
@@ -203,6 +234,7 @@ impl ScatterModel {
                 detection_cell_mm,
                 angular_window_deg,
                 split,
+                ..
             } => {
                 if max_order == 0 {
                     return bad("max_order = 0; give ≥ 1 (1: single scatter only)".into());

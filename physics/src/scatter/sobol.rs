@@ -1,0 +1,90 @@
+//! Randomised quasi-Monte Carlo for one batch of histories: history `j` of a batch takes
+//! point `j` of an Owen-scrambled Sobol sequence (Burley's hash-based scrambling,
+//! `sobol_burley`), scrambled by the batch's seed. Each point is uniform on the unit cube,
+//! so every estimator stays unbiased, and batches are independent replicates (their spread
+//! still estimates the error); within a batch of 2^k histories every dimension is
+//! stratified into 2^k strata as a Latin hypercube is, and the leading pairs of dimensions
+//! jointly (2^k points in every 2-D elementary box of the pairs (0, 1), (0, 2), (1, 2)).
+
+use rand::{Rng, RngCore};
+
+/// Dimensions of a point: the history's start (pixel row, pixel column, first-collision
+/// depth, energy, sub-pixel row and column) and its first uniforms after that.
+pub const START: usize = 6;
+
+/// Draws after the start taken from the sequence: the first scatter's (Compton or
+/// Rayleigh, its angle's first trial, the azimuth) and the next flight's first.
+pub const FIRST_SCATTER_DRAWS: usize = 8;
+
+/// The Sobol points of one batch.
+#[derive(Debug, Clone, Copy)]
+pub struct SobolBatch {
+    seed: u32,
+}
+
+impl SobolBatch {
+    /// A batch scrambled by `seed`.
+    pub fn new<R: Rng>(rng: &mut R) -> Self {
+        Self {
+            seed: rng.next_u32(),
+        }
+    }
+
+    /// Coordinate `dim` of history `j`'s point, in [0, 1), with the bits below the
+    /// sequence's 23 filled from `rng` so that it is uniform to double precision.
+    pub fn at<R: Rng>(&self, j: usize, dim: usize, rng: &mut R) -> f64 {
+        let s = f64::from(sobol_burley::sample(j as u32, dim as u32, self.seed));
+        s + rng.random::<f64>() * (1.0 / 8_388_608.0)
+    }
+
+    /// History `j`'s start: [pixel row, pixel column, depth, energy, sub-pixel row,
+    /// sub-pixel column].
+    pub fn start<R: Rng>(&self, j: usize, rng: &mut R) -> [f64; START] {
+        std::array::from_fn(|d| self.at(j, d, rng))
+    }
+}
+
+/// A random stream whose first `n` draws are history `j`'s Sobol coordinates `START..`,
+/// then `inner`'s: the first scatter (process, angle, azimuth) and the next flight take
+/// the sequence's coordinates as far as they go.
+pub struct Prefixed<'a, R: RngCore> {
+    batch: SobolBatch,
+    j: usize,
+    next: usize,
+    end: usize,
+    inner: &'a mut R,
+}
+
+impl<'a, R: RngCore> Prefixed<'a, R> {
+    /// History `j`'s stream: `n` Sobol draws, then `inner`.
+    pub fn new(batch: SobolBatch, j: usize, n: usize, inner: &'a mut R) -> Self {
+        Self {
+            batch,
+            j,
+            next: START,
+            end: START + n,
+            inner,
+        }
+    }
+}
+
+impl<R: RngCore> RngCore for Prefixed<'_, R> {
+    fn next_u32(&mut self) -> u32 {
+        (self.next_u64() >> 32) as u32
+    }
+
+    fn next_u64(&mut self) -> u64 {
+        if self.next >= self.end {
+            return self.inner.next_u64();
+        }
+        let s = sobol_burley::sample(self.j as u32, self.next as u32, self.batch.seed);
+        self.next += 1;
+        // 23 bits from the sequence on top, the rest from the inner stream.
+        let top = (f64::from(s) * 8_388_608.0) as u64;
+        (top << 41) | (self.inner.next_u64() >> 23)
+    }
+
+    fn fill_bytes(&mut self, dst: &mut [u8]) {
+        self.inner.fill_bytes(dst)
+    }
+}
