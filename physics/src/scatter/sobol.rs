@@ -88,3 +88,63 @@ impl<R: RngCore> RngCore for Prefixed<'_, R> {
         self.inner.fill_bytes(dst)
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand::SeedableRng;
+    use rand_chacha::ChaCha8Rng;
+
+    /// A batch of 256: each start coordinate takes each of the 256 strata of [0, 1) once,
+    /// and the pairs (row, column), (row, depth) and (column, depth) each of the 16 × 16
+    /// boxes once; another batch's seed gives other points.
+    #[test]
+    fn a_batch_is_stratified_alone_and_in_pairs() {
+        let mut rng = ChaCha8Rng::seed_from_u64(9);
+        for _ in 0..3 {
+            let b = SobolBatch::new(&mut rng);
+            let pts: Vec<[f64; START]> = (0..256).map(|j| b.start(j, &mut rng)).collect();
+            for d in 0..START {
+                let mut hit = [0u8; 256];
+                for p in &pts {
+                    assert!((0.0..1.0).contains(&p[d]));
+                    hit[(p[d] * 256.0) as usize] += 1;
+                }
+                assert!(hit.iter().all(|&h| h == 1), "dimension {d}");
+            }
+            for (x, y) in [(0, 1), (0, 2), (1, 2)] {
+                let mut hit = [0u8; 256];
+                for p in &pts {
+                    hit[(p[x] * 16.0) as usize * 16 + (p[y] * 16.0) as usize] += 1;
+                }
+                assert!(hit.iter().all(|&h| h == 1), "dimensions {x}, {y}");
+            }
+        }
+        let (a, b) = (SobolBatch::new(&mut rng), SobolBatch::new(&mut rng));
+        assert_ne!(a.at(0, 0, &mut rng), b.at(0, 0, &mut rng));
+    }
+
+    /// The prefixed stream gives the history's next coordinates (to the sequence's 23 bits)
+    /// for its first `n` draws, then the inner stream's own.
+    #[test]
+    fn the_prefix_comes_from_the_sequence_then_the_stream() {
+        let mut rng = ChaCha8Rng::seed_from_u64(4);
+        let b = SobolBatch::new(&mut rng);
+        let mut inner = ChaCha8Rng::seed_from_u64(5);
+        let mut copy = inner.clone();
+        let mut s = Prefixed::new(b, 7, 3, &mut inner);
+        for k in 0..3 {
+            let want = f64::from(sobol_burley::sample(7, (START + k) as u32, b.seed));
+            let got: f64 = s.random();
+            assert!(
+                got >= want && got < want + 1.0 / 8_388_608.0,
+                "draw {k}: {got} {want}"
+            );
+        }
+        // Three inner draws filled the low bits; the next is the inner stream's fourth.
+        for _ in 0..3 {
+            copy.next_u64();
+        }
+        assert_eq!(s.next_u64(), copy.next_u64());
+    }
+}
