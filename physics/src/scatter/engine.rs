@@ -21,12 +21,11 @@ use super::anti_scatter_grid::{AntiScatterGrid, GridTransmission};
 use super::detection_grid::DetectionGrid;
 use super::estimate::smooth;
 use super::estimator::{Component, Response, ScoreGrid, Tally, score, to_image};
-use super::sobol::{FIRST_SCATTER_DRAWS, Prefixed, SobolBatch};
-use super::strata::Strata;
+use super::sobol::{FIRST_SCATTER_DRAWS, Prefixed};
+use super::start::{Aim, BatchStarts, Start};
 use super::transport::{E_CUTOFF_KEV, Medium};
 use super::{MAX_GRID, MAX_PHOTONS, MAX_SPLIT, Sampler, ScatterModel};
 use crate::detector::ExpectedImage;
-use crate::polychromatic::pixel_exposure_factor;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
@@ -387,18 +386,8 @@ impl ScatterEngine {
                 "scatter: split = {split}; give 1 to {MAX_SPLIT} branches (1: no splitting)"
             )));
         }
-        let mut pix_cdf = Vec::with_capacity(aim.rows * aim.cols);
-        let mut f_tot = 0.0;
-        for r in 0..aim.rows {
-            for c in 0..aim.cols {
-                f_tot += pixel_exposure_factor(aim, r, c);
-                pix_cdf.push(f_tot);
-            }
-        }
-        // The cumulative exposure at each row's end.
-        let row_end: Vec<f64> = (0..aim.rows)
-            .map(|r| pix_cdf[(r + 1) * aim.cols - 1])
-            .collect();
+        let pixels = Aim::new(aim);
+        let f_tot = pixels.total();
         let n_tot = *self.cdf.last().expect("non-empty");
         let w0 = self.mas * n_tot * f_tot / photons as f64;
         let sgrid = ScoreGrid::new(view, grid);
@@ -413,41 +402,16 @@ impl ScatterEngine {
                 let mut tally = Tally::new(channels, sgrid.len());
                 let mut mtally = mgrid.as_ref().map(|g| Tally::new(channels, g.len()));
                 let n = BATCH.min(photons - b * BATCH) as usize;
-                // Latin hypercube over the batch: each of the pixel, the energy and the
-                // depth of the first collision draws from its own stratum of [0, 1).
-                // Each dimension of the start stratified over the batch (Latin hypercube), or
-                // the batch's points of a scrambled Sobol sequence.
-                let sobol = (!self.analog && histories.sampler == Sampler::Sobol)
-                    .then(|| SobolBatch::new(&mut rng));
-                let strata = (!self.analog && sobol.is_none()).then(|| Strata::new(n, &mut rng));
+                let starts = BatchStarts::new(self.analog, histories.sampler, n, &mut rng);
                 let mut segments = Vec::new();
                 for j in 0..n {
-                    let (p, u_energy, u_depth, jr, jc) = if let Some(sb) = &sobol {
-                        let s = sb.start(j, &mut rng);
-                        let u = s[0] * f_tot;
-                        let row = row_end.partition_point(|&c| c <= u).min(aim.rows - 1);
-                        let lo = if row == 0 { 0.0 } else { row_end[row - 1] };
-                        let u = lo + s[1] * (row_end[row] - lo);
-                        let seg = &pix_cdf[row * aim.cols..(row + 1) * aim.cols];
-                        let col = seg.partition_point(|&c| c <= u).min(aim.cols - 1);
-                        (row * aim.cols + col, s[3], s[2], s[4], s[5])
-                    } else {
-                        let [u_pixel, u_energy, u_depth] = match &strata {
-                            Some(s) => s.draw(j, &mut rng),
-                            // No first-collision depth: the first flight is analog.
-                            None => [rng.random(), rng.random(), f64::NAN],
-                        };
-                        let u = u_pixel * f_tot;
-                        let p = pix_cdf.partition_point(|&c| c <= u).min(pix_cdf.len() - 1);
-                        (
-                            p,
-                            u_energy,
-                            u_depth,
-                            rng.random::<f64>(),
-                            rng.random::<f64>(),
-                        )
-                    };
-                    let (r, c) = ((p / aim.cols) as f64, (p % aim.cols) as f64);
+                    let Start {
+                        pixel,
+                        within: (jr, jc),
+                        u_energy,
+                        u_depth,
+                    } = starts.draw(&pixels, j, &mut rng);
+                    let (r, c) = ((pixel / aim.cols) as f64, (pixel % aim.cols) as f64);
                     let target = aim.pixel_centre(r + jr - 0.5, c + jc - 0.5);
                     let u = u_energy * n_tot;
                     let k = self
@@ -456,8 +420,8 @@ impl ScatterEngine {
                         .min(self.cdf.len() - 1);
                     let e = self.energies_kev[k];
                     let (dir, w) = ((target - source).normalize(), (w0, w0, 0));
-                    match &sobol {
-                        Some(sb) => self.history(
+                    match &starts {
+                        BatchStarts::Sobol(sb) => self.history(
                             source,
                             dir,
                             e,
@@ -469,7 +433,7 @@ impl ScatterEngine {
                             (u_depth, &mut segments),
                             &mut Prefixed::new(*sb, j, FIRST_SCATTER_DRAWS, &mut rng),
                         ),
-                        None => self.history(
+                        _ => self.history(
                             source,
                             dir,
                             e,

@@ -11,6 +11,7 @@
 //! * [`engine`] — photons from the source, batches, seeds, the separate images;
 //! * [`strata`] — Latin hypercube strata of a batch's pixels, energies and first-collision
 //!   depths (the first collision forced: [`transport::Medium::fly_forced`]);
+//! * [`start`] — where a history starts (pixel, point in it, energy and depth uniforms);
 //! * [`sobol`] — the same start (and the first scatter) from an Owen-scrambled Sobol
 //!   sequence instead ([`Sampler::Sobol`]);
 //! * [`orbit`] — each view's scatter fitted in gantry angle with its neighbours';
@@ -38,6 +39,7 @@ pub mod majorant;
 pub mod orbit;
 pub mod region;
 pub mod sobol;
+pub mod start;
 pub mod strata;
 pub mod transport;
 
