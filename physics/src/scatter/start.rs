@@ -161,7 +161,7 @@ mod tests {
         let n = 240_000;
         let mut rng = ChaCha8Rng::seed_from_u64(1);
         for by_row in [false, true] {
-            let mut hits = vec![0usize; 24];
+            let mut hits = [0usize; 24];
             for _ in 0..n {
                 let p = if by_row {
                     aim.pixel_by_row(rng.random(), rng.random())
