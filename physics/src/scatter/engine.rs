@@ -21,7 +21,6 @@ use super::anti_scatter_grid::{AntiScatterGrid, GridTransmission};
 use super::detection_grid::DetectionGrid;
 use super::estimate::smooth;
 use super::estimator::{Component, Response, ScoreGrid, Tally, score, to_image};
-use super::sobol::{FIRST_SCATTER_DRAWS, Prefixed};
 use super::start::{Aim, BatchStarts, Start};
 use super::transport::{E_CUTOFF_KEV, Medium};
 use super::{MAX_GRID, MAX_PHOTONS, MAX_SPLIT, Sampler, ScatterModel};
@@ -420,32 +419,18 @@ impl ScatterEngine {
                         .min(self.cdf.len() - 1);
                     let e = self.energies_kev[k];
                     let (dir, w) = ((target - source).normalize(), (w0, w0, 0));
-                    match &starts {
-                        BatchStarts::Sobol(sb) => self.history(
-                            source,
-                            dir,
-                            e,
-                            w,
-                            histories,
-                            (&sgrid, &mut tally),
-                            mgrid.as_ref().zip(mtally.as_mut()),
-                            detection,
-                            (u_depth, &mut segments),
-                            &mut Prefixed::new(*sb, j, FIRST_SCATTER_DRAWS, &mut rng),
-                        ),
-                        _ => self.history(
-                            source,
-                            dir,
-                            e,
-                            w,
-                            histories,
-                            (&sgrid, &mut tally),
-                            mgrid.as_ref().zip(mtally.as_mut()),
-                            detection,
-                            (u_depth, &mut segments),
-                            &mut rng,
-                        ),
-                    }
+                    self.history(
+                        source,
+                        dir,
+                        e,
+                        w,
+                        histories,
+                        (&sgrid, &mut tally),
+                        mgrid.as_ref().zip(mtally.as_mut()),
+                        detection,
+                        (u_depth, &mut segments),
+                        &mut starts.stream(j, &mut rng),
+                    );
                 }
                 (tally, mtally)
             })

@@ -46,9 +46,10 @@ impl SobolBatch {
 
 /// A random stream whose first `n` draws are history `j`'s Sobol coordinates `START..`,
 /// then `inner`'s: the first scatter (process, angle, azimuth) and the next flight take
-/// the sequence's coordinates as far as they go.
+/// the sequence's coordinates as far as they go. Without a batch it is `inner` itself,
+/// draw for draw.
 pub struct Prefixed<'a, R: RngCore> {
-    batch: SobolBatch,
+    batch: Option<SobolBatch>,
     j: usize,
     next: usize,
     end: usize,
@@ -56,8 +57,9 @@ pub struct Prefixed<'a, R: RngCore> {
 }
 
 impl<'a, R: RngCore> Prefixed<'a, R> {
-    /// History `j`'s stream: `n` Sobol draws, then `inner`.
-    pub fn new(batch: SobolBatch, j: usize, n: usize, inner: &'a mut R) -> Self {
+    /// History `j`'s stream: `n` draws of `batch`'s point (none without one), then `inner`.
+    pub fn new(batch: Option<SobolBatch>, j: usize, n: usize, inner: &'a mut R) -> Self {
+        let n = if batch.is_some() { n } else { 0 };
         Self {
             batch,
             j,
@@ -70,14 +72,18 @@ impl<'a, R: RngCore> Prefixed<'a, R> {
 
 impl<R: RngCore> RngCore for Prefixed<'_, R> {
     fn next_u32(&mut self) -> u32 {
+        if self.batch.is_none() {
+            return self.inner.next_u32();
+        }
+        // With a batch, a 32-bit draw is the top of a 64-bit one, prefix or not.
         (self.next_u64() >> 32) as u32
     }
 
     fn next_u64(&mut self) -> u64 {
-        if self.next >= self.end {
+        let Some(batch) = self.batch.filter(|_| self.next < self.end) else {
             return self.inner.next_u64();
-        }
-        let s = sobol_burley::sample(self.j as u32, self.next as u32, self.batch.seed);
+        };
+        let s = sobol_burley::sample(self.j as u32, self.next as u32, batch.seed);
         self.next += 1;
         // 23 bits from the sequence on top, the rest from the inner stream.
         let top = (f64::from(s) * 8_388_608.0) as u64;
@@ -132,7 +138,7 @@ mod tests {
         let b = SobolBatch::new(&mut rng);
         let mut inner = ChaCha8Rng::seed_from_u64(5);
         let mut copy = inner.clone();
-        let mut s = Prefixed::new(b, 7, 3, &mut inner);
+        let mut s = Prefixed::new(Some(b), 7, 3, &mut inner);
         for k in 0..3 {
             let want = f64::from(sobol_burley::sample(7, (START + k) as u32, b.seed));
             let got: f64 = s.random();

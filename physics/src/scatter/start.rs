@@ -5,10 +5,10 @@
 //! ([`super::strata`]) or from its Sobol points ([`super::sobol`]).
 
 use super::Sampler;
-use super::sobol::SobolBatch;
+use super::sobol::{FIRST_SCATTER_DRAWS, Prefixed, SobolBatch};
 use super::strata::Strata;
 use crate::polychromatic::pixel_exposure_factor;
-use rand::Rng;
+use rand::{Rng, RngCore};
 use tomograf_sim::geometry::View;
 
 /// The exposure of the pixels a view's histories are aimed at, cumulated.
@@ -101,6 +101,16 @@ impl BatchStarts {
             (false, Sampler::LatinHypercube) => Self::Strata(Strata::new(n, rng)),
             (false, Sampler::Sobol) => Self::Sobol(SobolBatch::new(rng)),
         }
+    }
+
+    /// History `j`'s random stream after its start: the first scatter's draws from the
+    /// batch's Sobol point when it has one, then (or else) `rng`, draw for draw.
+    pub fn stream<'a, R: RngCore>(&self, j: usize, rng: &'a mut R) -> Prefixed<'a, R> {
+        let batch = match self {
+            Self::Sobol(b) => Some(*b),
+            _ => None,
+        };
+        Prefixed::new(batch, j, FIRST_SCATTER_DRAWS, rng)
     }
 
     /// History `j`'s start among `aim`'s pixels.
