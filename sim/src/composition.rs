@@ -55,7 +55,8 @@ pub fn unpack(value: f32) -> (f32, usize) {
 /// [`crate::material`]'s business.
 #[derive(Debug, Clone)]
 pub struct Composition {
-    packed: Volume,
+    /// Shared: a clone (the scatter medium keeps one) costs no copy of the voxels.
+    packed: Arc<Volume>,
     materials: Vec<String>,
     /// Where each row of voxels has non-zero densities, and so the box of voxels with
     /// non-zero density (exact Siddon clips rays to it, the ray sheets skip the zeros),
@@ -140,7 +141,7 @@ impl Composition {
         let rows = RowExtents::of(&packed);
         let occupied = rows.bounding_box();
         Ok(Self {
-            packed,
+            packed: Arc::new(packed),
             materials,
             rows: Arc::new(rows),
             occupied,

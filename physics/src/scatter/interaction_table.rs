@@ -13,6 +13,7 @@
 //! 0.01 % (measured in `tests` here), and exact at the edges.
 
 use crate::scatter::cross_sections::ScatterFactors;
+use rayon::prelude::*;
 use tomograf_sim::error::Result;
 use tomograf_sim::material::{Material, element};
 
@@ -159,20 +160,27 @@ pub struct InteractionTable {
 impl InteractionTable {
     /// Tabulates `material` (with its scatter `factors`) at `knots`.
     pub fn new(material: &Material, factors: &ScatterFactors, knots: &EnergyKnots) -> Result<Self> {
-        let mut values = Vec::with_capacity(knots.e_kev.len());
-        for (&e, &below) in knots.e_kev.iter().zip(&knots.below) {
-            // Just below an edge the element tables give the value of the interval under it.
-            let x = material.interactions(if below { e * (1.0 - 1e-12) } else { e })?;
-            values.push([
-                x.photoelectric,
-                x.incoherent,
-                x.coherent,
-                x.total(),
-                factors.compton_norm(e),
-                factors.rayleigh_norm(e),
-                factors.compton_transfer_fraction(e),
-            ]);
-        }
+        // The knots are independent (and the Compton integrals costly): on every core.
+        let values = knots
+            .e_kev
+            .par_iter()
+            .zip(&knots.below)
+            .map(|(&e, &below)| {
+                // Just below an edge the element tables give the value of the interval
+                // under it.
+                let x = material.interactions(if below { e * (1.0 - 1e-12) } else { e })?;
+                let (compton_norm, transfer) = factors.compton_integrals(e);
+                Ok([
+                    x.photoelectric,
+                    x.incoherent,
+                    x.coherent,
+                    x.total(),
+                    compton_norm,
+                    factors.rayleigh_norm(e),
+                    transfer,
+                ])
+            })
+            .collect::<Result<Vec<_>>>()?;
         let ln_values = values
             .iter()
             .map(|v| v.map(|x| if x > 0.0 { x.ln() } else { f64::NEG_INFINITY }))
