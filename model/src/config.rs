@@ -176,6 +176,45 @@ pub struct InferConfig {
     /// led from 5 and 10 views by 1.1 dB body PSNR (docs/real-ct/validation-real-stats.md).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub refine_always_from_views: Option<usize>,
+    /// Fits averaged into the network volume (1: one fit). The first starts from the mean
+    /// code, as a single fit does; each other one from codes drawn from the training codes'
+    /// Gaussian, its spread scaled by `ensemble_code_sd`, with its own ray draws. Where the
+    /// views pin the volume down every fit agrees; where they do not, the fits disagree and
+    /// their average falls back towards what they share ([`crate::ensemble`]). The average
+    /// of volumes that explain the views explains them too (projection is linear).
+    #[serde(default = "default_ensemble", skip_serializing_if = "is_one")]
+    pub ensemble: usize,
+    /// Spread of the other fits' starting codes, in units of the training codes' standard
+    /// deviation (1: codes as the training set's).
+    #[serde(
+        default = "default_ensemble_code_sd",
+        skip_serializing_if = "is_default_ensemble_code_sd"
+    )]
+    pub ensemble_code_sd: f64,
+    /// Weight `w` of SART-TV from the mean in the final volume: (1 − w) × the network's
+    /// volume (after its sweeps, when they ran) + w × the volume that `refine_iterations`
+    /// sweeps make from the mean training volume alone, without the network (the baseline
+    /// "SART-TV from the mean"). Both explain the views; where the prior's anatomy is wrong
+    /// their errors differ, and the blend shrinks the network's towards the classical
+    /// estimate's. 0: the network's volume alone.
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub mean_sweeps_weight: f64,
+}
+
+fn is_zero(x: &f64) -> bool {
+    *x == 0.0
+}
+fn default_ensemble() -> usize {
+    1
+}
+fn is_one(n: &usize) -> bool {
+    *n == 1
+}
+fn default_ensemble_code_sd() -> f64 {
+    1.0
+}
+fn is_default_ensemble_code_sd(x: &f64) -> bool {
+    *x == 1.0
 }
 
 /// How the data-consistency sweeps' start weighs the network volume against the mean
@@ -531,6 +570,22 @@ impl TrainConfig {
         ensure!(
             self.infer.refine_always_from_views != Some(0),
             "infer.refine_always_from_views is 0: give a view count of at least 1, or leave it out"
+        );
+        ensure!(
+            (0.0..=1.0).contains(&self.infer.mean_sweeps_weight),
+            "infer.mean_sweeps_weight = {} must be in [0, 1] (the weight of SART-TV from the \
+             mean in the final volume)",
+            self.infer.mean_sweeps_weight
+        );
+        ensure!(
+            self.infer.ensemble >= 1,
+            "infer.ensemble = 0: give the number of fits to average (1: one fit)"
+        );
+        ensure!(
+            self.infer.ensemble_code_sd.is_finite() && self.infer.ensemble_code_sd >= 0.0,
+            "infer.ensemble_code_sd = {} must be a finite number ≥ 0 (the starting codes' \
+             spread in training-code standard deviations)",
+            self.infer.ensemble_code_sd
         );
         ensure!(
             !self.infer.refine_below_db.is_nan(),

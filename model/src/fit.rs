@@ -40,13 +40,29 @@ pub struct Fit {
 
 /// The network part of [`crate::reconstruct::reconstruct`]: `generator` (left as it is:
 /// its field is copied) fitted to `refs`, code first, then as `infer.tune` says, and its
-/// volume on `grid`.
+/// volume on `grid`. The fit starts from the mean code.
 pub fn fit_network(
     generator: &Generator,
     refs: &[Reference],
     grid: &Volume,
     infer: &InferConfig,
     seed: u64,
+    device: &Device,
+    progress: &mut dyn FnMut(usize, f64),
+) -> Result<Fit> {
+    fit_network_from(generator, refs, grid, infer, seed, None, device, progress)
+}
+
+/// [`fit_network`] from the given whitened starting codes (shape, appearance; `None`: the
+/// mean code, zeros).
+#[allow(clippy::too_many_arguments)]
+pub fn fit_network_from(
+    generator: &Generator,
+    refs: &[Reference],
+    grid: &Volume,
+    infer: &InferConfig,
+    seed: u64,
+    start: Option<(Vec<f32>, Vec<f32>)>,
     device: &Device,
     progress: &mut dyn FnMut(usize, f64),
 ) -> Result<Fit> {
@@ -62,9 +78,18 @@ pub fn fit_network(
     let stats = &table.stats;
     let m = &config.model;
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let (shape0, app0) = start.unwrap_or_else(|| (vec![0.0; m.z_shape], vec![0.0; m.z_app]));
+    ensure!(
+        shape0.len() == m.z_shape && app0.len() == m.z_app,
+        "starting codes of {} + {} values for a model with {} + {}",
+        shape0.len(),
+        app0.len(),
+        m.z_shape,
+        m.z_app
+    );
     let mut tuned = Tuned {
         field: field.clone(),
-        codes: Codes::new(vec![0.0; m.z_shape], vec![0.0; m.z_app], 1, device),
+        codes: Codes::new(shape0, app0, 1, device),
     };
     let (mut opt_codes, mut opt_field) = (adam(), adam());
     // The frozen generator of the first phase: no gradients of its weights are computed.

@@ -30,6 +30,7 @@ pub mod checkpoint;
 pub mod config;
 pub mod data;
 pub mod discriminator;
+pub mod ensemble;
 pub mod error;
 pub mod field;
 pub mod fit;

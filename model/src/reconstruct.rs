@@ -23,6 +23,7 @@
 
 use crate::checkpoint::Generator;
 use crate::config::{InferConfig, RefineGate, RefineStart};
+use crate::ensemble::fit_ensemble;
 use crate::error::Result;
 use crate::held_out;
 use crate::refine::{StartWeights, start_weights, sweep_from};
@@ -183,7 +184,7 @@ pub fn reconstruct(
 ) -> Result<Reconstruction> {
     check_references(refs)?;
     let peak_bytes = check_memory(&generator, infer, refs, grid)?;
-    let fit = fit_network(&generator, refs, grid, infer, seed, device, &mut progress)?;
+    let fit = fit_ensemble(&generator, refs, grid, infer, seed, device, &mut progress)?;
     let Fit {
         tuned,
         iterations,
@@ -220,6 +221,10 @@ pub fn reconstruct(
         net.refine_seconds = t0.elapsed().as_secs_f64();
         network = Some(net);
     }
+    if infer.mean_sweeps_weight > 0.0 {
+        volume = blend_with_mean_sweeps(refs, &volume, &generator.prior, &density_scale, infer)?;
+        psnr = projection_psnr(&volume, &density_scale, refs, proj_scale)?;
+    }
     let stats = &generator.codes.stats;
     let (z_sh, z_a) = stats.codes(tuned.codes.shape.val(), tuned.codes.app.val());
     let read = |t: Tensor<2>| t.into_data().try_to_vec::<f32>().expect("f32 codes");
@@ -232,4 +237,34 @@ pub fn reconstruct(
         losses,
         codes: (read(z_sh), read(z_a)),
     })
+}
+
+/// (1 − w) × `volume` + w × SART-TV from the mean training volume alone (`infer`'s sweeps),
+/// w = `infer.mean_sweeps_weight`.
+fn blend_with_mean_sweeps(
+    refs: &[Reference],
+    volume: &Volume,
+    prior: &crate::prior::MeanVolume,
+    density_scale: &crate::render::DensityScale,
+    infer: &InferConfig,
+) -> Result<Volume> {
+    let from_mean = StartWeights {
+        network: 0.0,
+        mean: 1.0,
+    };
+    let classical = sweep_from(refs, volume, prior, density_scale, infer, from_mean)?;
+    let w = infer.mean_sweeps_weight as f32;
+    let blended = volume
+        .data()
+        .iter()
+        .zip(classical.data())
+        .map(|(&n, &c)| (1.0 - w) * n + w * c)
+        .collect();
+    Ok(Volume::new(
+        volume.dims(),
+        volume.spacing(),
+        volume.origin(),
+        volume.direction(),
+        blended,
+    )?)
 }
