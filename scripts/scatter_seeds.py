@@ -2,7 +2,7 @@
 """The error of one Monte Carlo scatter view over many seeds, against a converged reference
 (docs/scatter.md, "One view over many seeds").
 
-    python3 scripts/scatter_seeds.py CT REFERENCE.npy [--photons 14000] [--seeds 16]
+    python3 scripts/scatter_seeds.py CT REFERENCE.npy [--photons 14000] [--seeds 16] [--first-seed 1]
         [--split 1] [--sparse] [--sampler latin-hypercube|sobol] [--cell-mm 8]
         [--bin target/release/tomograf] > A.md
     python3 scripts/scatter_seeds.py --paired A.md B.md
@@ -108,6 +108,8 @@ def main():
     ap.add_argument("reference")
     ap.add_argument("--photons", type=int, default=14000)
     ap.add_argument("--seeds", type=int, default=16)
+    ap.add_argument("--first-seed", type=int, default=1,
+                    help="seeds FIRST .. FIRST + SEEDS − 1 (fresh seeds for a confirmation)")
     ap.add_argument("--split", type=int, default=1)
     ap.add_argument("--sparse", action="store_true",
                     help="sparse_multiple = true (each later collision scores a quarter of the points)")
@@ -133,7 +135,7 @@ def main():
     print("| seed | level (mean / reference's) | converged scatter rms |\n|---:|---:|---:|")
     errs, levels = [], []
     with tempfile.TemporaryDirectory() as tmp:
-        for seed in range(1, a.seeds + 1):
+        for seed in range(a.first_seed, a.first_seed + a.seeds):
             scene = pathlib.Path(tmp, "scene.toml")
             cells = f"detection_cell_mm = {a.cell_mm}\n" if a.cell_mm > 0 else ""
             scene.write_text(SCENE.format(ct=ct, seed=seed, photons=a.photons, split=a.split,
