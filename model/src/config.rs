@@ -329,6 +329,12 @@ impl InferConfig {
             c.psnr_threshold = db;
         }
         if let Some(n) = o.refine_iterations {
+            ensure!(
+                n > 0 || c.mean_sweeps_weight == 0.0,
+                "0 data-consistency sweeps, but the checkpoint's infer.mean_sweeps_weight = {} \
+                 blends in SART-TV from the mean, which needs at least 1",
+                c.mean_sweeps_weight
+            );
             c.refine_iterations = n;
         }
         if let Some(t) = o.refine_tv_step {
@@ -575,6 +581,12 @@ impl TrainConfig {
             (0.0..=1.0).contains(&self.infer.mean_sweeps_weight),
             "infer.mean_sweeps_weight = {} must be in [0, 1] (the weight of SART-TV from the \
              mean in the final volume)",
+            self.infer.mean_sweeps_weight
+        );
+        ensure!(
+            self.infer.mean_sweeps_weight == 0.0 || self.infer.refine_iterations > 0,
+            "infer.mean_sweeps_weight = {} blends in SART-TV from the mean, which needs \
+             refine_iterations ≥ 1 sweeps (it is 0)",
             self.infer.mean_sweeps_weight
         );
         ensure!(

@@ -87,4 +87,9 @@ fn the_blend_runs_from_the_network_to_sart_tv_from_the_mean() {
     bad.infer.mean_sweeps_weight = 1.5;
     let e = bad.validate().unwrap_err().to_string();
     assert!(e.contains("infer.mean_sweeps_weight = 1.5"), "{e}");
+    let mut bad = config.clone();
+    bad.infer.mean_sweeps_weight = 0.3;
+    bad.infer.refine_iterations = 0;
+    let e = bad.validate().unwrap_err().to_string();
+    assert!(e.contains("needs refine_iterations ≥ 1"), "{e}");
 }
