@@ -3,7 +3,7 @@
 (docs/scatter.md, "One view over many seeds").
 
     python3 scripts/scatter_seeds.py CT REFERENCE.npy [--photons 14000] [--seeds 16] [--first-seed 1]
-        [--split 1] [--sparse] [--sampler latin-hypercube|sobol] [--cell-mm 8]
+        [--split 1] [--sparse] [--sampler latin-hypercube|sobol] [--cell-mm 8] [--cell-check 0]
         [--bin target/release/tomograf] > A.md
     python3 scripts/scatter_seeds.py --paired A.md B.md
 
@@ -65,7 +65,7 @@ sparse_multiple = {sparse}
 sampler = "{sampler}"
 grid = 16
 multiple_grid = 8
-{cells}images = ["scatter"]
+{cells}{check}images = ["scatter"]
 [output]
 formats = ["npy"]
 """
@@ -115,6 +115,9 @@ def main():
                     help="sparse_multiple = true (each later collision scores a quarter of the points)")
     ap.add_argument("--sampler", default="latin-hypercube", choices=["latin-hypercube", "sobol"])
     ap.add_argument("--cell-mm", type=float, default=8.0)
+    ap.add_argument("--cell-check", type=int, default=0,
+                    help="cell_check = K: one scored path in K also traced at full resolution "
+                         "and each component scaled by the ratio (0: none)")
     ap.add_argument("--bin", default="target/release/tomograf")
     a = ap.parse_args()
     shape, ref2 = read_npy(a.reference)
@@ -130,6 +133,7 @@ def main():
           + (", sparse multiple" if a.sparse else "") + f", {a.sampler} start"
           + ", 16² points (8² multiple), "
           + (f"{a.cell_mm:g} mm cells" if a.cell_mm > 0 else "full resolution")
+          + (f", cells checked on 1 path in {a.cell_check}" if a.cell_check > 0 else "")
           + f"; reference {a.reference} "
           f"(its own noise {100 * math.sqrt(noise2):.2f} %)\n")
     print("| seed | level (mean / reference's) | converged scatter rms |\n|---:|---:|---:|")
@@ -140,7 +144,9 @@ def main():
             cells = f"detection_cell_mm = {a.cell_mm}\n" if a.cell_mm > 0 else ""
             scene.write_text(SCENE.format(ct=ct, seed=seed, photons=a.photons, split=a.split,
                                           sparse=str(a.sparse).lower(), sampler=a.sampler,
-                                          cells=cells))
+                                          cells=cells,
+                                          check=f"cell_check = {a.cell_check}\n"
+                                          if a.cell_check > 0 else ""))
             out = pathlib.Path(tmp, f"out{seed}")
             subprocess.run([a.bin, "project", "--scene", str(scene), "-o", str(out)],
                            check=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)

@@ -50,6 +50,7 @@ fn main() -> Result<()> {
         split,
         sparse_multiple: false,
         sampler: Default::default(),
+        cell_check: 0,
     };
     let model = acq.scatter.clone();
     let prepared = acq.prepare(&hu, seed)?;

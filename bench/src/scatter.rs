@@ -87,6 +87,7 @@ fn mc_multiple(photons: u64, cell: f64, multiple: usize) -> ScatterModel {
         split: 1,
         sparse_multiple: false,
         sampler: Default::default(),
+        cell_check: 0,
     }
 }
 

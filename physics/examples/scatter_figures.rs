@@ -48,6 +48,7 @@ fn mc(photons: u64, grid: usize) -> ScatterModel {
         split: 1,
         sparse_multiple: false,
         sampler: Default::default(),
+        cell_check: 0,
     }
 }
 

@@ -36,6 +36,7 @@ fn scatter(hu: &Volume, view: &View, grid: usize, seed: u64) -> Vec<f64> {
         split: 1,
         sparse_multiple: false,
         sampler: Default::default(),
+        cell_check: 0,
     };
     let p = a.prepare(hu, seed).unwrap();
     let s = p.scatter(view, 0).unwrap().unwrap();

@@ -43,6 +43,7 @@ fn main() {
             split: 1,
             sparse_multiple: false,
             sampler: Default::default(),
+            cell_check: 0,
         };
         let p = a.prepare(&hu, 7).unwrap();
         let t0 = cpu_seconds();

@@ -87,6 +87,7 @@ fn main() {
         split: 1,
         sparse_multiple: false,
         sampler: Default::default(),
+        cell_check: 0,
     };
     let spectrum = a.spectrum.spectrum().unwrap();
     let (energies, fluence) = (spectrum.energies_kev(), spectrum.fluence());

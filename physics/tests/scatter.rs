@@ -405,6 +405,7 @@ fn bad_settings_are_named() {
         split: 1,
         sparse_multiple: false,
         sampler: Default::default(),
+        cell_check: 0,
     };
     assert!(err(mc(0, 16, 5)).contains("photons"));
     assert!(err(mc(10, 0, 5)).contains("grid"));
@@ -420,6 +421,7 @@ fn bad_settings_are_named() {
             split,
             sparse_multiple: false,
             sampler: Default::default(),
+            cell_check: 0,
         };
         assert!(err(m).contains("split"));
     }

@@ -46,6 +46,7 @@ fn scatter_correction_from_the_object_removes_the_scatter() {
         split: 1,
         sparse_multiple: false,
         sampler: Default::default(),
+        cell_check: 0,
     };
     let prepared = a.prepare(&hu, 3).unwrap();
     // Noiseless −log with and without scatter: the expected images over the open field.

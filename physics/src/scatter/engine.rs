@@ -20,7 +20,7 @@
 use super::anti_scatter_grid::{AntiScatterGrid, GridTransmission};
 use super::detection_grid::DetectionGrid;
 use super::estimate::smooth;
-use super::estimator::{Component, Response, ScoreGrid, Tally, score, to_image};
+use super::estimator::{CellCheck, Component, Response, ScoreGrid, Tally, score, to_image};
 use super::start::{Aim, BatchStarts, Start};
 use super::transport::{E_CUTOFF_KEV, Medium};
 use super::{MAX_GRID, MAX_PHOTONS, MAX_SPLIT, Sampler, ScatterModel};
@@ -59,6 +59,10 @@ pub struct Histories {
     pub sparse_multiple: bool,
     /// Where a batch draws its histories' start from.
     pub sampler: Sampler,
+    /// With forced detection through cells, one scored path in this many is also traced at
+    /// full resolution and each component's image scaled by the ratio of the two
+    /// ([`CellCheck`]); 0: none.
+    pub cell_check: u32,
 }
 
 impl Histories {
@@ -70,6 +74,7 @@ impl Histories {
             split,
             sparse_multiple: false,
             sampler: Sampler::default(),
+            cell_check: 0,
         }
     }
 }
@@ -262,6 +267,7 @@ impl ScatterEngine {
                 split,
                 sparse_multiple,
                 sampler,
+                cell_check,
                 ..
             } => (
                 photons,
@@ -272,6 +278,7 @@ impl ScatterEngine {
                     split,
                     sparse_multiple,
                     sampler,
+                    cell_check,
                 },
                 0.0,
                 detection_cell_mm,
@@ -339,7 +346,8 @@ impl ScatterEngine {
     /// independent scatters from that site, each with 1/`split` of the weight (and of its
     /// Russian roulette threshold), follow the later flights that make the multiple-scatter
     /// image (unbiased; 1 does not split); with `sparse_multiple` each collision after the
-    /// first scores a random quarter of its grid's points, ×4; `sampler` draws the start.
+    /// first scores a random quarter of its grid's points, ×4; `sampler` draws the start;
+    /// `cell_check` checks the cells against full resolution (with `detection` only).
     #[allow(clippy::too_many_arguments)]
     pub fn simulate_through(
         &self,
@@ -394,12 +402,20 @@ impl ScatterEngine {
         let mgrid = (multiple_grid != grid).then(|| ScoreGrid::new(view, multiple_grid));
         let channels = self.response.channels();
         let batches = photons.div_ceil(BATCH);
-        let tallies: Vec<(Tally, Option<Tally>)> = (0..batches)
+        let checking = detection.is_some() && histories.cell_check > 0;
+        let mut tallies: Vec<(Tally, Option<Tally>, Option<CellCheck>)> = (0..batches)
             .into_par_iter()
             .map(|b| {
                 let mut rng = ChaCha8Rng::seed_from_u64(frame_seed(seed, b));
                 let mut tally = Tally::new(channels, sgrid.len());
                 let mut mtally = mgrid.as_ref().map(|g| Tally::new(channels, g.len()));
+                // Its own key: the check draws from no random stream of the histories.
+                let mut check = checking.then(|| {
+                    CellCheck::new(
+                        u64::from(histories.cell_check),
+                        frame_seed(!seed, b),
+                    )
+                });
                 let n = BATCH.min(photons - b * BATCH) as usize;
                 let starts = BatchStarts::new(self.analog, histories.sampler, n, &mut rng);
                 let mut segments = Vec::new();
@@ -427,17 +443,35 @@ impl ScatterEngine {
                         histories,
                         (&sgrid, &mut tally),
                         mgrid.as_ref().zip(mtally.as_mut()),
-                        detection,
+                        (detection, check.as_mut()),
                         (u_depth, &mut segments),
                         &mut starts.stream(j, &mut rng),
                     );
                 }
-                (tally, mtally)
+                (tally, mtally, check)
             })
             .collect();
+        if checking {
+            // The run's ratio full resolution / cells per component, summed in batch order.
+            let mut all = CellCheck::default();
+            for (_, _, k) in &tallies {
+                if let Some(k) = k {
+                    all.add(k);
+                }
+            }
+            let ratios = all.ratios();
+            for (t, m, _) in &mut tallies {
+                for (comp, &f) in ratios.iter().enumerate() {
+                    t.scale_component(comp, f);
+                }
+                if let Some(m) = m {
+                    m.scale_component(Component::Multiple as usize, ratios[2]);
+                }
+            }
+        }
         let mut sum = Tally::new(channels, sgrid.len());
         let mut msum = mgrid.as_ref().map(|g| Tally::new(channels, g.len()));
-        for (t, m) in &tallies {
+        for (t, m, _) in &tallies {
             sum.add(t);
             if let (Some(s), Some(m)) = (msum.as_mut(), m) {
                 s.add(m);
@@ -463,7 +497,7 @@ impl ScatterEngine {
         } else {
             let nb = tallies.len() as f64;
             let mut ss = vec![0.0; grid_mean.len()];
-            for (t, m) in &tallies {
+            for (t, m, _) in &tallies {
                 let x = total0(t, m.as_ref());
                 for (s, (x, m)) in ss.iter_mut().zip(x.iter().zip(&grid_mean)) {
                     *s += (x - m / nb).powi(2);
@@ -526,11 +560,12 @@ impl ScatterEngine {
         histories: Histories,
         single: (&ScoreGrid, &mut Tally),
         mut multiple: Option<(&ScoreGrid, &mut Tally)>,
-        detection: Option<&DetectionGrid>,
+        paths: (Option<&DetectionGrid>, Option<&mut CellCheck>),
         first: (f64, &mut Vec<(usize, f64)>),
         rng: &mut R,
     ) {
         let (sgrid, stally) = single;
+        let (detection, mut check) = paths;
         let (mut w, w0, mut order) = start;
         let Histories {
             max_order,
@@ -571,6 +606,7 @@ impl ScatterEngine {
                 tally,
                 (order > 0 && sparse_multiple)
                     .then(|| (rng.random_range(0..2usize), rng.random_range(0..2usize))),
+                check.as_deref_mut(),
             );
             w *= 1.0 - c.p_photo;
             if order == 0 && split > 1 && max_order > 1 {
@@ -598,7 +634,7 @@ impl ScatterEngine {
                         histories,
                         (sgrid, &mut *stally),
                         multiple.as_mut().map(|(g, t)| (*g, &mut **t)),
-                        detection,
+                        (detection, check.as_deref_mut()),
                         (f64::NAN, &mut *segments),
                         rng,
                     );

@@ -17,6 +17,7 @@ use super::transport::{Collision, Medium};
 use crate::detector::ExpectedImage;
 use glam::DVec3;
 use tomograf_sim::geometry::{View, ViewBeam};
+use tomograf_sim::seed::frame_seed;
 
 /// The detector's mean and second moment of signal per incident photon, per channel, on a
 /// 1 keV grid (index k ↔ k + 1 keV).
@@ -219,6 +220,17 @@ impl Tally {
             .for_each(|(a, b)| *a += b);
     }
 
+    /// Scales component `comp` (every channel and point, mean and second moment) by `f`.
+    pub fn scale_component(&mut self, comp: usize, f: f64) {
+        for ch in 0..self.channels {
+            let s = self.index(comp, ch, 0);
+            for i in s..s + self.points {
+                self.mean[i] *= f;
+                self.second[i] *= f;
+            }
+        }
+    }
+
     /// Channel 0's total (all components) at each point.
     pub fn total0(&self) -> Vec<f64> {
         self.channel0(&[0, 1, 2])
@@ -237,10 +249,69 @@ impl Tally {
     }
 }
 
+/// A check on the detection cells' bias, per batch: one scored path in `every` — chosen by
+/// a hash of the batch's key and the path's count, so no random stream is touched and the
+/// histories stay those of a run without it — is traced at full resolution as well, and
+/// both channel-0 signals are summed per component. The run's sums give each component's
+/// ratio full resolution / cells, by which its image is scaled: the cells' level error
+/// (averaging μ over a cell lowers a path's expected transmission, Jensen) is removed;
+/// its shape across the panel is not.
+#[derive(Debug, Clone, Default)]
+pub struct CellCheck {
+    every: u64,
+    key: u64,
+    count: u64,
+    /// Signal of the checked paths through the cells, per [`Component`].
+    coarse: [f64; 3],
+    /// The same paths traced at full resolution.
+    fine: [f64; 3],
+}
+
+impl CellCheck {
+    /// One path in `every` (≥ 1) checked, drawn by `key`.
+    pub fn new(every: u64, key: u64) -> Self {
+        Self {
+            every: every.max(1),
+            key,
+            ..Self::default()
+        }
+    }
+
+    /// Whether the next scored path is checked.
+    #[inline]
+    fn take(&mut self) -> bool {
+        let h = frame_seed(self.key, self.count);
+        self.count += 1;
+        h % self.every == 0
+    }
+
+    /// Adds `other`'s sums.
+    pub fn add(&mut self, other: &CellCheck) {
+        for c in 0..3 {
+            self.coarse[c] += other.coarse[c];
+            self.fine[c] += other.fine[c];
+        }
+    }
+
+    /// Each component's ratio full resolution / cells over the checked paths (1 where no
+    /// checked path carried signal).
+    pub fn ratios(&self) -> [f64; 3] {
+        std::array::from_fn(|c| {
+            let r = self.fine[c] / self.coarse[c];
+            if self.coarse[c] > 0.0 && r.is_finite() {
+                r
+            } else {
+                1.0
+            }
+        })
+    }
+}
+
 /// Scores the expected detector signal of the scatter at collision `c` (photon weight
 /// `weight`, `order` scatters so far, travelling along `dir`) into `tally`, through the
 /// anti-scatter grid `anti` when there is one; the paths to the points traced through
-/// `detection` (`None`: the medium's full-resolution composition).
+/// `detection` (`None`: the medium's full-resolution composition); with a `check` (and
+/// cells), the paths it draws are also traced at full resolution and summed into it.
 #[allow(clippy::too_many_arguments)]
 pub fn score(
     medium: &Medium,
@@ -254,6 +325,7 @@ pub fn score(
     order: u32,
     tally: &mut Tally,
     subset: Option<(usize, usize)>,
+    mut check: Option<&mut CellCheck>,
 ) {
     let (comp_c, comp_r) = if order == 0 {
         (
@@ -290,15 +362,35 @@ pub fn score(
             None => medium.paths(c.position, q),
         };
         let (pc, ec) = medium.compton_towards(c, &norms, mu);
-        let vc = weight * c.p_compton * pc * solid * medium.transmission(&paths, ec);
         let pr = medium.rayleigh_towards(c, &norms, mu);
-        let mut vr =
-            weight * c.p_rayleigh * pr * solid * medium.transmission_with(&paths, &rayleigh_mu);
-        let mut vc = vc;
+        // Everything but the transmission (its factor order kept: the bytes without a check
+        // are those of the engine before it).
+        let gc = weight * c.p_compton * pc * solid;
+        let gr = weight * c.p_rayleigh * pr * solid;
+        let (mut ac, mut ar) = (1.0, 1.0);
         if let Some(a) = anti {
             let (u, n, f) = (grid.u_axis, grid.normal, grid.focus[p]);
-            vc *= a.towards(w, u, n, f, ec);
-            vr *= a.towards(w, u, n, f, c.energy_kev);
+            ac = a.towards(w, u, n, f, ec);
+            ar = a.towards(w, u, n, f, c.energy_kev);
+        }
+        let mut vc = gc * medium.transmission(&paths, ec);
+        let mut vr = gr * medium.transmission_with(&paths, &rayleigh_mu);
+        if anti.is_some() {
+            vc *= ac;
+            vr *= ar;
+        }
+        if detection.is_some()
+            && let Some(k) = check.as_deref_mut()
+            && k.take()
+        {
+            // The same path at full resolution: only the transmissions differ.
+            let fine = medium.paths(c.position, q);
+            let m1 = &response.mean[0];
+            let (rc, rr) = (Response::at(m1, ec), Response::at(m1, c.energy_kev));
+            k.coarse[comp_c] += vc * rc;
+            k.coarse[comp_r] += vr * rr;
+            k.fine[comp_c] += gc * medium.transmission(&fine, ec) * ac * rc;
+            k.fine[comp_r] += gr * medium.transmission_with(&fine, &rayleigh_mu) * ar * rr;
         }
         for ch in 0..response.channels() {
             let (m1, m2) = (&response.mean[ch], &response.second_moment[ch]);

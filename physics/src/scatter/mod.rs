@@ -142,6 +142,12 @@ pub enum ScatterModel {
         /// Where each batch draws its histories' start from (default `latin-hypercube`).
         #[serde(default)]
         sampler: Sampler,
+        /// With `detection_cell_mm` > 0: one scored path in this many is also traced at full
+        /// resolution, and each component's image is scaled by the ratio of the two summed
+        /// signals — the cells' level error removed, their shape error not (docs/scatter.md,
+        /// "Checking the cells"); 0 (the default): no check. The histories are unchanged.
+        #[serde(default)]
+        cell_check: u32,
     },
 }
 
@@ -193,6 +199,7 @@ impl ScatterModel {
             split: 1,
             sparse_multiple: false,
             sampler: Sampler::default(),
+            cell_check: 0,
         }
     }
 
@@ -236,8 +243,15 @@ impl ScatterModel {
                 detection_cell_mm,
                 angular_window_deg,
                 split,
+                cell_check,
                 ..
             } => {
+                if cell_check > 0 && detection_cell_mm == 0.0 {
+                    return bad(format!(
+                        "cell_check = {cell_check} needs forced detection through cells; give \
+                         detection_cell_mm > 0 or cell_check = 0"
+                    ));
+                }
                 if max_order == 0 {
                     return bad("max_order = 0; give ≥ 1 (1: single scatter only)".into());
                 }
