@@ -13,9 +13,11 @@
 //! What it changes: within a cell, mass is spread evenly, so a path crossing a cell at an
 //! edge of bone or lung sees the cell's mean instead of what lies on its own line. The mass
 //! of every material is kept (the mean over many paths is unchanged to first order); the
-//! transmission of single paths is not, and exp is convex, so the scatter comes out
-//! slightly high where cells mix very different densities. docs/scatter.md measures the
-//! bias against the full-resolution Monte Carlo on a real chest CT.
+//! transmission of single paths is not, and exp is convex (the mean of exp(−τ) over the
+//! paths through a cell exceeds exp of their mean τ), so the scatter comes out slightly low
+//! where cells mix very different densities: 0.14 % on a real chest CT, 0.5 % on a
+//! validation phantom at 8 mm (docs/scatter.md). `cell_check` ([`super::estimator::CellCheck`])
+//! measures that level error per run on a sample of paths and removes it.
 //!
 //! Cells at the far faces that reach past the grid hold the mean of the voxels they have,
 //! and paths are clipped to the full-resolution grid's box first, so they cross only the
