@@ -212,7 +212,10 @@ fn checking_the_cells_restores_the_full_resolution_level() {
             let f = a.mean[0] / b.mean[0];
             assert!(f.is_finite() && (f - 1.0).abs() < 0.05, "ratio {f}");
             for (x, y) in a.mean.iter().zip(&b.mean) {
-                assert!((x - f * y).abs() <= 1e-12 * x.abs().max(1e-300), "{x} {f} {y}");
+                assert!(
+                    (x - f * y).abs() <= 1e-12 * x.abs().max(1e-300),
+                    "{x} {f} {y}"
+                );
             }
         }
     }
@@ -246,7 +249,10 @@ fn checking_the_cells_restores_the_full_resolution_level() {
         cell_check: 4,
     };
     let e = m.validate().unwrap_err().to_string();
-    assert!(e.contains("cell_check") && e.contains("detection_cell_mm"), "{e}");
+    assert!(
+        e.contains("cell_check") && e.contains("detection_cell_mm"),
+        "{e}"
+    );
 }
 
 #[test]

@@ -410,12 +410,8 @@ impl ScatterEngine {
                 let mut tally = Tally::new(channels, sgrid.len());
                 let mut mtally = mgrid.as_ref().map(|g| Tally::new(channels, g.len()));
                 // Its own key: the check draws from no random stream of the histories.
-                let mut check = checking.then(|| {
-                    CellCheck::new(
-                        u64::from(histories.cell_check),
-                        frame_seed(!seed, b),
-                    )
-                });
+                let mut check = checking
+                    .then(|| CellCheck::new(u64::from(histories.cell_check), frame_seed(!seed, b)));
                 let n = BATCH.min(photons - b * BATCH) as usize;
                 let starts = BatchStarts::new(self.analog, histories.sampler, n, &mut rng);
                 let mut segments = Vec::new();

@@ -282,7 +282,7 @@ impl CellCheck {
     fn take(&mut self) -> bool {
         let h = frame_seed(self.key, self.count);
         self.count += 1;
-        h % self.every == 0
+        h.is_multiple_of(self.every)
     }
 
     /// Adds `other`'s sums.
