@@ -35,6 +35,7 @@ pub mod error;
 pub mod field;
 pub mod fit;
 pub mod held_out;
+pub mod infer_config;
 pub mod losses;
 pub mod metrics;
 pub mod pca;
