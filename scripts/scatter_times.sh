@@ -6,11 +6,12 @@
 # less the no-scatter median (the CT's loading and the primary).
 #
 #   scripts/scatter_times.sh CT [BINARY] > times.txt    (run where nothing else runs)
+#   ROUNDS=5 CANDIDATES="none c0 c2k" scripts/scatter_times.sh CT    (other rounds / candidates)
 #
 # c0: 14 000 histories, Latin hypercube; c1: 14 000, Sobol, split 4, sparse multiple;
 # c2: 10 000, Sobol, split 8, sparse; c3: 20 000, Sobol, split 4, sparse; c0k and c1k: c0 and
 # c1 with cell_check = 256 (docs/scatter.md, "Checking the cells"); c2k: 12 000, Sobol, split 4,
-# sparse, cell_check = 256.
+# sparse, cell_check = 256; c2500k: the same with 2 500 histories.
 set -euo pipefail
 ct=$(realpath "$1"); B=$(realpath "${2:-target/release/tomograf}")
 work=$(mktemp -d); trap 'rm -rf "$work"' EXIT; cd "$work"
@@ -48,7 +49,7 @@ EOT
 }
 mk none 0; mk c0 14000 1 false latin-hypercube; mk c1 14000 4 true sobol; mk c2 10000 8 true sobol; mk c3 20000 4 true sobol
 mk c0k 14000 1 false latin-hypercube 256; mk c1k 14000 4 true sobol 256
-mk c2k 12000 4 true sobol 256
-for r in 1 2 3; do for c in none c0 c1 c2 c3 c0k c1k c2k; do
+mk c2k 12000 4 true sobol 256; mk c2500k 2500 4 true sobol 256
+for r in $(seq "${ROUNDS:-3}"); do for c in ${CANDIDATES:-none c0 c1 c2 c3 c0k c1k c2k}; do
   s=$(date +%s.%N); "$B" project --scene $c.toml -o out >/dev/null 2>&1; e=$(date +%s.%N)
   echo "$c $(python3 -c "print(round($e - $s, 3))")"; done; done
