@@ -85,7 +85,7 @@ def with_ray(exe: str, kind: str, args: list, workers: int) -> None:
 
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--scale", choices=["tiny", "small"], default="tiny")
+    ap.add_argument("--scale", choices=["tiny", "small", "medium"], default="tiny")
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--out", type=Path, help="markdown file to write (default: print only)")
     ap.add_argument("--binary", default=os.environ.get("TOMOGRAF_BIN") or str(ROOT / "target/release/tomograf"))

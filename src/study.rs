@@ -45,8 +45,9 @@ pub struct CommonArgs {
     /// Study folder (re-running it resumes: finished work is kept).
     #[arg(short, long)]
     pub output: PathBuf,
-    /// tiny (CI: 16³, a few phantoms, the tiny model; about a minute) or small (the real
-    /// figure: 64³, the small model; hours on a CPU).
+    /// tiny (CI: 16³, a few phantoms, the tiny model; about a minute), small (the real
+    /// figure: 64³, the small model; hours on a CPU) or medium (128³ volumes and 128²
+    /// panels, where the detector's noise and blur show; the medium model).
     #[arg(long, default_value = "tiny")]
     pub scale: String,
     /// Seed of the phantoms, the detector noise, training and inference.

@@ -15,7 +15,7 @@ pub struct TrainArgs {
     /// Run folder: checkpoint/, metrics.csv, loss.png.
     #[arg(short, long)]
     pub output: PathBuf,
-    /// Preset (tiny, small, paper) or a TOML file [default: small; with --init, the
+    /// Preset (tiny, small, medium, small-gan, paper) or a TOML file [default: small; with --init, the
     /// checkpoint's].
     #[arg(long, conflicts_with = "init")]
     pub config: Option<String>,

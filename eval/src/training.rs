@@ -23,7 +23,7 @@ pub struct Training<'a> {
     pub data: &'a Path,
     /// Run folder: checkpoint/, metrics.csv, config.toml.
     pub output: &'a Path,
-    /// Preset (tiny, small, paper) or a TOML file.
+    /// Preset (tiny, small, medium, small-gan, paper) or a TOML file.
     pub config: &'a str,
     /// Overrides of the configuration's iteration count and seed.
     pub iterations: Option<usize>,

@@ -1,4 +1,5 @@
-//! Training and inference configurations, as TOML; presets `tiny`, `small`, `paper`.
+//! Training and inference configurations, as TOML; presets `tiny`, `small`, `medium`,
+//! `small-gan`, `paper`.
 
 use crate::error::{ModelError, Result, ensure};
 use serde::{Deserialize, Serialize};
@@ -114,15 +115,16 @@ pub struct TrainConfig {
     pub infer: InferConfig,
 }
 
-const PRESETS: [(&str, &str); 4] = [
+const PRESETS: [(&str, &str); 5] = [
     ("tiny", include_str!("../presets/tiny.toml")),
     ("small", include_str!("../presets/small.toml")),
+    ("medium", include_str!("../presets/medium.toml")),
     ("small-gan", include_str!("../presets/small-gan.toml")),
     ("paper", include_str!("../presets/paper.toml")),
 ];
 
 impl TrainConfig {
-    /// A named preset (`tiny`, `small`, `small-gan`, `paper`) or a TOML file path.
+    /// A named preset (`tiny`, `small`, `medium`, `small-gan`, `paper`) or a TOML file path.
     pub fn load(name_or_path: &str) -> Result<Self> {
         if let Some((_, text)) = PRESETS.iter().find(|(n, _)| *n == name_or_path) {
             return Self::parse(text);
@@ -131,7 +133,7 @@ impl TrainConfig {
         let text = std::fs::read_to_string(path).map_err(|e| {
             ModelError::file(
                 path,
-                format!("{e} (not a preset either: tiny, small, small-gan, paper)"),
+                format!("{e} (not a preset either: tiny, small, medium, small-gan, paper)"),
             )
         })?;
         Self::parse(&text).map_err(|e| ModelError::file(path, e))
@@ -365,7 +367,7 @@ mod tests {
 
     #[test]
     fn presets_parse_and_bad_values_are_named() {
-        for n in ["tiny", "small", "small-gan", "paper"] {
+        for n in ["tiny", "small", "medium", "small-gan", "paper"] {
             let c = TrainConfig::load(n).unwrap();
             assert_eq!(c.name, n);
             assert_eq!(c.lr_g, 5e-4);
@@ -381,6 +383,17 @@ mod tests {
         // Encoding frequencies against the grid's Nyquist limit: small's 6 fit 64 voxels,
         // 8 (the old preset) do not.
         small.check_grid(64).unwrap();
+        // `medium` is `small` at twice the grid: the same training, rays sampled and
+        // encoded for 128 voxels (7 frequencies fit them, 8 do not).
+        let medium = TrainConfig::load("medium").unwrap();
+        medium.check_grid(128).unwrap();
+        assert!(medium.check_grid(64).is_err());
+        let mut m8 = medium.clone();
+        m8.model.freq_x = 8;
+        assert!(m8.check_grid(128).is_err());
+        let mut same = medium.clone();
+        (same.name, same.model.samples, same.model.freq_x) = (small.name.clone(), 32, 6);
+        assert_eq!(same.to_toml(), small.to_toml());
         let mut c8 = small.clone();
         c8.model.freq_x = 8;
         let e = c8.check_grid(64).unwrap_err().to_string();

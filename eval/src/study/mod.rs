@@ -60,7 +60,8 @@ impl Scale {
         let (size, views, test_views, train, test, config, photons) = match name {
             "tiny" => (16, 10, 10, 4, 2, "tiny", 100),
             "small" => (64, 36, 10, 32, 8, "small", 5_000),
-            other => bail!("unknown --scale '{other}': use tiny or small"),
+            "medium" => (128, 36, 10, 32, 8, "medium", 5_000),
+            other => bail!("unknown --scale '{other}': use tiny, small or medium"),
         };
         Ok(Self {
             name: name.into(),
@@ -517,13 +518,20 @@ mod tests {
     /// made 36 and its evaluation stopped with "no projection at θ = 72°").
     #[test]
     fn every_scale_makes_test_sets_the_evaluation_can_use() {
-        for name in ["tiny", "small"] {
+        for name in ["tiny", "small", "medium"] {
             let s = Scale::parse(name).unwrap();
             assert!(
                 s.test_views > 0 && s.test_views.is_multiple_of(10),
                 "{name}: {} test views",
                 s.test_views
             );
+            // Its model must be trainable on its grid (the encoding within its Nyquist
+            // limit; `train` refuses otherwise, after the data stage's hours).
+            let config = tomograf_model::config::TrainConfig::load(&s.config).unwrap();
+            config.check_grid(s.size).unwrap();
         }
+        assert_eq!(Scale::parse("medium").unwrap().size, 128);
+        let e = Scale::parse("large").unwrap_err().to_string();
+        assert!(e.contains("'large'") && e.contains("medium"), "{e}");
     }
 }
