@@ -3,21 +3,24 @@
 //! views, metric vs realism level or shift, SSIM histograms as the paper's Fig. 4) and the
 //! evaluations' example slices, residual maps and line profiles.
 
+mod examples;
+mod paired;
+mod plots;
+
 use super::coverage::Coverage;
 use super::effects::{self, Effect, NEGLIGIBLE_PCT};
 use super::render::{Block, render};
-use super::{Kind, Study, VIEWS, eval_dir_in, relative};
+use super::{Kind, Study, VIEWS, eval_dir_in};
 use crate::evaluation::{NETWORK_ONLY, Row, Scores, merge};
-use crate::figures::{
-    Axes, BarSeries, COLOUR_NAMES, plot_categories, plot_histograms, plot_with_bars,
-};
-use crate::paired::Paired;
 use anyhow::{Context, Result};
 use std::fmt::Write as _;
 use std::path::Path;
 use std::path::PathBuf;
 use tomograf_datasets::atomic::write_atomic;
 use tomograf_model::metrics::mean_std;
+
+/// The baseline that starts from the model's mean training volume.
+const MEAN_SART: &str = "SART-TV from the mean";
 
 /// Scores of one method on one test set from one view count, over the test items.
 struct Stat {
@@ -170,11 +173,11 @@ pub fn write(study: &Study, partial: bool) -> Result<()> {
     blocks.extend(coverage.paragraph(study));
     blocks.extend(effects_table(&effects::load_or_measure(study)?));
     blocks.extend(tables(study, &stats));
-    blocks.extend(paired_tables(study, &stats));
+    blocks.extend(paired::paired_tables(study, &stats));
     blocks.extend(baselines_table(study));
-    blocks.extend(plots(study, &stats)?);
+    blocks.extend(plots::plots(study, &stats)?);
     if let Some(id) = first_item.filter(|_| pooled.is_empty()) {
-        blocks.extend(examples(study, &id));
+        blocks.extend(examples::examples(study, &id));
     }
     let (md, html) = render(&blocks, title(s.kind));
     write_atomic(&study.dir.join("report.md"), |w| {
@@ -385,139 +388,6 @@ fn intro(study: &Study) -> Vec<Block> {
     b
 }
 
-/// The baselines TomoGRAF is compared with: those of its model's cell (made from its
-/// training set), then the classical ones.
-/// The baseline that starts from the model's mean training volume.
-const MEAN_SART: &str = "SART-TV from the mean";
-
-const BASELINES: [(&str, bool); 5] = [
-    ("mean training volume", true),
-    ("PCA-MAP prior", true),
-    ("SART-TV from the mean", true),
-    ("FDK", false),
-    ("SART-TV", false),
-];
-
-/// `a` − `b` in PSNR and SSIM, paired over their common items.
-fn paired_psnr_ssim(a: &Stat, b: &Stat) -> (Option<Paired>, Option<Paired>) {
-    let d = |m| Paired::of(&a.per_item(m), &b.per_item(m));
-    (d(Metric::Psnr), d(Metric::Ssim))
-}
-
-/// Paired differences over the test items, with 95 % t-intervals: TomoGRAF against the best
-/// baseline of each cell and, in the realism gap, each model against the first.
-fn paired_tables(study: &Study, stats: &[Stat]) -> Vec<Block> {
-    let s = &study.settings;
-    let cell = |p: Option<Paired>, digits: usize| p.map_or("—".into(), |p| p.format(digits));
-    let (mut shown, mut resolved) = (0, 0);
-    let mut count = |p: &Option<Paired>| {
-        if let Some(p) = p {
-            shown += 1;
-            resolved += usize::from(p.resolved());
-        }
-    };
-    let mut best_rows = Vec::new();
-    for test in &s.test_sets {
-        for v in VIEWS {
-            for t in &s.train_sets {
-                let Some(ours) = find(stats, Some(t), test, v, "TomoGRAF") else {
-                    continue;
-                };
-                let best = BASELINES
-                    .iter()
-                    .filter_map(|(b, own)| find(stats, own.then_some(t.as_str()), test, v, b))
-                    .max_by(|a, b| {
-                        a.mean_std(Metric::Psnr)
-                            .0
-                            .total_cmp(&b.mean_std(Metric::Psnr).0)
-                    });
-                let Some(best) = best else { continue };
-                let (psnr, ssim) = paired_psnr_ssim(ours, best);
-                count(&psnr);
-                count(&ssim);
-                best_rows.push(vec![
-                    format!("`{test}`"),
-                    v.to_string(),
-                    format!("`{t}`"),
-                    best.method.clone(),
-                    cell(psnr, 2),
-                    cell(ssim, 3),
-                    psnr.map_or(0, |p| p.n).to_string(),
-                ]);
-            }
-        }
-    }
-    let mut b = vec![Block::Heading("Paired differences".into())];
-    let mut level_rows = Vec::new();
-    if s.kind == Kind::RealismGap && s.train_sets.len() > 1 {
-        let first = &s.train_sets[0];
-        for test in &s.test_sets {
-            for v in VIEWS {
-                let Some(base) = find(stats, Some(first), test, v, "TomoGRAF") else {
-                    continue;
-                };
-                for t in &s.train_sets[1..] {
-                    let Some(other) = find(stats, Some(t), test, v, "TomoGRAF") else {
-                        continue;
-                    };
-                    let (psnr, ssim) = paired_psnr_ssim(other, base);
-                    count(&psnr);
-                    count(&ssim);
-                    level_rows.push(vec![
-                        format!("`{test}`"),
-                        v.to_string(),
-                        format!("`{t}` − `{first}`"),
-                        cell(psnr, 2),
-                        cell(ssim, 3),
-                    ]);
-                }
-            }
-        }
-    }
-    b.push(Block::Para(format!(
-        "Differences paired over the test items (the same items in both), mean ± the \
-         half-width of its 95 % t-interval; **bold**: the interval excludes zero (resolved). \
-         {resolved} of the {shown} differences below are resolved; the others cannot be told \
-         from the spread between items. {}",
-        if study.pool.is_empty() {
-            "One training run per model: the intervals cover the test items, not the training \
-             seed (pool runs with other seeds with `--stage report --pool`)."
-        } else {
-            "Pooled over training seeds: the pairs of every seed are taken as one sample, so \
-             the seeds' variation enters the spread (an effect shared by all items of one seed \
-             would make the interval somewhat too narrow)."
-        }
-    )));
-    b.push(Block::Table(
-        [
-            "test set",
-            "views",
-            "model",
-            "best baseline (by mean PSNR)",
-            "Δ PSNR (dB), TomoGRAF − baseline",
-            "Δ SSIM",
-            "items",
-        ]
-        .map(String::from)
-        .to_vec(),
-        best_rows,
-    ));
-    if !level_rows.is_empty() {
-        b.push(Block::Para(
-            "What training on a realism level buys: TomoGRAF trained on each level against \
-             TomoGRAF trained on the first, on the same test items."
-                .into(),
-        ));
-        b.push(Block::Table(
-            ["test set", "views", "models", "Δ PSNR (dB)", "Δ SSIM"]
-                .map(String::from)
-                .to_vec(),
-            level_rows,
-        ));
-    }
-    b
-}
-
 /// [`effects_table`] as markdown.
 pub(super) fn effects_markdown(effects: &[Effect]) -> String {
     render(
@@ -677,320 +547,6 @@ fn tables(study: &Study, stats: &[Stat]) -> Vec<Block> {
             }
         }
         b.push(Block::Table(header, rows));
-    }
-    b
-}
-
-/// Named series of (x, mean, SD over the test items).
-type Series = Vec<(String, Vec<(f64, f64, f64)>)>;
-
-fn colours(series: &Series) -> String {
-    series
-        .iter()
-        .enumerate()
-        .map(|(i, (n, _))| format!("{} = {n}", COLOUR_NAMES[i % COLOUR_NAMES.len()]))
-        .collect::<Vec<_>>()
-        .join(", ")
-}
-
-/// A plot of `series` over the view counts (`categories` `None`) or over the named test
-/// sets, with ± 1 SD bars.
-fn draw(
-    study: &Study,
-    file: &str,
-    axes: &Axes,
-    caption: String,
-    series: Series,
-    categories: Option<&[String]>,
-) -> Result<Block> {
-    let path = study.dir.join("figures").join(file);
-    let named: Vec<BarSeries> = series
-        .iter()
-        .map(|(n, p)| (n.as_str(), p.clone()))
-        .collect();
-    match categories {
-        Some(c) => plot_categories(&path, axes, c, &named)?,
-        None => plot_with_bars(&path, axes, &named)?,
-    }
-    let (lo, hi) = series
-        .iter()
-        .flat_map(|(_, p)| p.iter().map(|q| q.1))
-        .filter(|y| y.is_finite())
-        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), y| {
-            (a.min(y), b.max(y))
-        });
-    Ok(Block::Image(
-        relative(&study.dir, &path),
-        format!(
-            "{caption} Bars: ± 1 SD over the test items. Colours: {}. The means span {lo:.3} \
-             to {hi:.3}.",
-            colours(&series)
-        ),
-    ))
-}
-
-fn plots(study: &Study, stats: &[Stat]) -> Result<Vec<Block>> {
-    let s = &study.settings;
-    let mut b = vec![Block::Heading("Plots".into())];
-    let point = |train: Option<&str>, test: &str, v: usize, method: &str, m: Metric| {
-        find(stats, train, test, v, method).map(|st| st.mean_std(m))
-    };
-    let vs_views = |train: Option<&str>, test: &str, method: &str, m: Metric| {
-        VIEWS
-            .iter()
-            .filter_map(|&v| point(train, test, v, method, m).map(|(y, e)| (v as f64, y, e)))
-            .collect::<Vec<_>>()
-    };
-    let across = |f: &dyn Fn(&str) -> Option<(f64, f64)>| {
-        s.test_sets
-            .iter()
-            .enumerate()
-            .filter_map(|(i, t)| f(t).map(|(y, e)| (i as f64, y, e)))
-            .collect::<Vec<_>>()
-    };
-    // The plots over the view counts show the last test set with scores (a partial report
-    // may have none yet for the last sets).
-    let last = s
-        .test_sets
-        .iter()
-        .rev()
-        .find(|t| {
-            stats
-                .iter()
-                .any(|st| st.test == **t && !st.scores.is_empty())
-        })
-        .or(s.test_sets.last())
-        .context("no test sets")?;
-    for m in Metric::ALL {
-        let mut series: Series = Vec::new();
-        let caption = match s.kind {
-            Kind::RealismGap => {
-                for t in &s.train_sets {
-                    series.push((
-                        format!("TomoGRAF ← {t}"),
-                        vs_views(Some(t), last, "TomoGRAF", m),
-                    ));
-                }
-                // The strongest baseline, from the first model's mean volume.
-                let first = &s.train_sets[0];
-                series.push((
-                    format!("{MEAN_SART} ← {first}"),
-                    vs_views(Some(first), last, MEAN_SART, m),
-                ));
-                for c in ["FDK", "SART-TV"] {
-                    series.push((c.into(), vs_views(None, last, c, m)));
-                }
-                format!(
-                    "{} vs views (x axis: 1 to 10 views), tested on `{last}`.",
-                    m.name()
-                )
-            }
-            Kind::DomainShift => {
-                let t = &s.train_sets[0];
-                for test in &s.test_sets {
-                    series.push((
-                        format!("TomoGRAF on {test}"),
-                        vs_views(Some(t), test, "TomoGRAF", m),
-                    ));
-                }
-                format!(
-                    "{} of TomoGRAF vs views (x axis: 1 to 10 views), per test set.",
-                    m.name()
-                )
-            }
-        };
-        let title = format!("{} vs views", m.name());
-        let axes = Axes {
-            title: &title,
-            x: "views",
-            y: m.name(),
-        };
-        b.push(draw(
-            study,
-            &format!("{}_vs_views.png", m.file()),
-            &axes,
-            caption,
-            series,
-            None,
-        )?);
-
-        // The metric across the test sets.
-        let mut series: Series = Vec::new();
-        let (file, caption) = match s.kind {
-            Kind::RealismGap => {
-                let first = &s.train_sets[0];
-                series.push((
-                    format!("TomoGRAF ← {first}"),
-                    across(&|t| point(Some(first), t, 1, "TomoGRAF", m)),
-                ));
-                series.push((
-                    "TomoGRAF ← the level tested".into(),
-                    across(&|t| {
-                        s.train_sets
-                            .iter()
-                            .any(|x| x == t)
-                            .then(|| point(Some(t), t, 1, "TomoGRAF", m))
-                            .flatten()
-                    }),
-                ));
-                series.push((
-                    format!("{MEAN_SART} ← {first}"),
-                    across(&|t| point(Some(first), t, 1, MEAN_SART, m)),
-                ));
-                for c in ["FDK", "SART-TV"] {
-                    series.push((c.into(), across(&|t| point(None, t, 1, c, m))));
-                }
-                (
-                    format!("{}_vs_level.png", m.file()),
-                    format!("{} from 1 view vs the realism level tested on.", m.name()),
-                )
-            }
-            Kind::DomainShift => {
-                let t = s.train_sets[0].as_str();
-                for v in VIEWS {
-                    series.push((
-                        format!("TomoGRAF, {v} view(s)"),
-                        across(&|x| point(Some(t), x, v, "TomoGRAF", m)),
-                    ));
-                }
-                for c in ["FDK", "SART-TV"] {
-                    series.push((
-                        format!("{c}, 10 views"),
-                        across(&|x| point(None, x, 10, c, m)),
-                    ));
-                }
-                (
-                    format!("{}_vs_shift.png", m.file()),
-                    format!("{} vs test set.", m.name()),
-                )
-            }
-        };
-        let (title, x) = match s.kind {
-            Kind::RealismGap => (
-                format!("{}, 1 view, vs realism level", m.name()),
-                "level tested on",
-            ),
-            Kind::DomainShift => (format!("{} vs test set", m.name()), "test set"),
-        };
-        let axes = Axes {
-            title: &title,
-            x,
-            y: m.name(),
-        };
-        b.push(draw(
-            study,
-            &file,
-            &axes,
-            caption,
-            series,
-            Some(&s.test_sets),
-        )?);
-    }
-
-    // SSIM histograms over the test items, 1 view (the paper's Fig. 4).
-    let values = |train: Option<&str>, test: &str, method: &str| {
-        find(stats, train, test, 1, method)
-            .map(|st| st.scores.iter().map(|x| x.ssim).collect::<Vec<_>>())
-            .unwrap_or_default()
-    };
-    let mut series: Vec<(String, Vec<f64>)> = Vec::new();
-    let caption = match s.kind {
-        Kind::RealismGap => {
-            for t in &s.train_sets {
-                series.push((format!("TomoGRAF ← {t}"), values(Some(t), last, "TomoGRAF")));
-            }
-            for c in ["FDK", "SART-TV"] {
-                series.push((c.into(), values(None, last, c)));
-            }
-            format!(
-                "Histogram of the per-phantom SSIM from 1 view, tested on `{last}` (20 bins on [0, 1]; fraction of phantoms)."
-            )
-        }
-        Kind::DomainShift => {
-            for test in &s.test_sets {
-                series.push((
-                    format!("TomoGRAF on {test}"),
-                    values(Some(&s.train_sets[0]), test, "TomoGRAF"),
-                ));
-            }
-            "Histogram of TomoGRAF's per-phantom SSIM from 1 view per test set (20 bins on [0, 1]; fraction of phantoms).".into()
-        }
-    };
-    let path = study.dir.join("figures").join("ssim_histogram.png");
-    let named: Vec<(&str, Vec<f64>)> = series
-        .iter()
-        .map(|(n, v)| (n.as_str(), v.clone()))
-        .collect();
-    let axes = Axes {
-        title: "SSIM of TomoGRAF from 1 view",
-        x: "SSIM",
-        y: "fraction of phantoms",
-    };
-    plot_histograms(&path, &axes, &named, 0.0, 1.0, 20)?;
-    let names: Series = series
-        .iter()
-        .map(|(n, _)| (n.clone(), Vec::new()))
-        .collect();
-    b.push(Block::Image(
-        relative(&study.dir, &path),
-        format!("{caption} Colours: {}.", colours(&names)),
-    ));
-    Ok(b)
-}
-
-/// The evaluations' example figures of the first test item.
-fn examples(study: &Study, id: &str) -> Vec<Block> {
-    let s = &study.settings;
-    let mut b = vec![Block::Heading(format!("Example: test item {id}"))];
-    let last = s.test_sets.last().map(String::as_str).unwrap_or_default();
-    let mut cells: Vec<(String, Option<&str>, usize)> = Vec::new();
-    match s.kind {
-        Kind::RealismGap => {
-            for t in s
-                .train_sets
-                .iter()
-                .filter(|t| *t == &s.train_sets[0] || *t == last)
-            {
-                cells.push((last.into(), Some(t), 1));
-            }
-            cells.push((last.into(), None, 1));
-            cells.push((last.into(), None, 10));
-        }
-        Kind::DomainShift => {
-            for t in &s.test_sets {
-                cells.push((t.clone(), Some(s.train_sets[0].as_str()), 1));
-            }
-        }
-    }
-    for (test, train, v) in cells {
-        let dir = study.eval_dir(&test, train);
-        let slices = dir.join(format!("{id}_{v}view_slices.png"));
-        if !slices.exists() {
-            continue;
-        }
-        let (what, cols, lines) = match train {
-            Some(t) => (
-                format!("TomoGRAF trained on `{t}`"),
-                "truth, TomoGRAF, mean training volume, |TomoGRAF − truth| × 4",
-                "blue = truth, red = TomoGRAF, green = mean volume",
-            ),
-            None => (
-                "FDK and SART-TV".to_string(),
-                "truth, FDK, SART-TV, |FDK − truth| × 4",
-                "blue = truth, red = FDK, green = SART-TV",
-            ),
-        };
-        b.push(Block::Image(
-            relative(&study.dir, &slices),
-            format!(
-                "{what}, tested on `{test}`, {v} view(s). Rows: axial, coronal, sagittal \
-                 mid-slices; columns: {cols}; window [0, 1] of the normalised CT."
-            ),
-        ));
-        b.push(Block::Image(
-            relative(&study.dir, &dir.join(format!("{id}_{v}view_profile.png"))),
-            format!("Line profile through the centre of the axial slice: {lines}."),
-        ));
     }
     b
 }
