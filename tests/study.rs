@@ -72,6 +72,9 @@ fn check_report(dir: &Path, plots: &[&str], columns: &[&str]) {
         assert!(dir.join(path).is_file(), "{path} missing");
     }
     assert!(md.contains("_1view_slices.png") && md.contains("_1view_profile.png"));
+    // What it cost: a training row per model run and an evaluation row per test set.
+    let compute = &md[md.find("## Compute").expect("no compute table")..];
+    assert!(compute.contains("| training `") && compute.contains("| evaluation on `"));
     // Every metric is a number: 16 rows per test set and method set, none NaN.
     let csv = std::fs::read_to_string(dir.join("results.csv")).unwrap();
     assert!(!csv.contains("NaN") && !csv.contains("inf"), "{csv}");

@@ -3,6 +3,7 @@
 //! views, metric vs realism level or shift, SSIM histograms as the paper's Fig. 4) and the
 //! evaluations' example slices, residual maps and line profiles.
 
+mod compute;
 mod examples;
 mod paired;
 mod plots;
@@ -179,6 +180,8 @@ pub fn write(study: &Study, partial: bool) -> Result<()> {
     if let Some(id) = first_item.filter(|_| pooled.is_empty()) {
         blocks.extend(examples::examples(study, &id));
     }
+    let roots: Vec<PathBuf> = sources.iter().map(|(d, _)| d.clone()).collect();
+    blocks.extend(compute::compute_table(study, &roots, &cells));
     let (md, html) = render(&blocks, title(s.kind));
     write_atomic(&study.dir.join("report.md"), |w| {
         std::io::Write::write_all(w, md.as_bytes())
