@@ -12,6 +12,10 @@ its axial section (below −500 HU, the threshold of the items' own body masks).
 * body fraction of the grid; the body's section width (left–right) and depth
   (antero-posterior) over the grid's, the median over the axial levels the body reaches —
   a body that fills its box at every level is 1.00 / 1.00;
+* the lungs' extent along the body axis: the lowest and the highest axial level where lung
+  (below −400 HU inside the body) fills more than 5 % of the section's body, as fractions of
+  the grid's height (0: its inferior edge, 1: its superior one; items are in the patient
+  frame, k → superior) — where the scan starts and stops relative to the lungs;
 * per tissue class (the items' classes: lung/air < −400 HU, fat −400…−50, soft tissue
   −50…200, bone ≥ 200) the mean and standard deviation of HU inside the body (HU histogram
   moments), and the texture: the standard deviation of HU minus its 3×3×3 mean over the
@@ -72,7 +76,13 @@ def item_stats(item):
         j = np.flatnonzero(section.any(axis=0))
         width.append((i[-1] - i[0] + 1) / hu.shape[0])
         depth.append((j[-1] - j[0] + 1) / hu.shape[1])
-    out = {"body": body.mean(), "width": np.median(width), "depth": np.median(depth)}
+    lung = body & (hu < -400.0)
+    share = lung.sum(axis=(0, 1)) / np.maximum(body.sum(axis=(0, 1)), 1)
+    levels = np.flatnonzero(share > 0.05)
+    nz = hu.shape[2]
+    low, high = ((levels[0] / nz, (levels[-1] + 1) / nz) if levels.size else (np.nan, np.nan))
+    out = {"body": body.mean(), "width": np.median(width), "depth": np.median(depth),
+           "lung_low": low, "lung_high": high}
     interior = np.zeros_like(body)
     interior[1:-1, 1:-1, 1:-1] = True
     for name, a, b in CLASSES:
@@ -91,9 +101,10 @@ def main(args):
     if not args:
         sys.exit(__doc__)
     header = ("| set | items | body fraction | section width / grid | section depth / grid | "
+              "lungs from / to (height) | "
               + " | ".join(f"{c}: mean ± sd HU, texture" for c, _, _ in CLASSES) + " |")
     print(header)
-    print("|---|---:|---:|---:|---:|" + "---|" * len(CLASSES))
+    print("|---|---:|---:|---:|---:|---|" + "---|" * len(CLASSES))
     for arg in args:
         name, _, folder = arg.partition("=")
         folder = pathlib.Path(folder)
@@ -113,7 +124,8 @@ def main(args):
         two = lambda x: f"{x:.2f}"
         hu = lambda x: f"{x:.0f}"
         cells = [fig(lambda s: s["body"], pct), fig(lambda s: s["width"], two),
-                 fig(lambda s: s["depth"], two)]
+                 fig(lambda s: s["depth"], two),
+                 f"{fig(lambda s: s['lung_low'], two)} / {fig(lambda s: s['lung_high'], two)}"]
         for c, _, _ in CLASSES:
             cells.append(f"{fig(lambda s: s[c][0], hu)} ± {fig(lambda s: s[c][1], hu)}, "
                          f"{fig(lambda s: s[c][2], hu)}")
