@@ -322,13 +322,25 @@ fn draw(path: &Path, axes: &Axes, series: &[BarSeries], x_axis: XAxis, style: St
     }
     // Categories: each on its own tick, with room for the series side by side.
     let groups = series.len().max(1) as f64;
-    let offset = |k: usize| match x_axis {
-        XAxis::Numbers => 0.0,
-        XAxis::Categories(_) => (k as f64 - (groups - 1.0) / 2.0) * 0.6 / groups,
-    };
     if let XAxis::Categories(c) = x_axis {
         (x0, x1) = (-0.5, c.len().max(1) as f64 - 0.5);
     }
+    // Numbers: series with error bars dodged by 1 % of the x range each, so bars at the
+    // same x (every method at one view count) stay apart; lines and bare points are not.
+    let dodge = if style != Style::Lines && series.iter().any(|(_, s)| s.iter().any(|p| p.2 > 0.0))
+    {
+        0.01 * (x1 - x0)
+    } else {
+        0.0
+    };
+    if let XAxis::Numbers = x_axis {
+        let room = groups / 2.0 * dodge;
+        (x0, x1) = (x0 - room, x1 + room);
+    }
+    let offset = |k: usize| match x_axis {
+        XAxis::Numbers => (k as f64 - (groups - 1.0) / 2.0) * dodge,
+        XAxis::Categories(_) => (k as f64 - (groups - 1.0) / 2.0) * 0.6 / groups,
+    };
     if x0 >= x1 {
         x1 = x0 + 1.0;
     }
@@ -379,6 +391,8 @@ fn draw(path: &Path, axes: &Axes, series: &[BarSeries], x_axis: XAxis, style: St
                 String::new()
             }
         }
+        // Whole numbers (view counts) without a decimal point.
+        XAxis::Numbers if (x - x.round()).abs() < 1e-9 => format!("{x:.0}"),
         XAxis::Numbers => format!("{x}"),
     };
     let mut mesh = chart.configure_mesh();
@@ -387,9 +401,10 @@ fn draw(path: &Path, axes: &Axes, series: &[BarSeries], x_axis: XAxis, style: St
         .label_style(("sans-serif", 12))
         .axis_desc_style(("sans-serif", 14))
         .light_line_style(WHITE.mix(0.0));
-    if let XAxis::Categories(c) = x_axis {
-        mesh.x_labels(c.len() * 2 + 1).x_label_formatter(&category);
-    }
+    match x_axis {
+        XAxis::Categories(c) => mesh.x_labels(c.len() * 2 + 1).x_label_formatter(&category),
+        XAxis::Numbers => mesh.x_label_formatter(&category),
+    };
     mesh.draw().map_err(|e| plot_err(&e))?;
     for (k, (_, s)) in series.iter().enumerate() {
         let colour = COLOURS[k % COLOURS.len()];
