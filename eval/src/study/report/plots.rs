@@ -250,8 +250,12 @@ pub(super) fn plots(study: &Study, stats: &[Stat]) -> Result<Vec<Block>> {
         .iter()
         .map(|(n, v)| (n.as_str(), v.clone()))
         .collect();
+    let title = match s.kind {
+        Kind::RealismGap => format!("Per-phantom SSIM from 1 view, tested on {last}"),
+        Kind::DomainShift => "TomoGRAF's per-phantom SSIM from 1 view".to_string(),
+    };
     let axes = Axes {
-        title: "SSIM of TomoGRAF from 1 view",
+        title: &title,
         x: "SSIM",
         y: "fraction of phantoms",
     };
