@@ -511,7 +511,6 @@ fn job_difference(old: &Job, new: &Job) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use tomograf_model::metrics::Scores;
 
     fn job(checkpoint: &str, items: &str) -> Job {
         Job {
