@@ -30,8 +30,15 @@ pub(super) fn training_seconds(metrics: &Path) -> Option<(usize, f64)> {
     (n > 0).then(|| (last, sum / n as f64 * last as f64))
 }
 
-fn minutes(seconds: f64) -> String {
-    format!("{:.1}", seconds / 60.0)
+/// A time as a cell: seconds, and minutes or hours to read it by. (Every row that reports a
+/// time says "seconds": a resumed study's report differs from an uninterrupted one's in
+/// those lines only, as `tests/soak.rs` checks.)
+fn time(seconds: f64) -> String {
+    if seconds >= 5400.0 {
+        format!("{seconds:.0} seconds ({:.1} h)", seconds / 3600.0)
+    } else {
+        format!("{seconds:.0} seconds ({:.1} min)", seconds / 60.0)
+    }
 }
 
 /// The compute table over the study folders `roots` (one, or the pooled runs), given the
@@ -58,7 +65,7 @@ pub(super) fn compute_table(
             rows.push(vec![
                 format!("training `{train}`"),
                 format!("{runs} run(s), {its} iterations"),
-                minutes(secs),
+                time(secs),
             ]);
         }
     }
@@ -76,18 +83,18 @@ pub(super) fn compute_table(
             rows.push(vec![
                 format!("evaluation on `{test}`"),
                 format!("{n} scores (items × {} view counts × methods)", VIEWS.len()),
-                minutes(secs),
+                time(secs),
             ]);
         }
     }
     if rows.is_empty() {
         return Vec::new();
     }
-    rows.push(vec!["total counted".into(), String::new(), minutes(total)]);
+    rows.push(vec!["total counted".into(), String::new(), time(total)]);
     vec![
         Block::Heading("Compute".into()),
         Block::Para(format!(
-            "Wall-clock minutes{} as the stages recorded them on the machine that ran them (all \
+            "Wall-clock times{} as the stages recorded them on the machine that ran them (all \
              its cores unless `--threads` said otherwise; a stage that shared the machine with \
              other jobs reads long): training, one sampled iteration's seconds every few \
              iterations × the iterations trained; evaluation, the seconds each scored method \
@@ -100,7 +107,9 @@ pub(super) fn compute_table(
             }
         )),
         Block::Table(
-            ["stage", "what", "minutes"].map(String::from).to_vec(),
+            ["stage", "what", "wall-clock time"]
+                .map(String::from)
+                .to_vec(),
             rows,
         ),
     ]
