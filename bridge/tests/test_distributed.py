@@ -3,8 +3,9 @@ evaluations and a study give the one-process bytes; a Ray worker killed mid-shar
 retried and resumes; a failing shard is named, not retried, and a second call resumes.
 
 Compared byte for byte, every file of the output trees, with two exceptions that differ
-between any two one-process runs too: wall-clock ``seconds`` (a CSV column, and the
-per-iteration time in an evaluation's results.md), and the output folder's own path where a
+between any two one-process runs too: wall-clock ``seconds`` (a CSV column, the
+per-iteration time in an evaluation's results.md, and the times of a study report's compute
+table), and the output folder's own path where a
 file records it (an evaluation's job.json names the PCA prior's training set)."""
 
 import csv
@@ -44,12 +45,14 @@ def tree(root: Path) -> dict:
         if not p.is_file():
             continue
         data = p.read_bytes()
-        if p.suffix in (".csv", ".md", ".json", ".jsonl", ".toml"):
+        if p.suffix in (".csv", ".md", ".html", ".json", ".jsonl", ".toml"):
             text = data.decode().replace(str(root), "<root>")
             if p.suffix == ".csv":
                 text = _drop_seconds(text)
-            if p.suffix == ".md":
+            if p.suffix in (".md", ".html"):
                 text = re.sub(r"[0-9.]+ s per iteration", "<t> s per iteration", text)
+                # A study report's compute table (wall-clock times of its stages).
+                text = re.sub(r"[0-9]+ seconds \([0-9.]+ (?:min|h)\)", "<t>", text)
             data = text.encode()
         out[str(p.relative_to(root))] = data
     return out

@@ -53,9 +53,11 @@ def test_tissue_stats_reports_what_the_item_was_made_of(tmp_path):
     assert cells[2] == f"{100 * body:.0f} %"
     # Width 24 and depth 16 voxels of 32 at every level the body reaches.
     assert cells[3] == f"{24 / 32:.2f}" and cells[4] == f"{16 / 32:.2f}"
+    # The lung fills more than 5 % of every section the body reaches: levels 0 … N − 5 of N.
+    assert cells[5] == f"{0:.2f} / {(N - 4) / N:.2f}"
     # Each class is uniform: its mean is its value, its spread and texture zero.
-    assert cells[5].startswith("-800 ± 0,") and cells[6].startswith("-100 ± 0, 0")
-    assert cells[7] == "40 ± 0, 0" and cells[8].startswith("400 ± 0,")
+    assert cells[6].startswith("-800 ± 0,") and cells[7].startswith("-100 ± 0, 0")
+    assert cells[8] == "40 ± 0, 0" and cells[9].startswith("400 ± 0,")
 
 
 def test_error_by_tissue_splits_a_known_error(tmp_path):
