@@ -6,18 +6,23 @@
 
 mod columns;
 mod image;
+mod mass_thickness;
 mod meshes;
+mod projector;
+mod quantity;
 mod sheets;
 mod sums;
 mod tracer;
 
 pub use columns::ColumnCopy;
 pub use image::Projection;
+pub use mass_thickness::MassThickness;
+pub use projector::{MIN_TRILINEAR_STEP, Projector};
+pub use quantity::Quantity;
 pub use sums::{LineIntegrals, MassThicknesses, Sums};
 pub use tracer::Tracer;
 
 use crate::accel::{EmptySpace, SkipOptions};
-use crate::composition::Composition;
 use crate::error::{Result, SimError};
 use crate::geometry::View;
 use crate::grid_box::GridBox;
@@ -32,128 +37,11 @@ use columns::KFastest;
 /// ray sheets.
 pub const COLUMN_SHEET_VIEWS: usize = 8;
 use rayon::prelude::*;
-use serde::{Deserialize, Serialize};
 use std::marker::PhantomData;
 use std::sync::Arc;
 
-/// Smallest trilinear step, voxels: 1000 samples per voxel (the Mitsuba cross-check
-/// measures the 1/16-voxel step's error against 1/128). Finer steps change a line integral
-/// by less than the f32 image holds and run for days (a step of 1e-9 never finishes).
-pub const MIN_TRILINEAR_STEP: f64 = 1e-3;
-
-/// How a ray is integrated through the volume.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-#[serde(tag = "kind", rename_all = "kebab-case")]
-pub enum Projector {
-    /// Exact: each voxel (nearest-neighbour field) weighted by its exact path length.
-    Siddon,
-    /// Midpoint-rule ray marching through the trilinearly interpolated field.
-    Trilinear {
-        /// Distance between samples, in voxels (grid units along the ray); > 0.
-        step_voxels: f64,
-    },
-}
-
-impl Projector {
-    /// The projector names scenes, the command line and Python accept.
-    pub const NAMES: &'static str = "siddon or trilinear";
-
-    /// The projector called `name` (`siddon` or `trilinear`, any case); `step_voxels` is
-    /// the trilinear projector's step (voxels; unused by Siddon). The one name table of
-    /// the scene files, the CLI and the Python module.
-    pub fn from_name(name: &str, step_voxels: f64) -> Result<Self> {
-        match name.trim().to_ascii_lowercase().as_str() {
-            "siddon" => Ok(Self::Siddon),
-            "trilinear" => Ok(Self::Trilinear { step_voxels }),
-            _ => Err(SimError::unknown_name("projector", name, Self::NAMES)),
-        }
-    }
-}
-
-/// What a pixel records.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-#[serde(tag = "kind", rename_all = "kebab-case")]
-pub enum Quantity {
-    /// The line integral L = ∫mu ds (dimensionless).
-    LineIntegral,
-    /// exp(−L), in [0, 1]; underflows to 0 (never NaN) beyond L ≈ 745.
-    Transmission,
-    /// I0 · exp(−L).
-    Intensity {
-        /// Unattenuated intensity (any unit; e.g. photons per pixel).
-        i0: f64,
-    },
-}
-
-impl Quantity {
-    /// The quantity names scenes, the command line and Python accept.
-    pub const NAMES: &'static str = "line-integral, transmission or intensity";
-
-    /// The quantity called `name` (`line-integral`, `transmission` or `intensity`; any
-    /// case, `_` for `-`); `i0` is the intensity's unattenuated value (unused otherwise).
-    /// Checked ([`Quantity::validate`]).
-    pub fn from_name(name: &str, i0: f64) -> Result<Self> {
-        let q = match name.trim().to_ascii_lowercase().replace('_', "-").as_str() {
-            "line-integral" => Self::LineIntegral,
-            "transmission" => Self::Transmission,
-            "intensity" => Self::Intensity { i0 },
-            _ => return Err(SimError::unknown_name("quantity", name, Self::NAMES)),
-        };
-        q.validate()?;
-        Ok(q)
-    }
-
-    /// Converts one line integral.
-    #[inline]
-    pub fn from_line_integral(&self, l: f64) -> f64 {
-        match *self {
-            Self::LineIntegral => l,
-            Self::Transmission => (-l).exp(),
-            Self::Intensity { i0 } => i0 * (-l).exp(),
-        }
-    }
-
-    /// Checks parameters (I0 finite and > 0).
-    pub fn validate(&self) -> Result<()> {
-        // Images are f32: an open-beam value beyond f32's range would be +Inf.
-        if let Self::Intensity { i0 } = *self
-            && !(i0.is_finite() && i0 > 0.0 && i0 <= f64::from(f32::MAX))
-        {
-            return Err(SimError::OutOfRange(format!(
-                "I0 = {i0}; it must be finite, > 0 and at most {:e} (images are float32)",
-                f32::MAX
-            )));
-        }
-        Ok(())
-    }
-}
-
-/// Per-pixel mass thickness of each material of a [`Composition`]: ∫ρ_m ds in g/cm²,
-/// the input of polychromatic integration (`tomograf_physics::polychromatic`).
-#[derive(Debug, Clone, PartialEq)]
-pub struct MassThickness {
-    /// Image height.
-    pub rows: usize,
-    /// Image width.
-    pub cols: usize,
-    /// Material names, by index (as in the composition).
-    pub materials: Vec<String>,
-    /// `materials.len()` values per pixel, pixel-major: material `m` of pixel `(r, c)` at
-    /// `(r·cols + c)·materials.len() + m`; g/cm².
-    pub data: Vec<f64>,
-}
-
-impl MassThickness {
-    /// The mass thicknesses (g/cm²) of every material at pixel `(row, col)`.
-    pub fn at(&self, row: usize, col: usize) -> &[f64] {
-        let k = self.materials.len();
-        let p = row * self.cols + col;
-        &self.data[p * k..(p + 1) * k]
-    }
-}
-
 /// Renders line integrals of an attenuation volume (mm⁻¹; `Renderer<LineIntegrals>`, made
-/// by [`Renderer::new`]), or per-material mass thicknesses of a [`Composition`]
+/// by [`Renderer::new`]), or per-material mass thicknesses of a [`Composition`](crate::composition::Composition)
 /// (`Renderer<MassThicknesses>`, made by [`Renderer::for_composition`]): what is summed
 /// along a ray is the type parameter `S` ([`Sums`]), so each renderer offers only the
 /// images it can make.
@@ -259,46 +147,6 @@ impl<'a> Renderer<'a, LineIntegrals> {
             rows: view.rows,
             cols: view.cols,
             data: sums.into_iter().map(|v| v as f32).collect(),
-        })
-    }
-}
-
-impl<'a> Renderer<'a, MassThicknesses> {
-    /// A renderer of per-material mass thickness over `composition`
-    /// ([`Renderer::mass_thickness`]). Both projectors apply: exact Siddon over the
-    /// nearest-neighbour material grid, and trilinear marching of each material's partial
-    /// density field.
-    pub fn for_composition(composition: &'a Composition, projector: Projector) -> Result<Self> {
-        let mut r = Self::build_with(composition.packed(), projector, || composition.occupied())?;
-        r.materials = composition.materials().len();
-        // Where the densities are non-zero, row by row, for the sheets to skip zeros.
-        if projector == Projector::Siddon {
-            r.rows = Some(composition.rows().clone());
-        }
-        Ok(r)
-    }
-
-    /// Per-material mass thickness image of one view (a renderer made with
-    /// [`Renderer::for_composition`]).
-    pub fn mass_thickness(&self, view: &View, materials: &[String]) -> Result<MassThickness> {
-        let k = self.materials + self.mesh_materials;
-        if materials.len() != k {
-            return Err(SimError::OutOfRange(format!(
-                "mass thickness needs a renderer over a composition of {} materials (voxel \
-                 materials, then mesh materials); this one has {} + {}",
-                materials.len(),
-                self.materials,
-                self.mesh_materials
-            )));
-        }
-        let mut data = self.trace(view)?;
-        // g/cm³ · mm → g/cm².
-        data.iter_mut().for_each(|v| *v *= 0.1);
-        Ok(MassThickness {
-            rows: view.rows,
-            cols: view.cols,
-            materials: materials.to_vec(),
-            data,
         })
     }
 }
