@@ -44,6 +44,17 @@ pub struct DatasetArgs {
     /// myocardium; 0: none (docs/datasets.md, "Soft-tissue heterogeneity").
     #[arg(long, default_value_t = 0.0)]
     pub heterogeneity: f64,
+    /// Draw the phantoms' heart (size, position, turn) and diaphragm domes (heights) from
+    /// ranges this many times as wide about their centres: a population whose organs differ
+    /// more than the default's (a large heart, a high liver dome); 1: as drawn; 0–3
+    /// (docs/datasets.md, "Organ spread").
+    #[arg(long, default_value_t = 1.0)]
+    pub organ_spread: f64,
+    /// Warp the phantoms by a smooth random displacement field (64 mm lattice) of this
+    /// standard deviation per component, mm: shapes the generator cannot draw; 0: none; at
+    /// most 30 (docs/datasets.md, "Deformation").
+    #[arg(long, default_value_t = 0.0)]
+    pub deform: f64,
     /// Projections per full rotation (every 360/views degrees), besides AP and lateral.
     #[arg(long, default_value_t = 72)]
     pub views: usize,
@@ -162,11 +173,23 @@ pub fn job(args: &DatasetArgs) -> Result<DatasetJob> {
     if !(h.is_finite() && (0.0..=200.0).contains(&h)) {
         bail!("--heterogeneity {h} HU is outside 0–200 HU");
     }
+    let k = args.organ_spread;
+    let max = tomograf_datasets::anatomy::MAX_ORGAN_SPREAD;
+    if !(k.is_finite() && (0.0..=max).contains(&k)) {
+        bail!("--organ-spread {k} is outside 0–{max} (1: the ranges as drawn)");
+    }
+    let d = args.deform;
+    let max = tomograf_datasets::anatomy::deform::MAX_DEFORM_MM;
+    if !(d.is_finite() && (0.0..=max).contains(&d)) {
+        bail!("--deform {d} mm is outside 0–{max} mm");
+    }
     tomograf_scene::dataset::check_phantom_count(args.seed, args.phantoms)
         .map_err(|e| anyhow::anyhow!("--phantoms / --seed: {e}"))?;
     sources.extend((0..args.phantoms).map(|n| {
         ItemSource::phantom(args.seed + n as u64, profile, args.table, args.pacemaker)
             .with_heterogeneity(args.heterogeneity)
+            .with_organ_spread(args.organ_spread)
+            .with_deformation(args.deform)
     }));
     if sources.is_empty() {
         bail!("nothing to do: give CT inputs or --phantoms N");

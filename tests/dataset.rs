@@ -132,6 +132,14 @@ fn bad_arguments_are_clear_errors() {
             vec!["--phantoms", "1", "--heterogeneity", "-3"],
             "--heterogeneity -3 HU",
         ),
+        (
+            vec!["--phantoms", "1", "--organ-spread", "4"],
+            "--organ-spread 4 is outside 0–3",
+        ),
+        (
+            vec!["--phantoms", "1", "--deform", "-2"],
+            "--deform -2 mm is outside 0–30 mm",
+        ),
     ] {
         let mut args = vec!["dataset", "-o", d];
         args.extend(extra.iter().copied());

@@ -32,12 +32,16 @@ use tomograf_scene::dataset::{ItemSettings, ItemSource, make_item as make};
 /// posterior, ``k`` superior) and everything but its body — couch, padding, stray voxels —
 /// is set to air before the crop, unless ``keep_table``. ``heterogeneity_hu`` gives a
 /// phantom's soft tissue a correlated texture of that standard deviation (HU), as
-/// ``tomograf dataset --heterogeneity``. Returns the item folder.
+/// ``tomograf dataset --heterogeneity``; ``organ_spread`` widens the ranges its heart and
+/// diaphragm are drawn from, as ``tomograf dataset --organ-spread``; ``deform_mm`` warps it
+/// by a smooth random displacement field, as ``tomograf dataset --deform``. Returns the item
+/// folder.
 #[pyfunction]
 #[pyo3(signature = (output, *, ct=None, phantom_seed=None, profile="lidc", table=false,
     pacemaker=false, index=0, views=72, size=128, hu_window=(-1024.0, 2048.0),
     crop_hu=-900.0, energy_kev=60.0, sad_mm=1000.0, sid_mm=1500.0, split="train",
-    physics=None, keep_table=false, heterogeneity_hu=0.0))]
+    physics=None, keep_table=false, heterogeneity_hu=0.0,
+    organ_spread=1.0, deform_mm=0.0))]
 #[allow(clippy::too_many_arguments)]
 pub fn make_item(
     py: Python<'_>,
@@ -59,6 +63,8 @@ pub fn make_item(
     physics: Option<&Bound<'_, PyDict>>,
     keep_table: bool,
     heterogeneity_hu: f64,
+    organ_spread: f64,
+    deform_mm: f64,
 ) -> PyResult<PathBuf> {
     let source = match (ct, phantom_seed) {
         (Some(path), None) => {
@@ -74,6 +80,8 @@ pub fn make_item(
             let profile = Profile::parse(profile).map_err(errors::dataset)?;
             ItemSource::phantom(seed, profile, table, pacemaker)
                 .with_heterogeneity(heterogeneity_hu)
+                .with_organ_spread(organ_spread)
+                .with_deformation(deform_mm)
         }
         _ => {
             return Err(errors::value(

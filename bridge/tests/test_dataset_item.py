@@ -74,3 +74,33 @@ def test_bad_items_are_refused_by_name(tmp_path):
         tomograf.make_item(tmp_path / "a", phantom_seed=1, size=8, views=1,
                            physics={"acquisition": {"preset": "no-such-preset"}})
     assert not (tmp_path / "a" / "item.json").exists()
+
+
+def test_organ_spread_from_python_makes_the_cli_item(tmp_path, cli):
+    # A phantom whose heart and domes come from ranges 2.5 times as wide: the same bytes
+    # both ways, the spread recorded in the item's source, and another volume than at 1.
+    cli("dataset", "-o", tmp_path / "set", "--phantoms", "1", "--seed", "6", "--size", "16",
+        "--views", "2", "--organ-spread", "2.5")
+    tomograf.make_item(tmp_path / "item", phantom_seed=6, size=16, views=2, organ_spread=2.5)
+    for f in FILES:
+        assert (tmp_path / "item" / f).read_bytes() == (tmp_path / "set" / "00000" / f).read_bytes(), f
+    record = json.loads((tmp_path / "item" / "item.json").read_text())
+    assert record["source"]["spec"]["organ_spread"] == 2.5
+    tomograf.make_item(tmp_path / "plain", phantom_seed=6, size=16, views=2)
+    plain = json.loads((tmp_path / "plain" / "item.json").read_text())
+    assert "organ_spread" not in plain["source"]["spec"]
+    assert (tmp_path / "plain" / "ct.nii.gz").read_bytes() != (tmp_path / "item" / "ct.nii.gz").read_bytes()
+    with pytest.raises(ValueError, match="organ spread"):
+        tomograf.make_item(tmp_path / "bad", phantom_seed=6, size=16, views=2, organ_spread=-1.0)
+
+
+def test_deformation_from_python_makes_the_cli_item(tmp_path, cli):
+    cli("dataset", "-o", tmp_path / "set", "--phantoms", "1", "--seed", "6", "--size", "16",
+        "--views", "2", "--deform", "5")
+    tomograf.make_item(tmp_path / "item", phantom_seed=6, size=16, views=2, deform_mm=5.0)
+    for f in FILES:
+        assert (tmp_path / "item" / f).read_bytes() == (tmp_path / "set" / "00000" / f).read_bytes(), f
+    record = json.loads((tmp_path / "item" / "item.json").read_text())
+    assert record["source"]["spec"]["deform_mm"] == 5.0
+    with pytest.raises(ValueError, match="deformation"):
+        tomograf.make_item(tmp_path / "bad", phantom_seed=6, size=16, views=2, deform_mm=40.0)

@@ -492,3 +492,107 @@ fn soft_tissue_heterogeneity_changes_soft_tissue_only() {
         assert!(e.contains("heterogeneity"), "{e}");
     }
 }
+
+/// Organ spread: at `k` the heart's size lies `k` times as far from its range's centre as
+/// at 1, for the same seed (every other draw unchanged: the body is the same), the domes stay
+/// inside the lungs' lower half, the spec at 1 serialises as before (earlier items keep their
+/// ids) and an impossible spread is refused by name.
+#[test]
+fn organ_spread_widens_the_heart_and_domes_only() {
+    let centre = 0.5 * (0.88 + 1.15);
+    let mut widest = 0.0f64;
+    for seed in 0..40 {
+        let base = describe(&spec(seed, Profile::FullChest)).unwrap();
+        for k in [0.0, 2.5, 3.0] {
+            let mut s = spec(seed, Profile::FullChest);
+            s.organ_spread = k;
+            let p = describe(&s).unwrap();
+            let expected = centre + k * (base.heart_scale - centre);
+            assert!(
+                (p.heart_scale - expected).abs() < 1e-12,
+                "seed {seed} k {k}: heart {} against {expected}",
+                p.heart_scale
+            );
+            assert_eq!((p.width_mm, p.depth_mm), (base.width_mm, base.depth_mm));
+            assert_eq!(
+                (p.lung_apex_z_mm, p.lung_base_z_mm),
+                (base.lung_apex_z_mm, base.lung_base_z_mm)
+            );
+            let lung_h = p.lung_apex_z_mm - p.lung_base_z_mm;
+            for top in p.dome_top_z_mm {
+                let h = top - p.lung_base_z_mm;
+                assert!(
+                    h >= 25.0 - 1e-9 && h <= 0.45 * lung_h + 1e-9,
+                    "seed {seed}: dome {h}"
+                );
+            }
+            if k == 0.0 {
+                assert!((p.heart_scale - centre).abs() < 1e-12);
+            }
+            if k == 3.0 {
+                widest = widest.max((p.heart_scale - centre).abs());
+            }
+        }
+    }
+    // Forty seeds at 3 × reach hearts beyond the drawn range (±0.135) by far.
+    assert!(widest > 0.3, "widest heart offset {widest}");
+    let json = serde_json::to_string(&spec(4, Profile::LidcCropped)).unwrap();
+    assert!(!json.contains("organ_spread"), "{json}");
+    let mut s = spec(4, Profile::LidcCropped);
+    s.organ_spread = 2.0;
+    let json = serde_json::to_string(&s).unwrap();
+    assert!(json.contains("\"organ_spread\":2.0"), "{json}");
+    for bad in [-0.5, f64::NAN, 3.5] {
+        s.organ_spread = bad;
+        let e = generate(&s).unwrap_err().to_string();
+        assert!(e.contains("organ spread"), "{e}");
+    }
+}
+
+/// Deformation: the phantom warped by a smooth field moves its voxels (another volume), is
+/// the same on any thread count, interpolates (no value outside the unwarped phantom's
+/// range), keeps each tissue's share of the grid to a few per cent (a smooth, nearly
+/// volume-preserving warp), serialises as before at 0 and is refused out of range by name.
+#[test]
+fn deformation_warps_smoothly_and_keeps_the_tissues() {
+    let plain = generate_labeled(&spec(5, Profile::FullChest)).unwrap();
+    let mut s = spec(5, Profile::FullChest);
+    s.deform_mm = 5.0;
+    let (warped, warped2) = (on_threads(1, &s), on_threads(2, &s));
+    assert_eq!(warped.volume.data(), warped2.volume.data());
+    assert_eq!(warped.tissue, warped2.tissue);
+    let (a, b) = (plain.volume.data(), warped.volume.data());
+    let changed = a.iter().zip(b).filter(|(x, y)| x != y).count();
+    assert!(
+        changed > a.len() / 4,
+        "{changed} of {} voxels moved",
+        a.len()
+    );
+    let (lo, hi) = a
+        .iter()
+        .fold((f32::MAX, f32::MIN), |(l, h), &v| (l.min(v), h.max(v)));
+    assert!(
+        b.iter().all(|&v| v >= lo && v <= hi),
+        "a value outside {lo}…{hi}"
+    );
+    let share = |l: &Labeled, t: Tissue| {
+        l.tissue.iter().filter(|&&x| x == t).count() as f64 / l.tissue.len() as f64
+    };
+    for t in [Tissue::Lung, Tissue::Fat, Tissue::Muscle, Tissue::Bone] {
+        let (p, w) = (share(&plain, t), share(&warped, t));
+        assert!((w - p).abs() < 0.05 * p + 0.002, "{t:?}: {p:.4} → {w:.4}");
+    }
+    assert_eq!(warped.patient.heart_scale, plain.patient.heart_scale);
+    let json = serde_json::to_string(&spec(5, Profile::FullChest)).unwrap();
+    assert!(!json.contains("deform"), "{json}");
+    assert!(
+        serde_json::to_string(&s)
+            .unwrap()
+            .contains("\"deform_mm\":5.0")
+    );
+    for bad in [-1.0, f64::INFINITY, 31.0] {
+        s.deform_mm = bad;
+        let e = generate(&s).unwrap_err().to_string();
+        assert!(e.contains("deformation"), "{e}");
+    }
+}

@@ -375,6 +375,8 @@ def make_item(
     physics: Optional[dict] = None,
     keep_table: bool = False,
     heterogeneity_hu: float = 0.0,
+    organ_spread: float = 1.0,
+    deform_mm: float = 0.0,
 ) -> "PathLike[str]":
     """Makes one TomoGRAF data-set item in the folder `output`, the same files (and bytes)
     as item `index` of `tomograf dataset`: ct.nii.gz (cropped CT resampled to size³, [0, 1]
@@ -386,6 +388,9 @@ def make_item(
     `phantom_seed` (profile "lidc" or "full-chest"). A CT is brought into the patient frame
     (i left, j posterior, k superior) and reduced to its body (couch, padding and stray
     voxels set to air) unless `keep_table`. `heterogeneity_hu`: a phantom's soft tissue given a correlated
-    texture of that standard deviation (HU), as `tomograf dataset --heterogeneity`.
+    texture of that standard deviation (HU), as `tomograf dataset --heterogeneity`;
+    `organ_spread`: its heart and diaphragm drawn from ranges that many times as wide, as
+    `tomograf dataset --organ-spread` (1: as drawn); `deform_mm`: it warped by a smooth
+    random displacement field of that standard deviation, as `tomograf dataset --deform`.
     Distances in mm. Returns the folder.
     ValueError for bad settings, FileNotFoundError for a missing CT."""

@@ -40,7 +40,12 @@ const BLEND_VARIANCE: f64 = 8.0 / 27.0;
 /// The texture at world position `p` (mm), about standard normal: deviates of `seed` on the
 /// lattice, blended trilinearly.
 pub fn value_noise(seed: u64, p: DVec3) -> f32 {
-    let q = p / CELL_MM;
+    value_noise_on(seed, p, CELL_MM)
+}
+
+/// [`value_noise`] on a lattice of `cell_mm` spacing.
+pub fn value_noise_on(seed: u64, p: DVec3, cell_mm: f64) -> f32 {
+    let q = p / cell_mm;
     let base = q.floor();
     let w = q - base;
     let (bx, by, bz) = (base.x as i64, base.y as i64, base.z as i64);

@@ -92,8 +92,29 @@ pub(crate) struct Params {
     pub crop: Crop,
 }
 
+/// A draw `x` from the range `lo..hi` moved `k` times as far from the range's centre
+/// ([`super::AnatomySpec::organ_spread`]); `x` itself, to the bit, when `k` is 1.
+fn widen(x: f64, (lo, hi): (f64, f64), k: f64) -> f64 {
+    if k == 1.0 {
+        x
+    } else {
+        let c = 0.5 * (lo + hi);
+        c + k * (x - c)
+    }
+}
+
 impl Params {
+    /// The patient of `seed` with the organs' ranges as drawn (`organ_spread` 1).
+    #[cfg(test)]
     pub fn sample(seed: u64) -> Self {
+        Self::sample_spread(seed, 1.0)
+    }
+
+    /// The patient of `seed`, the heart's size, position and turn and the diaphragm domes'
+    /// heights drawn from ranges widened `spread` times about their centres
+    /// ([`super::AnatomySpec::organ_spread`]); every other draw as at spread 1.
+    pub fn sample_spread(seed: u64, spread: f64) -> Self {
+        let k = spread;
         let mut r = rng(seed, stream::PATIENT);
         let width: f64 = r.random_range(280.0..400.0);
         let s = width / 340.0;
@@ -114,21 +135,32 @@ impl Params {
         let lung_h = apex_above_t1 + (10.3 + 1.8 * breath) * h_vert;
         let (z_apex, z_base) = (lung_h / 2.0, -lung_h / 2.0);
         let z_t1 = z_apex - apex_above_t1;
-        let right_dome = (0.27 + 0.08 * (1.0 - breath)) * lung_h + r.random_range(-8.0..8.0) * sv;
-        let left_dome = right_dome - r.random_range(8.0..22.0) * sv;
+        let dome_fraction = widen(0.27 + 0.08 * (1.0 - breath), (0.27, 0.35), k);
+        let right_dome =
+            dome_fraction * lung_h + widen(r.random_range(-8.0..8.0), (-8.0, 8.0), k) * sv;
+        let left_dome = right_dome - widen(r.random_range(8.0..22.0), (8.0, 22.0), k) * sv;
+        // Widened, the domes stay inside the lungs' lower half (at spread 1 they always are).
+        let dome = |h: f64| {
+            if k == 1.0 {
+                h
+            } else {
+                h.clamp(25.0, 0.45 * lung_h)
+            }
+        };
+        let (right_dome, left_dome) = (dome(right_dome), dome(left_dome));
         let a_e = width / 2.0 - fat - m_lat - 2.0 * r_rib - gap;
         let ya_e = -depth / 2.0 + fat + m_ant + 2.0 * r_rib + gap;
         let yp_e = depth / 2.0 - 0.8 * fat - m_post - 2.0 * r_rib - gap;
         let (b_vb, r_canal) = (13.5 * sv, 7.5 * sv);
         let y_tip = depth / 2.0 - 0.8 * fat - 10.0 * s;
         let y_vb = y_tip - 26.0 * s - 2.0 * r_canal - 2.5 - b_vb;
-        let heart_scale = r.random_range(0.88..1.15);
+        let heart_scale = widen(r.random_range(0.88..1.15), (0.88, 1.15), k);
         let heart_off = DVec3::new(
-            r.random_range(-8.0..8.0) * s,
-            r.random_range(0.0..12.0) * s,
-            r.random_range(-10.0..10.0) * s,
+            widen(r.random_range(-8.0..8.0), (-8.0, 8.0), k) * s,
+            widen(r.random_range(0.0..12.0), (0.0, 12.0), k) * s,
+            widen(r.random_range(-10.0..10.0), (-10.0, 10.0), k) * s,
         );
-        let heart_turn = r.random_range(-0.15..0.15);
+        let heart_turn = widen(r.random_range(-0.15..0.15), (-0.15, 0.15), k);
         let arms = if r.random_bool(0.5) {
             ArmPose::Down
         } else {

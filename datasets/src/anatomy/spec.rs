@@ -61,10 +61,36 @@ pub struct AnatomySpec {
     /// written before it existed).
     #[serde(default, skip_serializing_if = "is_zero")]
     pub heterogeneity_hu: f64,
+    /// How many times wider than drawn the ranges of the heart's size (0.88–1.15 ×),
+    /// offset (±8 mm left–right, 0–12 mm anterior–posterior, ±10 mm along z, × the size
+    /// factor) and turn (±0.15 rad), and of the diaphragm domes' heights (0.27–0.35 of the
+    /// lungs' height, ±8 mm, the left dome 8–22 mm below the right) are, about their
+    /// centres: a population whose organs the views of a prior trained at 1 under-determine
+    /// (a large heart, a high liver dome). 1: as drawn (the default, and every spec written
+    /// before it existed); 0: every patient's organs at the ranges' centres; at most
+    /// [`MAX_ORGAN_SPREAD`](super::MAX_ORGAN_SPREAD). Widened domes are kept 25 mm to 0.45
+    /// of the lungs' height above their base.
+    #[serde(
+        default = "default_organ_spread",
+        skip_serializing_if = "is_default_organ_spread"
+    )]
+    pub organ_spread: f64,
+    /// Standard deviation (mm, per component) of a smooth random displacement field the
+    /// rendered phantom is warped by ([`super::deform`]: a 64 mm lattice): shapes the
+    /// generator cannot draw. 0: none (the default, and every spec written before it
+    /// existed); at most [`MAX_DEFORM_MM`](super::deform::MAX_DEFORM_MM).
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub deform_mm: f64,
 }
 
 fn is_zero(v: &f64) -> bool {
     *v == 0.0
+}
+fn default_organ_spread() -> f64 {
+    1.0
+}
+fn is_default_organ_spread(v: &f64) -> bool {
+    *v == 1.0
 }
 
 impl AnatomySpec {
@@ -78,6 +104,8 @@ impl AnatomySpec {
             dims,
             spacing_mm,
             heterogeneity_hu: 0.0,
+            organ_spread: 1.0,
+            deform_mm: 0.0,
         }
     }
 }

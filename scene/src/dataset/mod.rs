@@ -172,6 +172,25 @@ impl ItemSource {
         }
         self
     }
+
+    /// The same source with a phantom's heart and diaphragm drawn from ranges `k` times as
+    /// wide ([`anatomy::AnatomySpec::organ_spread`]); a CT file is left as it is.
+    pub fn with_organ_spread(mut self, k: f64) -> Self {
+        if let ItemSource::Phantom { spec } = &mut self {
+            spec.organ_spread = k;
+        }
+        self
+    }
+
+    /// The same source with a phantom warped by a smooth random displacement field of
+    /// `mm` standard deviation per component ([`anatomy::deform`]); a CT file is left as
+    /// it is.
+    pub fn with_deformation(mut self, mm: f64) -> Self {
+        if let ItemSource::Phantom { spec } = &mut self {
+            spec.deform_mm = mm;
+        }
+        self
+    }
 }
 
 /// Inputs expanded: files as given; a folder with DICOM files is one series, any other
