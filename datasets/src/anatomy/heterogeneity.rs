@@ -7,7 +7,7 @@
 //! standard deviation of 48–58 HU and a 3×3×3 texture of 12–15 HU; the default phantoms'
 //! per-voxel white noise (a few HU at 2 mm) averages to 23–30 and 4–6 there. The texture here
 //! is value noise: standard normal deviates on a lattice of [`CELL_MM`] spacing, counter-based
-//! ([`super::tissue::gauss`]) so that it does not depend on the thread count, interpolated
+//! (`super::tissue::gauss`) so that it does not depend on the thread count, interpolated
 //! trilinearly and rescaled to unit variance on average over positions.
 
 use super::Tissue;

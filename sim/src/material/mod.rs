@@ -2,7 +2,7 @@
 //!
 //! A [`Material`] is a named mixture of elements given as (Z, mass fraction) with a nominal
 //! density in g/cm³. Its mass attenuation follows the mixture rule
-//! `μ/ρ = Σ wᵢ (μ/ρ)ᵢ` over the per-element tables in [`element`] (Elam, Ravel & Sieber 2002,
+//! `μ/ρ = Σ wᵢ (μ/ρ)ᵢ` over the per-element tables in [`element`](mod@element) (Elam, Ravel & Sieber 2002,
 //! via xraydb; log–log interpolation that never crosses an absorption edge). Named materials
 //! (ICRU-44 tissues, NIST compounds, filters, scintillators) come from [`by_name`].
 //!
