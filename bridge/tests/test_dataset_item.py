@@ -76,16 +76,22 @@ def test_bad_items_are_refused_by_name(tmp_path):
     assert not (tmp_path / "a" / "item.json").exists()
 
 
+def same_item_both_ways(tmp_path, cli, flag, value, **kwargs):
+    """Phantom seed 6 as item 0 of `tomograf dataset FLAG VALUE` and by `make_item(**kwargs)`:
+    asserts the same bytes, returns the item's spec as recorded."""
+    cli("dataset", "-o", tmp_path / "set", "--phantoms", "1", "--seed", "6", "--size", "16",
+        "--views", "2", flag, value)
+    tomograf.make_item(tmp_path / "item", phantom_seed=6, size=16, views=2, **kwargs)
+    for f in FILES:
+        assert (tmp_path / "item" / f).read_bytes() == (tmp_path / "set" / "00000" / f).read_bytes(), f
+    return json.loads((tmp_path / "item" / "item.json").read_text())["source"]["spec"]
+
+
 def test_organ_spread_from_python_makes_the_cli_item(tmp_path, cli):
     # A phantom whose heart and domes come from ranges 2.5 times as wide: the same bytes
     # both ways, the spread recorded in the item's source, and another volume than at 1.
-    cli("dataset", "-o", tmp_path / "set", "--phantoms", "1", "--seed", "6", "--size", "16",
-        "--views", "2", "--organ-spread", "2.5")
-    tomograf.make_item(tmp_path / "item", phantom_seed=6, size=16, views=2, organ_spread=2.5)
-    for f in FILES:
-        assert (tmp_path / "item" / f).read_bytes() == (tmp_path / "set" / "00000" / f).read_bytes(), f
-    record = json.loads((tmp_path / "item" / "item.json").read_text())
-    assert record["source"]["spec"]["organ_spread"] == 2.5
+    spec = same_item_both_ways(tmp_path, cli, "--organ-spread", "2.5", organ_spread=2.5)
+    assert spec["organ_spread"] == 2.5
     tomograf.make_item(tmp_path / "plain", phantom_seed=6, size=16, views=2)
     plain = json.loads((tmp_path / "plain" / "item.json").read_text())
     assert "organ_spread" not in plain["source"]["spec"]
@@ -95,12 +101,7 @@ def test_organ_spread_from_python_makes_the_cli_item(tmp_path, cli):
 
 
 def test_deformation_from_python_makes_the_cli_item(tmp_path, cli):
-    cli("dataset", "-o", tmp_path / "set", "--phantoms", "1", "--seed", "6", "--size", "16",
-        "--views", "2", "--deform", "5")
-    tomograf.make_item(tmp_path / "item", phantom_seed=6, size=16, views=2, deform_mm=5.0)
-    for f in FILES:
-        assert (tmp_path / "item" / f).read_bytes() == (tmp_path / "set" / "00000" / f).read_bytes(), f
-    record = json.loads((tmp_path / "item" / "item.json").read_text())
-    assert record["source"]["spec"]["deform_mm"] == 5.0
+    spec = same_item_both_ways(tmp_path, cli, "--deform", "5", deform_mm=5.0)
+    assert spec["deform_mm"] == 5.0
     with pytest.raises(ValueError, match="deformation"):
         tomograf.make_item(tmp_path / "bad", phantom_seed=6, size=16, views=2, deform_mm=40.0)

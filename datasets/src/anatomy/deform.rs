@@ -38,8 +38,9 @@ pub fn displacement(seed: u64, p: DVec3, sd_mm: f64) -> DVec3 {
     DVec3::new(c(0), c(1), c(2)) * sd_mm
 }
 
-/// Where each output voxel of `grid` reads from, in voxel index coordinates.
-fn sources(grid: &Grid, seed: u64, sd_mm: f64) -> Vec<DVec3> {
+/// Where each output voxel of `grid` reads from under the field of `seed` and `sd_mm`, in
+/// voxel index coordinates: computed once, shared by the values' and the labels' warps.
+pub(crate) fn sources(grid: &Grid, seed: u64, sd_mm: f64) -> Vec<DVec3> {
     let [nx, ny, nz] = grid.dims;
     (0..nx * ny * nz)
         .into_par_iter()
@@ -52,12 +53,13 @@ fn sources(grid: &Grid, seed: u64, sd_mm: f64) -> Vec<DVec3> {
         .collect()
 }
 
-/// `data` (on `grid`, x fastest) warped: trilinear, clamped to the grid's edge.
-pub(crate) fn warp_values(grid: &Grid, data: &[f32], seed: u64, sd_mm: f64) -> Vec<f32> {
+/// `data` (on `grid`, x fastest) read at `sources` ([`sources`]): trilinear, clamped to the
+/// grid's edge.
+pub(crate) fn warp_values(grid: &Grid, data: &[f32], sources: &[DVec3]) -> Vec<f32> {
     let [nx, ny, nz] = grid.dims;
     let at = |i: usize, j: usize, k: usize| data[i + nx * (j + ny * k)];
-    sources(grid, seed, sd_mm)
-        .into_par_iter()
+    sources
+        .par_iter()
         .map(|s| {
             let axis = |v: f64, n: usize| {
                 let v = v.clamp(0.0, (n - 1) as f64);
@@ -79,11 +81,11 @@ pub(crate) fn warp_values(grid: &Grid, data: &[f32], seed: u64, sd_mm: f64) -> V
         .collect()
 }
 
-/// Labels (on `grid`) warped: the nearest voxel's, clamped to the grid's edge.
-pub(crate) fn warp_labels(grid: &Grid, labels: &[u8], seed: u64, sd_mm: f64) -> Vec<u8> {
+/// Labels (on `grid`) read at `sources`: the nearest voxel's, clamped to the grid's edge.
+pub(crate) fn warp_labels(grid: &Grid, labels: &[u8], sources: &[DVec3]) -> Vec<u8> {
     let [nx, ny, nz] = grid.dims;
-    sources(grid, seed, sd_mm)
-        .into_par_iter()
+    sources
+        .par_iter()
         .map(|s| {
             let near = |v: f64, n: usize| (v.round().clamp(0.0, (n - 1) as f64)) as usize;
             labels[near(s.x, nx) + nx * (near(s.y, ny) + ny * near(s.z, nz))]
@@ -100,9 +102,10 @@ mod tests {
     fn the_field_has_the_asked_spread_and_zero_is_the_identity() {
         let grid = Grid::centred([6, 5, 4], DVec3::new(2.0, 3.0, 4.0));
         let data: Vec<f32> = (0..120).map(|v| v as f32 * 1.5 - 40.0).collect();
-        assert_eq!(warp_values(&grid, &data, 3, 0.0), data);
+        let zero = sources(&grid, 3, 0.0);
+        assert_eq!(warp_values(&grid, &data, &zero), data);
         let labels: Vec<u8> = (0..120).map(|v| (v % 7) as u8).collect();
-        assert_eq!(warp_labels(&grid, &labels, 3, 0.0), labels);
+        assert_eq!(warp_labels(&grid, &labels, &zero), labels);
         let (mut s2, n) = (0.0f64, 20_000);
         for i in 0..n {
             let f = i as f64;

@@ -327,11 +327,11 @@ fn render(spec: &AnatomySpec, device_meshes: Option<&mut Vec<DeviceMesh>>) -> Re
         });
     let (data, mats, sts) = if spec.deform_mm > 0.0 {
         let seed = tissue::mix64(spec.seed ^ 0x5741_5250);
-        let d = spec.deform_mm;
+        let sources = deform::sources(&grid, seed, spec.deform_mm);
         (
-            deform::warp_values(&grid, &data, seed, d),
-            deform::warp_labels(&grid, &mats, seed, d),
-            deform::warp_labels(&grid, &sts, seed, d),
+            deform::warp_values(&grid, &data, &sources),
+            deform::warp_labels(&grid, &mats, &sources),
+            deform::warp_labels(&grid, &sts, &sources),
         )
     } else {
         (data, mats, sts)
