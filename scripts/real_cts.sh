@@ -13,7 +13,7 @@
 # SART-TV (from zero and from the mean) and FDK, each method's prior from its checkpoint's
 # own training set (remade here: 32 lidc phantoms, seed 0; and those with 32 full-chest
 # phantoms, seed 300000, and for the mixed checkpoint those 64 again shape-augmented with
-# heterogeneous soft tissue). results.md gives TomoGRAF minus each method paired over the five
+# heterogeneous soft tissue, and all 128 again warped by 5 mm). results.md gives TomoGRAF minus each method paired over the five
 # CTs with 95 % t-intervals.
 #
 # Writes OUT/eval-demo/results.md, OUT/eval-mixed/results.md (and every CT's slice figures) and
@@ -40,8 +40,18 @@ $bin dataset -o "$out/train-ahet-lidc" --phantoms 32 --size 64 --views 36 --prof
     --split train --augment 11 --heterogeneity 60
 $bin dataset -o "$out/train-ahet-fc" --phantoms 32 --seed 300000 --size 64 --views 36 \
     --profile full-chest --split train --augment 11 --heterogeneity 60
+# …and, since decision 10 (docs/real-ct/decision10.md), the same 128 warped by 5 mm.
+$bin dataset -o "$out/train-d5-lidc" --phantoms 32 --size 64 --views 36 --profile lidc \
+    --split train --deform 5
+$bin dataset -o "$out/train-d5-fc" --phantoms 32 --seed 300000 --size 64 --views 36 \
+    --profile full-chest --split train --deform 5
+$bin dataset -o "$out/train-d5-ahet-lidc" --phantoms 32 --size 64 --views 36 --profile lidc \
+    --split train --augment 11 --heterogeneity 60 --deform 5
+$bin dataset -o "$out/train-d5-ahet-fc" --phantoms 32 --seed 300000 --size 64 --views 36 \
+    --profile full-chest --split train --augment 11 --heterogeneity 60 --deform 5
 python3 scripts/merge_sets.py "$out/train-mixhet" "$out/train-lidc" "$out/train-fc" \
-    "$out/train-ahet-lidc" "$out/train-ahet-fc"
+    "$out/train-ahet-lidc" "$out/train-ahet-fc" "$out/train-d5-lidc" "$out/train-d5-fc" \
+    "$out/train-d5-ahet-lidc" "$out/train-d5-ahet-fc"
 $bin dataset "${cts[@]}" -o "$out/items" --size 64 --views 10 --preset kv-flat-panel-120kvp \
     --split test --like model/checkpoints/demo
 for run in demo:model/checkpoints/demo:train-lidc mixed:model/checkpoints/lidc-full-chest:train-mixhet; do
