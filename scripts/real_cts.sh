@@ -24,11 +24,14 @@ out=${1:-real-cts}
 mkdir -p "$out"
 cargo build --release --quiet
 bin=$PWD/target/release/tomograf
-if [ ! -x "$out/venv/bin/python" ]; then
+if ! "$out/venv/bin/python" -c "import numpy, nrrd, nibabel" 2> /dev/null; then
     python3 -m venv "$out/venv"
     "$out/venv/bin/python" -m pip install --quiet numpy pynrrd nibabel
 fi
-mapfile -t cts < <("$out/venv/bin/python" scripts/registry_cts.py "$out/cts")
+# A list first, so that a failed fetch stops the script (a process substitution's would not).
+"$out/venv/bin/python" scripts/registry_cts.py "$out/cts" > "$out/cts.txt"
+mapfile -t cts < "$out/cts.txt"
+[ "${#cts[@]}" -eq 5 ] || { echo "expected 5 CTs from scripts/registry_cts.py, got ${#cts[@]}" >&2; exit 1; }
 # The checkpoints' training sets: for PCA-MAP, the mean volume and the population.
 $bin dataset -o "$out/train-lidc" --phantoms 32 --size 64 --views 36 --profile lidc --split train
 $bin dataset -o "$out/train-fc" --phantoms 32 --seed 300000 --size 64 --views 36 \
