@@ -38,12 +38,6 @@ for s in $sets; do
     [ -f "$out/eval-e-$s/results.csv" ] || $bin evaluate "$probe/val/$s" \
         --checkpoint "$out/e/checkpoint" --views 1,2 --no-baselines -o "$out/eval-e-$s"
 done
-arm() { # NAME PREFIX SETS…
-    local name=$1 prefix=$2 list=""
-    shift 2
-    for s in "$@"; do list="$list,$prefix$s"; done
-    echo "$name=${list#,}"
-}
 # shellcheck disable=SC2086 # the set lists, word-split on purpose
 {
     echo "## Rule (i): W and U together"

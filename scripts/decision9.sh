@@ -76,12 +76,6 @@ if [ ! -f "$out/d.done" ]; then
 fi
 score d "$out/d/checkpoint"
 
-arm() { # NAME PREFIX SETS…
-    local name=$1 prefix=$2 list=""
-    shift 2
-    for s in "$@"; do list="$list,$prefix$s"; done
-    echo "$name=${list#,}"
-}
 # shellcheck disable=SC2086 # the set lists, word-split on purpose
 {
     echo "## Rule (i): W and U together"

@@ -55,3 +55,12 @@ trained = re.search(r"(?m)^iterations = (\d+)$", mine).group(1)
 open(sys.argv[1], "w").write(re.sub(r"(?m)^iterations = \d+$", f"iterations = {trained}", parent, count=1))
 EOF2
 }
+
+# arm NAME PREFIX SETS…: scripts/validation_rule.py's argument for one candidate, NAME=the
+# evaluation folders PREFIX+SET, comma-separated.
+arm() { # NAME PREFIX SETS…
+    local name=$1 prefix=$2 list=""
+    shift 2
+    for s in "$@"; do list="$list,$prefix$s"; done
+    echo "$name=${list#,}"
+}
