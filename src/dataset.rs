@@ -118,7 +118,8 @@ pub fn run(args: DatasetArgs) -> Result<()> {
 
 /// Warns, naming the numbers, about each item of the data set `dir` that lies far from
 /// `reference`, the population recorded in `like` (a data set or checkpoint folder); says
-/// so when `like` records none.
+/// so when `like` records none. A set that lies far as a whole (a training set of another
+/// population) gets its first few items named and a count of the rest, not a line per item.
 fn warn_outliers(
     dir: &std::path::Path,
     like: &std::path::Path,
@@ -131,15 +132,45 @@ fn warn_outliers(
         );
         return Ok(());
     };
-    for (id, problems) in tomograf_scene::dataset::outliers(dir, reference)? {
-        eprintln!(
-            "warning: item {id} lies far from the training population of {} ({} items): {}",
-            like.display(),
-            reference.items,
-            problems.join("; ")
-        );
+    let outliers = tomograf_scene::dataset::outliers(dir, reference)?;
+    for line in outlier_lines(&outliers, like, reference.items, NAMED_OUTLIERS) {
+        eprintln!("{line}");
     }
     Ok(())
+}
+
+/// How many far-off items `dataset` names one by one before it counts the rest.
+const NAMED_OUTLIERS: usize = 5;
+
+/// The warning lines for `outliers` ((item id, problems) pairs) against a population of
+/// `items` items recorded in `like`: one line for each of the first `named`, then one line
+/// counting the rest.
+fn outlier_lines(
+    outliers: &[(String, Vec<String>)],
+    like: &std::path::Path,
+    items: usize,
+    named: usize,
+) -> Vec<String> {
+    let mut lines: Vec<String> = outliers
+        .iter()
+        .take(named)
+        .map(|(id, problems)| {
+            format!(
+                "warning: item {id} lies far from the training population of {} ({items} items): {}",
+                like.display(),
+                problems.join("; ")
+            )
+        })
+        .collect();
+    if outliers.len() > named {
+        lines.push(format!(
+            "warning: … and {} more item(s) lie far from it ({} in all); each item's item.json \
+             records its body fraction and tissue fractions",
+            outliers.len() - named,
+            outliers.len()
+        ));
+    }
+    lines
 }
 
 /// Runs a data-set job with a progress bar and a summary line.
@@ -215,4 +246,32 @@ pub fn job(args: &DatasetArgs) -> Result<DatasetJob> {
         output: args.output.clone(),
         shard,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn far(n: usize) -> Vec<(String, Vec<String>)> {
+        (0..n)
+            .map(|i| (format!("{i:05}"), vec![format!("body fraction {i} %")]))
+            .collect()
+    }
+
+    #[test]
+    fn a_few_outliers_are_each_named() {
+        let lines = outlier_lines(&far(3), std::path::Path::new("ck"), 32, 5);
+        assert_eq!(lines.len(), 3);
+        assert!(lines[2].contains("item 00002") && lines[2].contains("body fraction 2 %"));
+        assert!(lines[0].contains("ck (32 items)"));
+    }
+
+    #[test]
+    fn a_set_far_as_a_whole_is_counted_not_listed() {
+        let lines = outlier_lines(&far(32), std::path::Path::new("ck"), 32, 5);
+        assert_eq!(lines.len(), 6);
+        assert!(lines[4].contains("item 00004"));
+        assert!(lines[5].contains("27 more item(s)") && lines[5].contains("(32 in all)"));
+        assert!(outlier_lines(&[], std::path::Path::new("ck"), 32, 5).is_empty());
+    }
 }
