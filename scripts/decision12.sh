@@ -1,0 +1,56 @@
+#!/usr/bin/env bash
+# Issue 47, decision 12 (docs/real-ct/decision12-RULE.txt, written before its candidate was
+# trained or scored): the shipped mixed checkpoint (e, 56 000 iterations) trained on with its
+# own items and codes to 64 000 (g), against e, on decision 9's sets and by its rule.
+#
+#   scripts/decision12.sh PROBE_OUT D9_OUT D10_OUT [OUT]
+#
+# PROBE_OUT: the folder of `scripts/prior_probe.sh` (its validation sets); D9_OUT: that of
+# `scripts/decision9.sh` (e's training set, train-mixhet-d5); D10_OUT: that of
+# `scripts/decision10.sh` (e's run, OUT/e, and its scores, eval-e-*). g is trained in OUT from
+# a copy of e's run (≈ 30 min on 2 cores) and scored (≈ 15 min). Resumable.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+probe=$(realpath "$1")
+d9=$(realpath "$2")
+d10=$(realpath "$3")
+out=${4:-decision12}
+mkdir -p "$out"
+out=$(realpath "$out")
+cargo build --release --quiet
+bin=$PWD/target/release/tomograf
+export MIMALLOC_PURGE_DELAY=-1
+parent=$PWD/model/checkpoints/lidc-full-chest
+. scripts/realistic_sets.sh
+sets="lidc-deform8 full-chest-deform8 lidc-base full-chest-base"
+unwarped="lidc-base full-chest-base"
+for s in $sets; do
+    [ -f "$d10/eval-e-$s/results.csv" ] || { echo "run scripts/decision10.sh first" >&2; exit 1; }
+done
+# e's run must be the shipped checkpoint.
+cmp -s "$d10/e/checkpoint/generator.bpk" "$parent/generator.bpk" \
+    || { echo "$d10/e is not the shipped checkpoint" >&2; exit 1; }
+if [ ! -d "$out/g" ]; then
+    rm -rf "$out/g.tmp"
+    cp -r "$d10/e" "$out/g.tmp"
+    mv "$out/g.tmp" "$out/g"
+fi
+if [ ! -f "$out/g.done" ]; then
+    $bin train "$d9/train-mixhet-d5" -o "$out/g" --init "$parent" --resume --iterations 64000 \
+        > "$out/g.log" 2>&1
+    keep_parent_infer "$out/g/checkpoint/config.toml" "$parent/config.toml"
+    touch "$out/g.done"
+fi
+for s in $sets; do
+    [ -f "$out/eval-g-$s/results.csv" ] || $bin evaluate "$probe/val/$s" \
+        --checkpoint "$out/g/checkpoint" --views 1,2 --no-baselines -o "$out/eval-g-$s"
+done
+# shellcheck disable=SC2086 # the set lists, word-split on purpose
+{
+    echo "## Rule (i): W and U together"
+    python3 scripts/validation_rule.py "$(arm e "$d10/eval-e-" $sets)" \
+        "$(arm g "$out/eval-g-" $sets)"
+    echo "## Rule (ii): U alone"
+    python3 scripts/validation_rule.py "$(arm e "$d10/eval-e-" $unwarped)" \
+        "$(arm g "$out/eval-g-" $unwarped)"
+} | tee "$out/decision.md"
