@@ -34,16 +34,5 @@ if [ ! -f "$out/e.done" ]; then
 fi
 sets="lidc-deform8 full-chest-deform8 lidc-base full-chest-base"
 unwarped="lidc-base full-chest-base"
-for s in $sets; do
-    [ -f "$out/eval-e-$s/results.csv" ] || $bin evaluate "$probe/val/$s" \
-        --checkpoint "$out/e/checkpoint" --views 1,2 --no-baselines -o "$out/eval-e-$s"
-done
-# shellcheck disable=SC2086 # the set lists, word-split on purpose
-{
-    echo "## Rule (i): W and U together"
-    python3 scripts/validation_rule.py "$(arm a "$probe/eval/" $sets)" \
-        "$(arm e "$out/eval-e-" $sets)"
-    echo "## Rule (ii): U alone"
-    python3 scripts/validation_rule.py "$(arm a "$probe/eval/" $unwarped)" \
-        "$(arm e "$out/eval-e-" $unwarped)"
-} | tee "$out/decision.md"
+score_on_sets e "$out/e/checkpoint"
+decide a "$probe/eval/" e "$out/eval-e-"

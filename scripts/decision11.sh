@@ -45,16 +45,5 @@ if [ ! -f "$out/f.done" ]; then
     keep_parent_infer "$out/f/checkpoint/config.toml" "$parent/config.toml"
     touch "$out/f.done"
 fi
-for s in $sets; do
-    [ -f "$out/eval-f-$s/results.csv" ] || $bin evaluate "$probe/val/$s" \
-        --checkpoint "$out/f/checkpoint" --views 1,2 --no-baselines -o "$out/eval-f-$s"
-done
-# shellcheck disable=SC2086 # the set lists, word-split on purpose
-{
-    echo "## Rule (i): W and U together"
-    python3 scripts/validation_rule.py "$(arm e "$d10/eval-e-" $sets)" \
-        "$(arm f "$out/eval-f-" $sets)"
-    echo "## Rule (ii): U alone"
-    python3 scripts/validation_rule.py "$(arm e "$d10/eval-e-" $unwarped)" \
-        "$(arm f "$out/eval-f-" $unwarped)"
-} | tee "$out/decision.md"
+score_on_sets f "$out/f/checkpoint"
+decide e "$d10/eval-e-" f "$out/eval-f-"

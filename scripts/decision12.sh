@@ -41,16 +41,5 @@ if [ ! -f "$out/g.done" ]; then
     keep_parent_infer "$out/g/checkpoint/config.toml" "$parent/config.toml"
     touch "$out/g.done"
 fi
-for s in $sets; do
-    [ -f "$out/eval-g-$s/results.csv" ] || $bin evaluate "$probe/val/$s" \
-        --checkpoint "$out/g/checkpoint" --views 1,2 --no-baselines -o "$out/eval-g-$s"
-done
-# shellcheck disable=SC2086 # the set lists, word-split on purpose
-{
-    echo "## Rule (i): W and U together"
-    python3 scripts/validation_rule.py "$(arm e "$d10/eval-e-" $sets)" \
-        "$(arm g "$out/eval-g-" $sets)"
-    echo "## Rule (ii): U alone"
-    python3 scripts/validation_rule.py "$(arm e "$d10/eval-e-" $unwarped)" \
-        "$(arm g "$out/eval-g-" $unwarped)"
-} | tee "$out/decision.md"
+score_on_sets g "$out/g/checkpoint"
+decide e "$d10/eval-e-" g "$out/eval-g-"

@@ -64,3 +64,25 @@ arm() { # NAME PREFIX SETS…
     for s in "$@"; do list="$list,$prefix$s"; done
     echo "$name=${list#,}"
 }
+
+# Decisions 10–12 (docs/real-ct/decision9-RULE.txt's sets and rule), with $probe, $bin,
+# $out, $sets and $unwarped set by the caller.
+# score_on_sets NAME CHECKPOINT: TomoGRAF from 1 and 2 views on each set into $out/eval-NAME-SET.
+score_on_sets() {
+    for s in $sets; do
+        [ -f "$out/eval-$1-$s/results.csv" ] || $bin evaluate "$probe/val/$s" \
+            --checkpoint "$2" --views 1,2 --no-baselines -o "$out/eval-$1-$s"
+    done
+}
+
+# decide BASE BASE_PREFIX CANDIDATE CANDIDATE_PREFIX: rule (i) over W and U, rule (ii) over U
+# alone, into $out/decision.md.
+decide() {
+    # shellcheck disable=SC2086 # the set lists, word-split on purpose
+    {
+        echo "## Rule (i): W and U together"
+        python3 scripts/validation_rule.py "$(arm "$1" "$2" $sets)" "$(arm "$3" "$4" $sets)"
+        echo "## Rule (ii): U alone"
+        python3 scripts/validation_rule.py "$(arm "$1" "$2" $unwarped)" "$(arm "$3" "$4" $unwarped)"
+    } | tee "$out/decision.md"
+}
