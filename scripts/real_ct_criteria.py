@@ -1,14 +1,19 @@
 #!/usr/bin/env python3
 """Issue 47's criteria on an evaluation of real CTs, paired over its items.
 
-    python3 scripts/real_ct_criteria.py EVAL_DIR [EVAL_DIR …]
+    python3 scripts/real_ct_criteria.py [--items ITEMS_DIR] EVAL_DIR [EVAL_DIR …]
 
 Reads EVAL_DIR/results.csv (`tomograf evaluate`) and prints, per view count, the paired
 differences the issue asks about — TomoGRAF minus SART-TV from the mean (PSNR and SSIM,
 whole volume and body) and the network alone minus the mean volume inside the body — as
 mean ± the half-width of the 95 % t-interval over the items, with "ahead", "behind" or
-"tied" (the interval covers zero).
+"tied" (the interval covers zero). With --items (the evaluated data set), each EVAL_DIR
+also gets a table per CT — PSNR dB / SSIM (body PSNR) of TomoGRAF, the network alone,
+SART-TV from the mean and the mean volume, and TomoGRAF − SART-TV from the mean in the body —
+each CT named by its source file (item.json).
 """
+import json
+import pathlib
 import csv
 import math
 import statistics
@@ -40,7 +45,42 @@ def cell(p, digits):
     return f"{mean:+.{digits}f} ± {half:.{digits}f} ({verdict})"
 
 
-for folder in sys.argv[1:] or sys.exit(__doc__):
+def names(items):
+    """Item id → the name of the CT it was made from (its file or folder, extensions off)."""
+    out = {}
+    for d in sorted(pathlib.Path(items).iterdir()):
+        meta = d / "item.json"
+        if meta.is_file():
+            src = json.loads(meta.read_text()).get("source", {}).get("path", d.name)
+            out[d.name] = pathlib.Path(src).name.split(".")[0]
+    return out
+
+
+def per_item(scores, views, names):
+    methods = ["TomoGRAF", "TomoGRAF (network only)", "SART-TV from the mean", "mean training volume"]
+    print("| views | CT | TomoGRAF | network only | SART-TV from the mean | mean volume "
+          "| TomoGRAF − SART-TV from the mean, body PSNR (dB) |")
+    print("|---:|---|---|---|---|---|---:|")
+    for v in views:
+        for item in sorted(scores[(v, "TomoGRAF", "psnr_db")]):
+            def fmt(m):
+                s = lambda c: scores[(v, m, c)][item]
+                return f"{s('psnr_db'):.2f} / {s('ssim'):.3f} ({s('body_psnr_db'):.2f})"
+            diff = (scores[(v, "TomoGRAF", "body_psnr_db")][item]
+                    - scores[(v, "SART-TV from the mean", "body_psnr_db")][item])
+            print(f"| {v} | {names.get(item, item)} | " + " | ".join(fmt(m) for m in methods)
+                  + f" | {diff:+.2f} |")
+    print()
+
+
+args = sys.argv[1:]
+item_names = None
+if args[:1] == ["--items"]:
+    if len(args) < 2:
+        sys.exit(__doc__)
+    item_names = names(args[1])
+    args = args[2:]
+for folder in args or sys.exit(__doc__):
     scores = defaultdict(dict)  # (views, method, column) -> {item: value}
     for r in csv.DictReader(open(f"{folder}/results.csv")):
         for col in ("psnr_db", "ssim", "body_psnr_db", "body_ssim"):
@@ -58,3 +98,5 @@ for folder in sys.argv[1:] or sys.exit(__doc__):
                           scores[(v, "mean training volume", "body_psnr_db")]), 2)
         print(f"| {v} | " + " | ".join(cols) + f" | {net} |")
     print()
+    if item_names is not None:
+        per_item(scores, views, item_names)

@@ -52,12 +52,12 @@ $bin dataset -o "$out/train-d5-ahet-lidc" --phantoms 32 --size 64 --views 36 --p
     --split train --augment 11 --heterogeneity 60 --deform 5
 $bin dataset -o "$out/train-d5-ahet-fc" --phantoms 32 --seed 300000 --size 64 --views 36 \
     --profile full-chest --split train --augment 11 --heterogeneity 60 --deform 5
-python3 scripts/merge_sets.py "$out/train-mixhet" "$out/train-lidc" "$out/train-fc" \
+python3 scripts/merge_sets.py "$out/train-mixhet-d5" "$out/train-lidc" "$out/train-fc" \
     "$out/train-ahet-lidc" "$out/train-ahet-fc" "$out/train-d5-lidc" "$out/train-d5-fc" \
     "$out/train-d5-ahet-lidc" "$out/train-d5-ahet-fc"
 $bin dataset "${cts[@]}" -o "$out/items" --size 64 --views 10 --preset kv-flat-panel-120kvp \
     --split test --like model/checkpoints/demo
-for run in demo:model/checkpoints/demo:train-lidc mixed:model/checkpoints/lidc-full-chest:train-mixhet; do
+for run in demo:model/checkpoints/demo:train-lidc mixed:model/checkpoints/lidc-full-chest:train-mixhet-d5; do
     IFS=: read -r name checkpoint train <<< "$run"
     # Two shards of one thread each: two items at a time on two cores.
     for k in 0 1; do
