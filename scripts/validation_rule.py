@@ -12,7 +12,8 @@ so a finished `results.csv` is not needed). For method M (default "TomoGRAF") an
 mean over the sets' and view counts' means) and its paired difference from the first
 candidate over every (set, item, view count) pair both scored, with a 95 % t-interval. The
 rule: a challenger replaces the first only if that difference is positive and its interval
-excludes zero; among such challengers the highest score wins. Standard library only.
+excludes zero; among such challengers the highest score wins. --views keeps only those view
+counts (default: every view count scored). Standard library only.
 """
 import csv
 import math
@@ -36,27 +37,30 @@ def t95(df):
     return T95[below]
 
 
-def load(folder, method, metric):
-    """{(set, item, views): value} of one evaluation folder."""
+def load(folder, method, metric, views=None):
+    """{(set, item, views): value} of one evaluation folder (only `views`, a set of view
+    counts as strings, when given)."""
     out = {}
     files = sorted(pathlib.Path(folder).glob("items/*.csv"))
     if not files:
         sys.exit(f"{folder}: no items/*.csv (not an evaluation folder, or nothing scored)")
     for f in files:
         for r in csv.DictReader(open(f)):
-            if r["method"] == method:
+            if r["method"] == method and (views is None or r["views"] in views):
                 out[(pathlib.Path(folder).name, r["item"], r["views"])] = float(r[metric])
     return out
 
 
 def main(argv):
-    method, metric, specs = "TomoGRAF", "body_psnr_db", []
+    method, metric, keep_views, specs = "TomoGRAF", "body_psnr_db", None, []
     it = iter(argv)
     for a in it:
         if a == "--method":
             method = next(it)
         elif a == "--metric":
             metric = next(it)
+        elif a == "--views":
+            keep_views = set(next(it).split(","))
         elif "=" in a:
             name, dirs = a.split("=", 1)
             specs.append((name, dirs.split(",")))
@@ -73,7 +77,7 @@ def main(argv):
         vals = {}
         for k, d in enumerate(dirs):
             key_set = pathlib.Path(specs[0][1][k]).name
-            for (_, item, views), v in load(d, method, metric).items():
+            for (_, item, views), v in load(d, method, metric, keep_views).items():
                 vals[(key_set, item, views)] = v
         data[name] = vals
     first = specs[0][0]

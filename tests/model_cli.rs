@@ -509,14 +509,16 @@ fn model_bench_prints_ratios_against_its_baselines() {
 /// for the iterations its `state.json` records, with the demo checkpoint's
 /// inference settings. It loads and reconstructs a 64³ full-chest phantom from one view to
 /// a finite volume, and its settings differ from the demo checkpoint's in nothing but what
-/// it learnt, for how long, and the open gate from 5 views its own validation chose.
+/// it learnt, for how long, the open gate from 5 views and the four fits averaged from one
+/// view its own validation chose (decision 14).
 #[test]
 fn the_mixed_population_checkpoint_reconstructs() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("model/checkpoints");
     let mixed = root.join("lidc-full-chest");
     // The same settings but for how long each trained: the first `iterations = ` line (the
     // training's; the one in [infer] is the inference cap) is left out, and the open gate
-    // from 5 views the mixed checkpoint's validation chose (its comment and its line).
+    // from 5 views and the ensemble from one view the mixed checkpoint's validation chose
+    // (their comments and lines).
     let config = |d: &Path| {
         let text = std::fs::read_to_string(d.join("config.toml")).unwrap();
         let trained = text.lines().position(|l| l.starts_with("iterations = "));
@@ -535,8 +537,10 @@ fn the_mixed_population_checkpoint_reconstructs() {
     };
     assert_eq!(config(&mixed), config(&root.join("demo")), "config.toml");
     let text = std::fs::read_to_string(mixed.join("config.toml")).unwrap();
+    assert!(text.contains("\nrefine_always_from_views = 5\n"), "{text}");
     assert!(
-        text.trim_end().ends_with("refine_always_from_views = 5"),
+        text.trim_end()
+            .ends_with("ensemble = 4\nensemble_code_sd = 1.0\nensemble_max_views = 1"),
         "{text}"
     );
     let tmp = tempfile::tempdir().unwrap();

@@ -53,3 +53,20 @@ def test_a_resolved_challenger_replaces_the_first_and_an_unresolved_one_does_not
     # (the mean of the four cells) is the mean of `base` + 50 = 21.65 + 50.
     text = run("--method", "SART-TV", cand("a3", base), cand("b3", ahead))
     assert "| score (mean of the cells) | | 71.650 | 72.150 |" in text, text
+
+
+def test_views_keeps_only_the_view_counts_asked_for(tmp_path):
+    keys = [(f"{i:05d}", v) for i in range(6) for v in (1, 2)]
+    base = {k: 20.0 + 0.3 * n for n, k in enumerate(keys)}
+    wiggle = [0.05, -0.04, 0.03, -0.02, 0.01, -0.03]
+    # Ahead from two views only; from one view the challenger is the first plus noise.
+    two = {k: base[k] + (0.5 if k[1] == 2 else wiggle[int(k[0])]) for k in keys}
+    sets = ("val-x", "val-y")
+    def cand(name, body):
+        return f"{name}=" + ",".join(folder(tmp_path / name, s, body) for s in sets)
+    text = run(cand("a", base), cand("b", two))
+    assert "over 24 pairs (resolved, ahead)" in text, text
+    text = run("--views", "1", cand("a1", base), cand("b1", two))
+    assert "b1 − a1: +0.000 ±" in text and "over 12 pairs (not resolved)" in text, text
+    assert "| val-x | 2 |" not in text and "| val-x | 1 |" in text, text
+    assert text.rstrip().endswith("The rule chooses: a1."), text

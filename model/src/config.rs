@@ -314,6 +314,11 @@ impl TrainConfig {
             "infer.ensemble = 0: give the number of fits to average (1: one fit)"
         );
         ensure!(
+            self.infer.ensemble_max_views != Some(0),
+            "infer.ensemble_max_views = 0 would average fits for no view count: give the \
+             most views (1: one view only) or leave it out (every view count)"
+        );
+        ensure!(
             self.infer.ensemble_code_sd.is_finite() && self.infer.ensemble_code_sd >= 0.0,
             "infer.ensemble_code_sd = {} must be a finite number ≥ 0 (the starting codes' \
              spread in training-code standard deviations)",

@@ -25,9 +25,10 @@ use tomograf_sim::Volume;
 /// Mixed into the seed of the starting codes' draws, so they do not repeat a fit's rays.
 const CODE_STREAM: u64 = 0x656e_7365_6d62_6c65;
 
-/// `infer.ensemble` fits of `generator` to `refs` on `grid`, averaged voxel by voxel (see
-/// the module's doc). The result's `tuned` field and codes are the first fit's; its
-/// `iterations` and `losses` all fits' together; its `psnr` the average volume's.
+/// `infer.ensemble` fits of `generator` to `refs` on `grid` (one with more views than
+/// `infer.ensemble_max_views`), averaged voxel by voxel (see the module's doc). The
+/// result's `tuned` field and codes are the first fit's; its `iterations` and `losses` all
+/// fits' together; its `psnr` the average volume's.
 /// `progress(iteration, loss)` counts on across the fits.
 pub fn fit_ensemble(
     generator: &Generator,
@@ -39,17 +40,12 @@ pub fn fit_ensemble(
     progress: &mut dyn FnMut(usize, f64),
 ) -> Result<Fit> {
     let mut first = fit_network(generator, refs, grid, infer, seed, device, progress)?;
-    if infer.ensemble <= 1 {
+    let fits = infer.ensemble_fits(refs.len());
+    if fits <= 1 {
         return Ok(first);
     }
     let m = &generator.config.model;
-    let starts = starting_codes(
-        seed,
-        infer.ensemble - 1,
-        infer.ensemble_code_sd,
-        m.z_shape,
-        m.z_app,
-    );
+    let starts = starting_codes(seed, fits - 1, infer.ensemble_code_sd, m.z_shape, m.z_app);
     let mut sum: Vec<f64> = first.volume.data().iter().map(|&v| f64::from(v)).collect();
     for (k, start) in (1..).zip(starts) {
         let done = first.iterations;
@@ -69,7 +65,7 @@ pub fn fit_ensemble(
         first.iterations += fit.iterations;
         first.losses.extend(fit.losses);
     }
-    let n = infer.ensemble as f64;
+    let n = fits as f64;
     let v = &first.volume;
     let mean = sum.iter().map(|s| (s / n) as f32).collect();
     first.volume = Volume::new(v.dims(), v.spacing(), v.origin(), v.direction(), mean)?;

@@ -132,6 +132,12 @@ pub struct InferConfig {
         skip_serializing_if = "is_default_ensemble_code_sd"
     )]
     pub ensemble_code_sd: f64,
+    /// The most reference views for which `ensemble` fits are averaged; with more, one
+    /// fit (`None`: every view count). From one view the volume along the beam is the
+    /// prior's guess and fits from other codes differ; from several views they agree
+    /// and each extra fit costs a whole fit's time.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub ensemble_max_views: Option<usize>,
     /// Weight `w` of SART-TV from the mean in the final volume: (1 − w) × the network's
     /// volume (after its sweeps, when they ran) + w × the volume that `refine_iterations`
     /// sweeps make from the mean training volume alone, without the network (the baseline
@@ -247,6 +253,15 @@ pub struct InferOverrides {
 }
 
 impl InferConfig {
+    /// The number of fits averaged for `views` reference views: `ensemble`, or 1 with
+    /// more views than `ensemble_max_views`.
+    pub fn ensemble_fits(&self, views: usize) -> usize {
+        match self.ensemble_max_views {
+            Some(m) if views > m => 1,
+            _ => self.ensemble,
+        }
+    }
+
     /// This config with `o`'s settings overridden; the stopping threshold (dB) must be
     /// finite.
     pub fn overridden(&self, o: &InferOverrides) -> Result<Self> {

@@ -55,7 +55,8 @@ fn untrained_one_item(dir: &Path) -> Setup {
 /// (first from the mean code with the ensemble's seed, the others from
 /// `starting_codes` with their own seeds); one fit is the plain fit, byte for byte; the
 /// recorded projection PSNR is the average volume's; the drawn fits differ from the first;
-/// `reconstruct` runs every fit's iterations; bad settings are refused by name.
+/// `reconstruct` runs every fit's iterations; `ensemble_max_views` below the view count
+/// gives the single fit; bad settings are refused by name.
 #[test]
 fn an_ensemble_is_the_mean_of_its_fits() {
     let dir = tempfile::tempdir().unwrap();
@@ -131,6 +132,20 @@ fn an_ensemble_is_the_mean_of_its_fits() {
     // Same seed, same bytes.
     let again = fit_ensemble(&generator, &refs, grid, &infer, seed, &dev, quiet).unwrap();
     assert_eq!(again.volume.data(), three.volume.data());
+    // `ensemble_max_views` below the views given: the single fit, byte for byte; at the
+    // views given: the ensemble, byte for byte.
+    assert_eq!(refs.len(), 2);
+    infer.ensemble_max_views = Some(1);
+    assert_eq!(infer.ensemble_fits(1), 3);
+    let capped = fit_ensemble(&generator, &refs, grid, &infer, seed, &dev, quiet).unwrap();
+    assert_eq!(capped.volume.data(), single.volume.data());
+    assert_eq!(capped.iterations, single.iterations);
+    assert_eq!(capped.psnr, single.psnr);
+    infer.ensemble_max_views = Some(2);
+    let kept = fit_ensemble(&generator, &refs, grid, &infer, seed, &dev, quiet).unwrap();
+    assert_eq!(kept.volume.data(), three.volume.data());
+    assert_eq!(kept.iterations, 18);
+    infer.ensemble_max_views = None;
 
     let rec = reconstruct(
         checkpoint::load_generator(&ck, &dev).unwrap(),
@@ -153,6 +168,10 @@ fn an_ensemble_is_the_mean_of_its_fits() {
     bad.infer.ensemble_code_sd = f64::NAN;
     let e = bad.validate().unwrap_err().to_string();
     assert!(e.contains("infer.ensemble_code_sd"), "{e}");
+    let mut bad = config.clone();
+    bad.infer.ensemble_max_views = Some(0);
+    let e = bad.validate().unwrap_err().to_string();
+    assert!(e.contains("infer.ensemble_max_views = 0"), "{e}");
 }
 
 /// w = 1 gives the baseline "SART-TV from the mean" (made by the baseline's own code), w = 0
