@@ -26,6 +26,8 @@ sets="lidc-deform8 full-chest-deform8 lidc-base full-chest-base"
 unwarped="lidc-base full-chest-base"
 grep -q '"iteration": 64000' "$parent/state.json" \
     || { echo "$parent is not g (64 000 iterations)" >&2; exit 1; }
+grep -q '^ensemble' "$parent/config.toml" \
+    && { echo "$parent averages fits from one view since decision 14: run this from the commit before" >&2; exit 1; }
 if [ ! -d "$out/h" ]; then
     rm -rf "$out/h.tmp"
     mkdir -p "$out/h.tmp"
