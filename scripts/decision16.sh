@@ -1,0 +1,48 @@
+#!/usr/bin/env bash
+# Issue 47, decision 16 (docs/real-ct/decision16-RULE.txt, written before its candidate was run
+# on any set): from one view, the shipped checkpoint's four averaged fits (p, decision 14)
+# against eight (q: ensemble = 8; the first four are p's), on decision 9's sets, one view
+# only, by decision 14's rule.
+#
+#   scripts/decision16.sh PROBE_OUT [OUT]
+#
+# PROBE_OUT: the folder of `scripts/prior_probe.sh` (its validation sets, PROBE_OUT/val/SET).
+# p's scores are OUT/eval-p-SET (decision 15's folders serve as they are; made here with the
+# shipped checkpoint when missing); q's ≈ 10 min per set on 2 cores. Resumable.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+probe=$(realpath "$1")
+out=${2:-decision16}
+mkdir -p "$out"
+out=$(realpath "$out")
+cargo build --release --quiet
+bin=$PWD/target/release/tomograf
+export MIMALLOC_PURGE_DELAY=-1
+parent=$PWD/model/checkpoints/lidc-full-chest
+. scripts/realistic_sets.sh
+sets="lidc-deform8 full-chest-deform8 lidc-base full-chest-base"
+unwarped="lidc-base full-chest-base"
+grep -q '^ensemble = 4$' "$parent/config.toml" && grep -q '^ensemble_code_sd = 1.0$' "$parent/config.toml" \
+    || { echo "$parent is not decision 14's p (ensemble = 4, ensemble_code_sd = 1.0)" >&2; exit 1; }
+if [ ! -d "$out/q" ]; then
+    rm -rf "$out/q.tmp"
+    cp -r "$parent" "$out/q.tmp"
+    sed -i 's/^ensemble = 4$/ensemble = 8/' "$out/q.tmp/config.toml"
+    grep -q '^ensemble = 8$' "$out/q.tmp/config.toml"
+    mv "$out/q.tmp" "$out/q"
+fi
+for s in $sets; do
+    [ -f "$out/eval-p-$s/results.csv" ] || $bin evaluate "$probe/val/$s" \
+        --checkpoint "$parent" --views 1 --no-baselines -o "$out/eval-p-$s"
+    [ -f "$out/eval-q-$s/results.csv" ] || $bin evaluate "$probe/val/$s" \
+        --checkpoint "$out/q" --views 1 --no-baselines -o "$out/eval-q-$s"
+done
+# shellcheck disable=SC2086 # the set lists, word-split on purpose
+{
+    echo "## Rule (i): W and U together, one view"
+    python3 scripts/validation_rule.py --views 1 \
+        "$(arm p "$out/eval-p-" $sets)" "$(arm q "$out/eval-q-" $sets)"
+    echo "## Rule (ii): U alone, one view"
+    python3 scripts/validation_rule.py --views 1 \
+        "$(arm p "$out/eval-p-" $unwarped)" "$(arm q "$out/eval-q-" $unwarped)"
+} | tee "$out/decision.md"
