@@ -31,18 +31,6 @@ if [ ! -d "$out/q" ]; then
     grep -q '^ensemble = 8$' "$out/q.tmp/config.toml"
     mv "$out/q.tmp" "$out/q"
 fi
-for s in $sets; do
-    [ -f "$out/eval-p-$s/results.csv" ] || $bin evaluate "$probe/val/$s" \
-        --checkpoint "$parent" --views 1 --no-baselines -o "$out/eval-p-$s"
-    [ -f "$out/eval-q-$s/results.csv" ] || $bin evaluate "$probe/val/$s" \
-        --checkpoint "$out/q" --views 1 --no-baselines -o "$out/eval-q-$s"
-done
-# shellcheck disable=SC2086 # the set lists, word-split on purpose
-{
-    echo "## Rule (i): W and U together, one view"
-    python3 scripts/validation_rule.py --views 1 \
-        "$(arm p "$out/eval-p-" $sets)" "$(arm q "$out/eval-q-" $sets)"
-    echo "## Rule (ii): U alone, one view"
-    python3 scripts/validation_rule.py --views 1 \
-        "$(arm p "$out/eval-p-" $unwarped)" "$(arm q "$out/eval-q-" $unwarped)"
-} | tee "$out/decision.md"
+score_on_sets p "$parent" 1
+score_on_sets q "$out/q" 1
+decide p "$out/eval-p-" q "$out/eval-q-" one-view

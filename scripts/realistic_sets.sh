@@ -67,22 +67,25 @@ arm() { # NAME PREFIX SETS…
 
 # Decisions 10–12 (docs/real-ct/decision9-RULE.txt's sets and rule), with $probe, $bin,
 # $out, $sets and $unwarped set by the caller.
-# score_on_sets NAME CHECKPOINT: TomoGRAF from 1 and 2 views on each set into $out/eval-NAME-SET.
+# score_on_sets NAME CHECKPOINT [VIEWS]: TomoGRAF from VIEWS (default 1,2) on each set into
+# $out/eval-NAME-SET.
 score_on_sets() {
     for s in $sets; do
         [ -f "$out/eval-$1-$s/results.csv" ] || $bin evaluate "$probe/val/$s" \
-            --checkpoint "$2" --views 1,2 --no-baselines -o "$out/eval-$1-$s"
+            --checkpoint "$2" --views "${3:-1,2}" --no-baselines -o "$out/eval-$1-$s"
     done
 }
 
-# decide BASE BASE_PREFIX CANDIDATE CANDIDATE_PREFIX: rule (i) over W and U, rule (ii) over U
-# alone, into $out/decision.md.
+# decide BASE BASE_PREFIX CANDIDATE CANDIDATE_PREFIX [one-view]: rule (i) over W and U, rule
+# (ii) over U alone (with `one-view`, on the one-view rows only), into $out/decision.md.
 decide() {
+    local only=() tag=""
+    [ "${5:-}" != one-view ] || { only=(--views 1); tag=", one view"; }
     # shellcheck disable=SC2086 # the set lists, word-split on purpose
     {
-        echo "## Rule (i): W and U together"
-        python3 scripts/validation_rule.py "$(arm "$1" "$2" $sets)" "$(arm "$3" "$4" $sets)"
-        echo "## Rule (ii): U alone"
-        python3 scripts/validation_rule.py "$(arm "$1" "$2" $unwarped)" "$(arm "$3" "$4" $unwarped)"
+        echo "## Rule (i): W and U together$tag"
+        python3 scripts/validation_rule.py "${only[@]}" "$(arm "$1" "$2" $sets)" "$(arm "$3" "$4" $sets)"
+        echo "## Rule (ii): U alone$tag"
+        python3 scripts/validation_rule.py "${only[@]}" "$(arm "$1" "$2" $unwarped)" "$(arm "$3" "$4" $unwarped)"
     } | tee "$out/decision.md"
 }
