@@ -91,6 +91,12 @@ pub struct DatasetArgs {
     /// (docs/datasets.md, "Shape augmentation").
     #[arg(long)]
     pub augment: Option<u64>,
+    /// Scan-range augmentation for training sets, seeded: each item keeps a stretch of its
+    /// body's length drawn from this seed and its index — half of it to all of it, placed
+    /// anywhere along it — as real CTs cover the whole thorax or only part of it (an upper
+    /// thorax, the lung bases) (docs/datasets.md, "Scan range").
+    #[arg(long)]
+    pub scan_range: Option<u64>,
     /// Warn about items far from this training population: a data-set or checkpoint folder
     /// holding population.json [default: the shipped checkpoint's].
     #[arg(long)]
@@ -241,6 +247,7 @@ pub fn job(args: &DatasetArgs) -> Result<DatasetJob> {
             augment: args
                 .augment
                 .map(|seed| (tomograf_datasets::augment::AugmentRanges::default(), seed)),
+            scan_range: args.scan_range,
             ..ItemSettings::default()
         },
         output: args.output.clone(),

@@ -151,3 +151,43 @@ fn bad_arguments_are_clear_errors() {
         );
     }
 }
+
+#[test]
+fn a_scan_range_keeps_its_stretch_of_the_body_and_is_recorded() {
+    // The same two phantoms whole and cut to drawn scan ranges: each cut item records its
+    // range, and its CT spans that fraction of the whole item's length (to a section of the
+    // full-resolution phantom at either end).
+    let dir = tempfile::tempdir().unwrap();
+    let (whole, cut) = (dir.path().join("whole"), dir.path().join("cut"));
+    let job = ["--phantoms", "2", "--size", "24", "--views", "4"];
+    let mut args = vec!["dataset", "-o", whole.to_str().unwrap()];
+    args.extend(job);
+    ok(&tomograf(&args));
+    let mut args = vec!["dataset", "-o", cut.to_str().unwrap(), "--scan-range", "5"];
+    args.extend(job);
+    ok(&tomograf(&args));
+    for id in ["00000", "00001"] {
+        let record: serde_json::Value =
+            serde_json::from_slice(&std::fs::read(cut.join(id).join("item.json")).unwrap())
+                .unwrap();
+        let (from, to) = (
+            record["scan_range"]["from"].as_f64().unwrap(),
+            record["scan_range"]["to"].as_f64().unwrap(),
+        );
+        assert!(0.0 <= from && from + 0.5 <= to && to <= 1.0, "{from} {to}");
+        let plain: serde_json::Value =
+            serde_json::from_slice(&std::fs::read(whole.join(id).join("item.json")).unwrap())
+                .unwrap();
+        assert!(plain.get("scan_range").is_none(), "no range, no record");
+        let length = |d: &Path| {
+            let ct = tomograf_datasets::nifti::read_nifti(&d.join(id).join("ct.nii.gz")).unwrap();
+            ct.spacing().z * ct.dims()[2] as f64
+        };
+        let (l_whole, l_cut) = (length(&whole), length(&cut));
+        let tolerance = 2.0 * 2.5 / l_whole; // two sections of the generator's ≤ 2.5 mm grid
+        assert!(
+            ((l_cut / l_whole) - (to - from)).abs() <= tolerance,
+            "{id}: {l_cut} of {l_whole} mm against the range {from}–{to}"
+        );
+    }
+}

@@ -94,6 +94,10 @@ pub struct ItemRecord {
     /// null for none.
     #[serde(default, skip_serializing_if = "serde_json::Value::is_null")]
     pub augmentation: serde_json::Value,
+    /// The stretch of the body's length kept before the crop
+    /// ([`crate::scan_range::ScanRange`]); null for the whole body.
+    #[serde(default, skip_serializing_if = "serde_json::Value::is_null")]
+    pub scan_range: serde_json::Value,
 }
 
 /// An item's acquisition: the settings and the seed of its detector noise.

@@ -37,6 +37,7 @@ pub mod nifti;
 pub mod nrrd;
 pub mod population;
 pub mod preprocess;
+pub mod scan_range;
 pub mod sidecar;
 
 pub use error::{DatasetError, Result};

@@ -17,6 +17,7 @@ use tomograf_datasets::body::{self, BodySettings};
 use tomograf_datasets::frame::{PATIENT_FRAME, to_patient_frame};
 use tomograf_datasets::item::{self, AcquisitionRecord, ItemRecord};
 use tomograf_datasets::preprocess::{crop_black_border, resample};
+use tomograf_datasets::scan_range::ScanRange;
 use tomograf_datasets::{image, nifti};
 use tomograf_physics::acquisition::Acquisition;
 use tomograf_sim::geometry::angles;
@@ -45,6 +46,7 @@ pub struct ItemScene {
     reorientation: serde_json::Value,
     outside_body: String,
     augmentation: Option<Augmentation>,
+    scan_range: Option<ScanRange>,
 }
 
 impl ItemScene {
@@ -87,6 +89,13 @@ impl ItemScene {
             Some(a) => a.apply(&hu)?,
             None => hu,
         };
+        let scan_range = settings
+            .scan_range
+            .map(|seed| ScanRange::draw(item_seed(seed, index)));
+        let hu = match &scan_range {
+            Some(r) => r.apply(&hu, settings.crop_hu)?,
+            None => hu,
+        };
         let hu = crop_black_border(&hu, settings.crop_hu)?;
         let size = settings.size as u128;
         let render_peak = crate::peak::item_render_peak_bytes(
@@ -114,6 +123,7 @@ impl ItemScene {
             reorientation,
             outside_body,
             augmentation,
+            scan_range,
         })
     }
 
@@ -220,6 +230,7 @@ pub fn make_item(
         reorientation,
         outside_body,
         augmentation,
+        scan_range,
     } = item;
     let (hu, kept) = match acquisition {
         None => (hu.clone(), Some(hu)),
@@ -285,6 +296,10 @@ pub fn make_item(
         body_fraction,
         tissue_fractions,
         augmentation: augmentation
+            .map(serde_json::to_value)
+            .transpose()?
+            .unwrap_or(serde_json::Value::Null),
+        scan_range: scan_range
             .map(serde_json::to_value)
             .transpose()?
             .unwrap_or(serde_json::Value::Null),

@@ -67,6 +67,9 @@ pub struct ItemSettings {
     /// Shape augmentation ([`tomograf_datasets::augment`]) within these ranges, item i's
     /// drawn from [`item_seed`]`(seed, i)`; `None`: none.
     pub augment: Option<(AugmentRanges, u64)>,
+    /// A scan range ([`tomograf_datasets::scan_range`]) drawn per item, item i's from
+    /// [`item_seed`]`(seed, i)`, applied after the augmentation; `None`: the whole body.
+    pub scan_range: Option<u64>,
 }
 
 impl Default for ItemSettings {
@@ -84,6 +87,7 @@ impl Default for ItemSettings {
             keep_table: false,
             body: BodySettings::default(),
             augment: None,
+            scan_range: None,
         }
     }
 }
