@@ -50,12 +50,8 @@ done
 [ -f "$out/train-mixhet-d5-sr/manifest.jsonl" ] \
     || python3 scripts/merge_sets.py "$out/train-mixhet-d5-sr" "${srcs[@]}"
 
-if [ ! -d "$out/q" ]; then
-    rm -rf "$out/q.tmp"
-    mkdir -p "$out/q.tmp"
-    cp -r "$parent" "$out/q.tmp/checkpoint"
-    mv "$out/q.tmp" "$out/q"
-fi
+# A fine-tune (`train --init`): p's networks, the 256 items p learned codes for keep them,
+# the 64 new ones get fresh codes, the mean volume is the 320 items'.
 if [ ! -f "$out/q.done" ]; then
     $bin train "$out/train-mixhet-d5-sr" -o "$out/q" --init "$parent" --resume --iterations 72000 \
         > "$out/q.log" 2>&1

@@ -114,10 +114,11 @@ pub fn train(args: &Training, progress: &dyn Progress) -> Result<()> {
             init.display(),
             t.iteration,
             items.len(),
-            if kept {
-                "item(s) it learned codes for: their codes are kept"
-            } else {
-                "new item(s)"
+            match kept {
+                0 => "new item(s)".to_string(),
+                k if k == items.len() =>
+                    "item(s) it learned codes for: their codes are kept".into(),
+                k => format!("item(s), {k} of which it learned codes for: theirs are kept"),
             }
         ));
         t

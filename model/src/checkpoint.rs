@@ -13,14 +13,15 @@
 
 use crate::config::TrainConfig;
 use crate::error::{ModelError, Result, ensure};
-use crate::field::RadianceField;
+use crate::field::{Codes, RadianceField};
 use crate::prior::{CodeStats, MeanVolume};
 use crate::render::DensityScale;
-use crate::train::Trainer;
+use crate::train::{NumberParams, Trainer};
 use burn::module::Module;
 use burn::tensor::Device;
 use serde::{Deserialize, Serialize};
 use sha2::{Digest, Sha256};
+use std::collections::HashMap;
 use std::path::Path;
 
 /// What `state.json` holds.
@@ -263,6 +264,11 @@ fn read_meta(dir: &Path) -> Result<(TrainConfig, State)> {
     Ok((config, state))
 }
 
+/// A checkpoint's code table (`codes.json`): its items, their digests and learned codes.
+pub fn read_code_table(dir: &Path) -> Result<CodeTable> {
+    read_codes(dir)
+}
+
 fn read_codes(dir: &Path) -> Result<CodeTable> {
     let p = dir.join("codes.json");
     let bytes = std::fs::read(&p).map_err(|e| err(&p, e))?;
@@ -350,8 +356,10 @@ fn load_networks(mut t: Trainer, dir: &Path) -> Result<Trainer> {
 /// ([`Item::content_sha256`](crate::data::Item::content_sha256)), as recorded in its
 /// `codes.json` — their learned codes and the code optimiser's state are kept instead of
 /// drawn afresh (training on further: fresh codes would undo what the codes had learned).
-/// The returned flag says whether they were. A checkpoint without recorded digests always
-/// gets fresh codes.
+/// When only some are — the checkpoint's items with others added, or some taken away — each
+/// item whose digest the checkpoint learned a code for keeps that code, the others get
+/// fresh ones, and the code optimiser starts afresh. Returns the trainer and how many items
+/// kept their learned codes. A checkpoint without recorded digests always gets fresh codes.
 pub fn load_trainer_for(
     dir: &Path,
     seed: Option<u64>,
@@ -360,7 +368,7 @@ pub fn load_trainer_for(
     item_ids: Vec<String>,
     item_sha256: Vec<String>,
     device: &Device,
-) -> Result<(Trainer, bool)> {
+) -> Result<(Trainer, usize)> {
     recover(dir)?;
     let (mut config, state) = read_meta(dir)?;
     if let Some(seed) = seed {
@@ -390,12 +398,50 @@ pub fn load_trainer_for(
         dir,
     )?;
     t.item_sha256 = item_sha256;
-    let kept = same_items && t.codes.is_some();
-    if kept {
+    let kept = if same_items && t.codes.is_some() {
         t = load_codes(t, dir)?;
-    }
+        t.item_ids.len()
+    } else {
+        keep_known_codes(&mut t, &codes)
+    };
     t.iteration = state.iteration;
     Ok((t, kept))
+}
+
+/// Gives each item of `t` (its fresh code table, its `item_sha256`) whose content digest
+/// `table` holds a learned code for — once: a digest learned twice is ambiguous and left
+/// fresh — that code; returns how many items took one.
+fn keep_known_codes(t: &mut Trainer, table: &CodeTable) -> usize {
+    let Some(codes) = &t.codes else {
+        return 0;
+    };
+    if table.item_sha256.len() != table.shape.len() || table.app.len() != table.shape.len() {
+        return 0;
+    }
+    let mut learned: HashMap<&str, Option<usize>> = HashMap::new();
+    for (row, sha) in table.item_sha256.iter().enumerate() {
+        learned
+            .entry(sha.as_str())
+            .and_modify(|r| *r = None)
+            .or_insert(Some(row));
+    }
+    let (mut shape, mut app, rows) = codes.values();
+    let (ms, ma) = (shape.len() / rows.max(1), app.len() / rows.max(1));
+    let mut kept = 0;
+    for (i, sha) in t.item_sha256.iter().enumerate().take(rows) {
+        let Some(&Some(j)) = learned.get(sha.as_str()) else {
+            continue;
+        };
+        if table.shape[j].len() == ms && table.app[j].len() == ma {
+            shape[i * ms..(i + 1) * ms].copy_from_slice(&table.shape[j]);
+            app[i * ma..(i + 1) * ma].copy_from_slice(&table.app[j]);
+            kept += 1;
+        }
+    }
+    if kept > 0 {
+        t.codes = Some(Codes::new(shape, app, rows, &t.device).map(&mut NumberParams(3 << 32)));
+    }
+    kept
 }
 
 /// Loads what inference needs: the generator, its prior and the training codes.

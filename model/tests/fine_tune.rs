@@ -59,7 +59,7 @@ fn fine_tuning_starts_from_the_checkpoints_networks_with_the_new_items_codes_and
         &dev,
     )
     .unwrap();
-    assert!(!kept, "other items get fresh codes");
+    assert_eq!(kept, 0, "other items get fresh codes");
     assert_eq!(f.iteration, 3, "the iteration count goes on");
     assert_eq!(f.proj_scale, scale, "the checkpoint's projection scale");
     // Saved as loaded: the networks and their optimisers are the checkpoint's, byte for
@@ -185,25 +185,91 @@ fn the_same_items_keep_their_learned_codes() {
     // Without recorded digests: fresh codes.
     let bare = saved_as_loaded(&t, "bare");
     let (f, kept) = load(&bare, &items);
-    assert!(!kept);
+    assert_eq!(kept, 0);
     let fresh = saved_as_loaded(&f, "fresh");
     assert!(bytes(&fresh, "codes.bpk") != bytes(&bare, "codes.bpk"));
 
     t.item_sha256 = digests(&items);
     let ck = saved_as_loaded(&t, "checkpoint");
     let (f, kept) = load(&ck, &items);
-    assert!(kept, "the same items keep their codes");
+    assert_eq!(kept, 2, "the same items keep their codes");
     let again = saved_as_loaded(&f, "again");
     for name in ["codes.bpk", "opt_codes.bpk", "codes.json", "generator.bpk"] {
         assert!(bytes(&again, name) == bytes(&ck, name), "{name}");
     }
 
-    // One item's projections changed under the same id: fresh codes again.
+    // One item's projections changed under the same id: that item gets a fresh code (the
+    // fresh run's row), the other keeps its learned one; the code optimiser starts afresh.
     let mut changed = items.clone();
     changed[1].projections[7] += 0.25;
     assert_eq!(ids(&changed), ids(&items));
     let (f, kept) = load(&ck, &changed);
-    assert!(!kept, "an item whose content changed gets a fresh code");
+    assert_eq!(kept, 1, "an item whose content changed gets a fresh code");
     let redrawn = saved_as_loaded(&f, "redrawn");
-    assert!(bytes(&redrawn, "codes.bpk") == bytes(&fresh, "codes.bpk"));
+    let table = |d: &std::path::Path| checkpoint::read_code_table(d).unwrap();
+    let (redrawn, learned, fresh) = (table(&redrawn), table(&ck), table(&fresh));
+    assert_eq!(redrawn.shape[0], learned.shape[0]);
+    assert_eq!(redrawn.app[0], learned.app[0]);
+    assert_eq!(redrawn.shape[1], fresh.shape[1]);
+    assert_ne!(redrawn.shape[1], learned.shape[1]);
+}
+
+/// Fine-tuned on its items with others added (a training set grown by new phantoms), a
+/// checkpoint keeps the learned codes of the items it knows — found by content, wherever
+/// they now stand — and draws fresh ones for the new items.
+#[test]
+fn added_items_get_fresh_codes_and_known_ones_keep_theirs() {
+    let dev = device();
+    let config = TrainConfig::load("tiny").unwrap();
+    let items = vec![common::item(16, 4, 16, 0.0), common::item(16, 4, 16, -0.5)];
+    let scale = projection_scale(&items).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let mut t = Trainer::new(config.clone(), scale, mean_of(&items), ids(&items), &dev).unwrap();
+    for _ in 0..3 {
+        t.step(&items).unwrap();
+    }
+    t.item_sha256 = digests(&items);
+    let ck = dir.path().join("checkpoint");
+    checkpoint::save(&t, items[0].scale, &ck).unwrap();
+    // A new item first, then the two known ones renumbered.
+    let mut grown = vec![
+        common::item(16, 4, 16, 0.4),
+        items[1].clone(),
+        items[0].clone(),
+    ];
+    for (i, item) in grown.iter_mut().enumerate() {
+        item.id = format!("{i:05}");
+    }
+    let (mut f, kept) = checkpoint::load_trainer_for(
+        &ck,
+        None,
+        mean_of(&grown),
+        grown[0].scale,
+        ids(&grown),
+        digests(&grown),
+        &dev,
+    )
+    .unwrap();
+    assert_eq!(kept, 2);
+    let saved = dir.path().join("grown");
+    checkpoint::save(&f, grown[0].scale, &saved).unwrap();
+    let (now, learned) = (
+        checkpoint::read_code_table(&saved).unwrap(),
+        checkpoint::read_code_table(&ck).unwrap(),
+    );
+    assert_eq!(
+        (&now.shape[1], &now.app[2]),
+        (&learned.shape[1], &learned.app[0])
+    );
+    assert!(now.shape[0] != learned.shape[0] && now.shape[0] != learned.shape[1]);
+    // A fresh run on the grown set draws the same code for the new item.
+    let fresh = Trainer::new(config, scale, mean_of(&grown), ids(&grown), &dev).unwrap();
+    let fresh_dir = dir.path().join("fresh");
+    checkpoint::save(&fresh, grown[0].scale, &fresh_dir).unwrap();
+    assert_eq!(
+        now.shape[0],
+        checkpoint::read_code_table(&fresh_dir).unwrap().shape[0]
+    );
+    // It trains on the grown set.
+    assert!(f.step(&grown).unwrap().loss_g.is_finite());
 }
