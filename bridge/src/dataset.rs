@@ -34,14 +34,16 @@ use tomograf_scene::dataset::{ItemSettings, ItemSource, make_item as make};
 /// phantom's soft tissue a correlated texture of that standard deviation (HU), as
 /// ``tomograf dataset --heterogeneity``; ``organ_spread`` widens the ranges its heart and
 /// diaphragm are drawn from, as ``tomograf dataset --organ-spread``; ``deform_mm`` warps it
-/// by a smooth random displacement field, as ``tomograf dataset --deform``. Returns the item
-/// folder.
+/// by a smooth random displacement field, as ``tomograf dataset --deform``.
+/// ``augment_seed`` and ``scan_range_seed`` draw the item's shape augmentation and scan
+/// range from that seed and ``index``, as ``tomograf dataset --augment`` and
+/// ``--scan-range`` (docs/datasets.md). Returns the item folder.
 #[pyfunction]
 #[pyo3(signature = (output, *, ct=None, phantom_seed=None, profile="lidc", table=false,
     pacemaker=false, index=0, views=72, size=128, hu_window=(-1024.0, 2048.0),
     crop_hu=-900.0, energy_kev=60.0, sad_mm=1000.0, sid_mm=1500.0, split="train",
     physics=None, keep_table=false, heterogeneity_hu=0.0,
-    organ_spread=1.0, deform_mm=0.0))]
+    organ_spread=1.0, deform_mm=0.0, augment_seed=None, scan_range_seed=None))]
 #[allow(clippy::too_many_arguments)]
 pub fn make_item(
     py: Python<'_>,
@@ -65,6 +67,8 @@ pub fn make_item(
     heterogeneity_hu: f64,
     organ_spread: f64,
     deform_mm: f64,
+    augment_seed: Option<u64>,
+    scan_range_seed: Option<u64>,
 ) -> PyResult<PathBuf> {
     let source = match (ct, phantom_seed) {
         (Some(path), None) => {
@@ -111,6 +115,9 @@ pub fn make_item(
         split: split.into(),
         acquisition,
         keep_table,
+        augment: augment_seed
+            .map(|seed| (tomograf_datasets::augment::AugmentRanges::default(), seed)),
+        scan_range: scan_range_seed,
         ..ItemSettings::default()
     };
     let dir = output.clone();

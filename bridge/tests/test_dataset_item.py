@@ -13,23 +13,27 @@ FILES = ["ct.nii.gz", "projections.npy", "views.json", "item.json"]
 
 
 @pytest.mark.parametrize(
-    "flags, physics",
+    "flags, kwargs",
     [
-        ([], None),
+        ([], {}),
         (
             ["--preset", "kv-flat-panel-120kvp", "--noise-seed", "5"],
-            {"acquisition": {"preset": "kv-flat-panel-120kvp", "seed": 5}},
+            {"physics": {"acquisition": {"preset": "kv-flat-panel-120kvp", "seed": 5}}},
+        ),
+        (
+            ["--augment", "11", "--scan-range", "17"],
+            {"augment_seed": 11, "scan_range_seed": 17},
         ),
     ],
-    ids=["ideal-drr", "kv-flat-panel"],
+    ids=["ideal-drr", "kv-flat-panel", "augment-scan-range"],
 )
-def test_python_and_the_cli_make_the_same_item(tmp_path, cli, flags, physics):
+def test_python_and_the_cli_make_the_same_item(tmp_path, cli, flags, kwargs):
     # Phantom seeds 3 and 4 are items 0 and 1 of the CLI set; item 1's noise depends on
     # its index, so it is the one compared.
     cli("dataset", "-o", tmp_path / "set", "--phantoms", "2", "--seed", "3", "--size", "24",
         "--views", "3", *flags)
     out = tomograf.make_item(tmp_path / "item", phantom_seed=4, index=1, size=24, views=3,
-                             physics=physics)
+                             **kwargs)
     assert (tmp_path / "item").samefile(out)
     for f in FILES:
         ours = (tmp_path / "item" / f).read_bytes()
@@ -40,6 +44,10 @@ def test_python_and_the_cli_make_the_same_item(tmp_path, cli, flags, physics):
     assert np.all(np.isfinite(p)) and p.max() > 0
     record = json.loads((tmp_path / "item" / "item.json").read_text())
     assert record["id"] == "00001" and record["ct_dims"] == [24, 24, 24]
+    if "scan_range_seed" in kwargs:
+        r = record["scan_range"]
+        assert 0 <= r["from"] and r["from"] + 0.5 <= r["to"] <= 1
+        assert record["augmentation"] is not None
 
 
 @pytest.mark.parametrize("keep_table", [False, True], ids=["body-alone", "keep-table"])

@@ -377,6 +377,8 @@ def make_item(
     heterogeneity_hu: float = 0.0,
     organ_spread: float = 1.0,
     deform_mm: float = 0.0,
+    augment_seed: Optional[int] = None,
+    scan_range_seed: Optional[int] = None,
 ) -> "PathLike[str]":
     """Makes one TomoGRAF data-set item in the folder `output`, the same files (and bytes)
     as item `index` of `tomograf dataset`: ct.nii.gz (cropped CT resampled to size³, [0, 1]
@@ -391,6 +393,8 @@ def make_item(
     texture of that standard deviation (HU), as `tomograf dataset --heterogeneity`;
     `organ_spread`: its heart and diaphragm drawn from ranges that many times as wide, as
     `tomograf dataset --organ-spread` (1: as drawn); `deform_mm`: it warped by a smooth
-    random displacement field of that standard deviation, as `tomograf dataset --deform`.
+    random displacement field of that standard deviation, as `tomograf dataset --deform`;
+    `augment_seed`, `scan_range_seed`: its shape augmentation and scan range drawn from
+    that seed and `index`, as `tomograf dataset --augment` and `--scan-range`.
     Distances in mm. Returns the folder.
     ValueError for bad settings, FileNotFoundError for a missing CT."""
