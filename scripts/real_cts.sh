@@ -13,7 +13,8 @@
 # SART-TV (from zero and from the mean) and FDK, each method's prior from its checkpoint's
 # own training set (remade here: 32 lidc phantoms, seed 0; and those with 32 full-chest
 # phantoms, seed 300000, and for the mixed checkpoint those 64 again shape-augmented with
-# heterogeneous soft tissue, and all 128 again warped by 5 mm). results.md gives TomoGRAF minus each method paired over the five
+# heterogeneous soft tissue, all 128 again warped by 5 mm, and the 64 augmented ones cut to
+# scan ranges). results.md gives TomoGRAF minus each method paired over the five
 # CTs with 95 % t-intervals.
 #
 # Writes OUT/eval-demo/results.md, OUT/eval-mixed/results.md (and every CT's slice figures) and
@@ -52,12 +53,18 @@ $bin dataset -o "$out/train-d5-ahet-lidc" --phantoms 32 --size 64 --views 36 --p
     --split train --augment 11 --heterogeneity 60 --deform 5
 $bin dataset -o "$out/train-d5-ahet-fc" --phantoms 32 --seed 300000 --size 64 --views 36 \
     --profile full-chest --split train --augment 11 --heterogeneity 60 --deform 5
-python3 scripts/merge_sets.py "$out/train-mixhet-d5" "$out/train-lidc" "$out/train-fc" \
+# …and, since decision 17 (docs/real-ct/decision17.md), the 64 augmented heterogeneous ones
+# again cut to scan ranges.
+$bin dataset -o "$out/train-sr-lidc" --phantoms 32 --size 64 --views 36 --profile lidc \
+    --split train --augment 11 --heterogeneity 60 --scan-range 17
+$bin dataset -o "$out/train-sr-fc" --phantoms 32 --seed 300000 --size 64 --views 36 \
+    --profile full-chest --split train --augment 11 --heterogeneity 60 --scan-range 17
+python3 scripts/merge_sets.py "$out/train-mixhet-d5-sr" "$out/train-lidc" "$out/train-fc" \
     "$out/train-ahet-lidc" "$out/train-ahet-fc" "$out/train-d5-lidc" "$out/train-d5-fc" \
-    "$out/train-d5-ahet-lidc" "$out/train-d5-ahet-fc"
+    "$out/train-d5-ahet-lidc" "$out/train-d5-ahet-fc" "$out/train-sr-lidc" "$out/train-sr-fc"
 $bin dataset "${cts[@]}" -o "$out/items" --size 64 --views 10 --preset kv-flat-panel-120kvp \
     --split test --like model/checkpoints/demo
-for run in demo:model/checkpoints/demo:train-lidc mixed:model/checkpoints/lidc-full-chest:train-mixhet-d5; do
+for run in demo:model/checkpoints/demo:train-lidc mixed:model/checkpoints/lidc-full-chest:train-mixhet-d5-sr; do
     IFS=: read -r name checkpoint train <<< "$run"
     # Two shards of one thread each: two items at a time on two cores.
     for k in 0 1; do

@@ -505,8 +505,9 @@ fn model_bench_prints_ratios_against_its_baselines() {
 
 /// The second shipped checkpoint (`model/checkpoints/lidc-full-chest`, docs/model.md, "A
 /// prior that transfers: a mixed population"): the shipped recipe on 32 `lidc` and 32
-/// `full-chest` phantoms and those shape-augmented with heterogeneous soft tissue, trained
-/// for the iterations its `state.json` records, with the demo checkpoint's
+/// `full-chest` phantoms and those shape-augmented with heterogeneous soft tissue (then
+/// warped, then cut to scan ranges: decisions 9 and 17), trained for the iterations its
+/// `state.json` records, with the demo checkpoint's
 /// inference settings. It loads and reconstructs a 64³ full-chest phantom from one view to
 /// a finite volume, and its settings differ from the demo checkpoint's in nothing but what
 /// it learnt, for how long, the open gate from 5 views and the four fits averaged from one
