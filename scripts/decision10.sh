@@ -10,16 +10,9 @@
 # from a copy of d's run (≈ 30 min on 2 cores) and scored (≈ 15 min). Resumable.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-probe=$(realpath "$1")
-d9=$(realpath "$2")
-out=${3:-decision10}
-mkdir -p "$out"
-out=$(realpath "$out")
-cargo build --release --quiet
-bin=$PWD/target/release/tomograf
-export MIMALLOC_PURGE_DELAY=-1
-parent=$PWD/model/checkpoints/lidc-full-chest
 . scripts/realistic_sets.sh
+d9=$(realpath "$2")
+decision_setup "$1" "${3:-decision10}"
 [ -f "$d9/d.done" ] || { echo "run scripts/decision9.sh $d9 first" >&2; exit 1; }
 if [ ! -d "$out/e" ]; then
     rm -rf "$out/e.tmp"

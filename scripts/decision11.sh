@@ -12,17 +12,10 @@
 # (≈ 5 min), f is trained there (≈ 35 min on 2 cores) and scored (≈ 15 min). Resumable.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-probe=$(realpath "$1")
+. scripts/realistic_sets.sh
 d9=$(realpath "$2")
 d10=$(realpath "$3")
-out=${4:-decision11}
-mkdir -p "$out"
-out=$(realpath "$out")
-cargo build --release --quiet
-bin=$PWD/target/release/tomograf
-export MIMALLOC_PURGE_DELAY=-1
-parent=$PWD/model/checkpoints/lidc-full-chest
-. scripts/realistic_sets.sh
+decision_setup "$1" "${4:-decision11}"
 sets="lidc-deform8 full-chest-deform8 lidc-base full-chest-base"
 unwarped="lidc-base full-chest-base"
 for s in $sets; do

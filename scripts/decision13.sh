@@ -12,16 +12,9 @@
 # OUT (≈ 25 min on 2 cores) and scored beside g (≈ 15 min each). Resumable.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-probe=$(realpath "$1")
-train=$(realpath "$2")
-out=${3:-decision13}
-mkdir -p "$out"
-out=$(realpath "$out")
-cargo build --release --quiet
-bin=$PWD/target/release/tomograf
-export MIMALLOC_PURGE_DELAY=-1
-parent=$PWD/model/checkpoints/lidc-full-chest
 . scripts/realistic_sets.sh
+train=$(realpath "$2")
+decision_setup "$1" "${3:-decision13}"
 sets="lidc-deform8 full-chest-deform8 lidc-base full-chest-base"
 unwarped="lidc-base full-chest-base"
 grep -q '"iteration": 64000' "$parent/state.json" \

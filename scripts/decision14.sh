@@ -12,15 +12,8 @@
 # set on 2 cores (four fits per phantom). Resumable.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-probe=$(realpath "$1")
-out=${2:-decision14}
-mkdir -p "$out"
-out=$(realpath "$out")
-cargo build --release --quiet
-bin=$PWD/target/release/tomograf
-export MIMALLOC_PURGE_DELAY=-1
-parent=$PWD/model/checkpoints/lidc-full-chest
 . scripts/realistic_sets.sh
+decision_setup "$1" "${2:-decision14}"
 sets="lidc-deform8 full-chest-deform8 lidc-base full-chest-base"
 unwarped="lidc-base full-chest-base"
 grep -q '"iteration": 64000' "$parent/state.json" \

@@ -11,15 +11,8 @@
 # shipped checkpoint when missing); q's ≈ 8 min per set on 2 cores. Resumable.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-probe=$(realpath "$1")
-out=${2:-decision15}
-mkdir -p "$out"
-out=$(realpath "$out")
-cargo build --release --quiet
-bin=$PWD/target/release/tomograf
-export MIMALLOC_PURGE_DELAY=-1
-parent=$PWD/model/checkpoints/lidc-full-chest
 . scripts/realistic_sets.sh
+decision_setup "$1" "${2:-decision15}"
 sets="lidc-deform8 full-chest-deform8 lidc-base full-chest-base"
 unwarped="lidc-base full-chest-base"
 grep -q '^ensemble_code_sd = 1.0$' "$parent/config.toml" \

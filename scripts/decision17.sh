@@ -11,15 +11,8 @@
 # (OUT/eval-NAME-SET, ≈ 5 min a set and checkpoint) and decision.md. Resumable.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-probe=$(realpath "$1")
-out=${2:-decision17}
-mkdir -p "$out"
-out=$(realpath "$out")
-cargo build --release --quiet
-bin=$PWD/target/release/tomograf
-export MIMALLOC_PURGE_DELAY=-1
-parent=$PWD/model/checkpoints/lidc-full-chest
 . scripts/realistic_sets.sh
+decision_setup "$1" "${2:-decision17}"
 grep -q '"iteration": 64000' "$parent/state.json" && grep -q '^ensemble = 4$' "$parent/config.toml" \
     || { echo "$parent is not decision 14's p (64 000 iterations, ensemble = 4)" >&2; exit 1; }
 

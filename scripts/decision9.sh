@@ -16,14 +16,8 @@
 # then d is trained (≈ 1 h) and scored. Resumable: re-run after a kill.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-probe=$(realpath "$1")
-out=${2:-decision9}
-mkdir -p "$out"
-out=$(realpath "$out")
-cargo build --release --quiet
-bin=$PWD/target/release/tomograf
-export MIMALLOC_PURGE_DELAY=-1
-parent=$PWD/model/checkpoints/lidc-full-chest
+. scripts/realistic_sets.sh
+decision_setup "$1" "${2:-decision9}"
 sets="lidc-deform8 full-chest-deform8 lidc-base full-chest-base"
 unwarped="lidc-base full-chest-base"
 for s in $sets; do
@@ -59,7 +53,6 @@ score b "$out/b"
 score c "$out/c"
 
 # d: the training set of the shipped checkpoint and the same phantoms warped by 5 mm.
-. scripts/realistic_sets.sh
 train_mixhet
 train_set train-d5-lidc 0 lidc --deform 5
 train_set train-d5-fc 300000 full-chest --deform 5

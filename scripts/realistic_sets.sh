@@ -89,3 +89,16 @@ decide() {
         python3 scripts/validation_rule.py "${only[@]}" "$(arm "$1" "$2" $unwarped)" "$(arm "$3" "$4" $unwarped)"
     } | tee "$out/decision.md"
 }
+
+# decision_setup PROBE_OUT OUT: what every decision script (decisions 9–17) starts with: $probe
+# and $out as absolute paths (OUT made), the release binary built as $bin, and the shipped
+# mixed checkpoint as $parent.
+decision_setup() {
+    probe=$(realpath "$1")
+    mkdir -p "$2"
+    out=$(realpath "$2")
+    cargo build --release --quiet
+    bin=$PWD/target/release/tomograf
+    export MIMALLOC_PURGE_DELAY=-1
+    parent=$PWD/model/checkpoints/lidc-full-chest
+}
