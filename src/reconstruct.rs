@@ -8,6 +8,7 @@ use std::path::PathBuf;
 use tomograf_eval::protocol::{ItemReconstruction, paper_poses, reconstruct_item, write_hu};
 use tomograf_model::config::{InferOverrides, Tune};
 use tomograf_model::scatter_correction::ScatterCorrection;
+use tomograf_sim::Volume;
 use tomograf_sim::geometry::angles::parse_pose;
 
 /// Flags that override a checkpoint's inference settings (`reconstruct`, `evaluate`).
@@ -75,6 +76,11 @@ pub struct ReconstructArgs {
     /// bound, not a method), `none` (default). See docs/scatter.md.
     #[arg(long, default_value = "none")]
     pub scatter_correction: ScatterCorrection,
+    /// Also write where the averaged fits disagree: each voxel's standard deviation across
+    /// them, in HU (NIfTI). Needs a checkpoint that averages several fits for this view
+    /// count (`[infer] ensemble`, `ensemble_max_views`).
+    #[arg(long)]
+    pub spread: Option<PathBuf>,
 }
 
 pub fn run(args: ReconstructArgs) -> Result<()> {
@@ -98,6 +104,22 @@ pub fn run(args: ReconstructArgs) -> Result<()> {
         &Bar::default(),
     )?;
     write_hu(&item, &rec.volume, &args.output)?;
+    if let Some(path) = &args.spread {
+        let Some(sd) = &rec.spread else {
+            anyhow::bail!(
+                "--spread {}: the checkpoint fits once for {} view(s) (its [infer] ensemble or \
+                 ensemble_max_views), so there is no spread across fits to write; the \
+                 reconstruction is in {}",
+                path.display(),
+                rec.psnr.len(),
+                args.output.display()
+            );
+        };
+        let width = item.window.hi - item.window.lo;
+        let hu: Vec<f32> = sd.data().iter().map(|&v| v * width).collect();
+        let hu = Volume::new(sd.dims(), sd.spacing(), sd.origin(), sd.direction(), hu)?;
+        tomograf_datasets::nifti::write_nifti(path, &hu)?;
+    }
     eprintln!(
         "{} iterations, PSNR per view {:?} dB (estimated peak memory {:.0} MiB): {}",
         rec.iterations,

@@ -88,6 +88,53 @@ fn train_resume_reconstruct_evaluate() {
     ok(&reconstruct(&[]));
     assert!(vol.is_file());
 
+    // `--spread`: with one fit there is none, and the error says so (the volume is written);
+    // with a checkpoint that averages two fits, each voxel's standard deviation across them
+    // in HU: finite, ≥ 0, on the volume's grid, and not zero everywhere.
+    let spread = tmp.path().join("spread.nii.gz");
+    let out = reconstruct(&["--spread", spread.to_str().unwrap()]);
+    assert!(!out.status.success());
+    let e = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        e.contains("--spread") && e.contains("no spread across fits"),
+        "{e}"
+    );
+    assert!(!spread.exists());
+    let ck2 = tmp.path().join("ensemble");
+    std::fs::create_dir(&ck2).unwrap();
+    for f in std::fs::read_dir(run.join("checkpoint")).unwrap() {
+        let f = f.unwrap().path();
+        std::fs::copy(&f, ck2.join(f.file_name().unwrap())).unwrap();
+    }
+    let config = std::fs::read_to_string(ck2.join("config.toml")).unwrap();
+    assert!(config.contains("[infer]\n"), "{config}");
+    std::fs::write(
+        ck2.join("config.toml"),
+        config.replace("[infer]\n", "[infer]\nensemble = 2\n"),
+    )
+    .unwrap();
+    let item = data.join("00000");
+    ok(&tomograf(&[
+        "reconstruct",
+        item.to_str().unwrap(),
+        "--checkpoint",
+        ck2.to_str().unwrap(),
+        "--iterations",
+        "3",
+        "-o",
+        vol.to_str().unwrap(),
+        "--spread",
+        spread.to_str().unwrap(),
+    ]));
+    let sd = tomograf_datasets::nifti::read_nifti(&spread).unwrap();
+    let v = tomograf_datasets::nifti::read_nifti(&vol).unwrap();
+    assert_eq!(sd.dims(), v.dims());
+    assert!(sd.data().iter().all(|x| x.is_finite() && *x >= 0.0));
+    assert!(
+        sd.data().iter().any(|&x| x > 0.0),
+        "two fits agree everywhere"
+    );
+
     // A stopping threshold every view reaches at once ends inference at the first check
     // (`tiny` checks every 5 iterations; the cap is raised to 12); a threshold that is not
     // a number is refused, naming it.

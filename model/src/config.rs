@@ -310,6 +310,13 @@ impl TrainConfig {
             self.infer.mean_sweeps_weight
         );
         ensure!(
+            self.infer.mean_sweeps_spread.is_finite() && self.infer.mean_sweeps_spread >= 0.0,
+            "infer.mean_sweeps_spread = {} must be a finite number ≥ 0 (the fits' spread, in \
+             normalised density, at which the blend's weight is half of mean_sweeps_weight; \
+             0: a constant weight)",
+            self.infer.mean_sweeps_spread
+        );
+        ensure!(
             self.infer.ensemble >= 1,
             "infer.ensemble = 0: give the number of fits to average (1: one fit)"
         );

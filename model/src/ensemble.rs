@@ -8,6 +8,10 @@
 //! mean, which minimises the expected squared error). Projection is linear, so the mean of
 //! volumes that explain the views explains them as well as the fits do on average.
 //!
+//! Where they disagree is recorded too: each voxel's standard deviation across the fits
+//! (`Fit::spread`), what `[infer] mean_sweeps_spread` weighs the blend with SART-TV from the
+//! mean by ([`crate::reconstruct`]).
+//!
 //! The first fit is the single fit (mean code, `seed`): with `ensemble = 1` nothing
 //! changes. Fit `k ≥ 1` starts from whitened codes drawn from N(0, `ensemble_code_sd`²)
 //! (the training codes' Gaussian, its spread scaled) with seed `seed + k` for its rays.
@@ -28,7 +32,8 @@ const CODE_STREAM: u64 = 0x656e_7365_6d62_6c65;
 /// `infer.ensemble` fits of `generator` to `refs` on `grid` (one with more views than
 /// `infer.ensemble_max_views`), averaged voxel by voxel (see the module's doc). The
 /// result's `tuned` field and codes are the first fit's; its `iterations` and `losses` all
-/// fits' together; its `psnr` the average volume's.
+/// fits' together; its `psnr` the average volume's; its `spread` each voxel's standard
+/// deviation across the fits.
 /// `progress(iteration, loss)` counts on across the fits.
 pub fn fit_ensemble(
     generator: &Generator,
@@ -47,6 +52,7 @@ pub fn fit_ensemble(
     let m = &generator.config.model;
     let starts = starting_codes(seed, fits - 1, infer.ensemble_code_sd, m.z_shape, m.z_app);
     let mut sum: Vec<f64> = first.volume.data().iter().map(|&v| f64::from(v)).collect();
+    let mut sum_sq: Vec<f64> = sum.iter().map(|v| v * v).collect();
     for (k, start) in (1..).zip(starts) {
         let done = first.iterations;
         let fit = fit_network_from(
@@ -59,8 +65,10 @@ pub fn fit_ensemble(
             device,
             &mut |i, loss| progress(done + i, loss),
         )?;
-        for (s, &v) in sum.iter_mut().zip(fit.volume.data()) {
-            *s += f64::from(v);
+        for ((s, q), &v) in sum.iter_mut().zip(&mut sum_sq).zip(fit.volume.data()) {
+            let v = f64::from(v);
+            *s += v;
+            *q += v * v;
         }
         first.iterations += fit.iterations;
         first.losses.extend(fit.losses);
@@ -68,6 +76,19 @@ pub fn fit_ensemble(
     let n = fits as f64;
     let v = &first.volume;
     let mean = sum.iter().map(|s| (s / n) as f32).collect();
+    // Var = E[v²] − E[v]², clamped at 0 against rounding (f64 sums of at most a few fits).
+    let sd = sum
+        .iter()
+        .zip(&sum_sq)
+        .map(|(s, q)| ((q / n - (s / n).powi(2)).max(0.0)).sqrt() as f32)
+        .collect();
+    first.spread = Some(Volume::new(
+        v.dims(),
+        v.spacing(),
+        v.origin(),
+        v.direction(),
+        sd,
+    )?);
     first.volume = Volume::new(v.dims(), v.spacing(), v.origin(), v.direction(), mean)?;
     let state = &generator.state;
     first.psnr = projection_psnr(&first.volume, &state.density_scale, refs, state.proj_scale)?;

@@ -36,6 +36,10 @@ pub struct Fit {
     pub volume: Volume,
     /// Full-image PSNR (dB) of each view against the volume's projection.
     pub psnr: Vec<f64>,
+    /// With several fits averaged ([`crate::ensemble`]): each voxel's standard deviation
+    /// across them (normalised density, the root-mean-square deviation from their mean);
+    /// `None` for a single fit.
+    pub spread: Option<Volume>,
 }
 
 /// The network part of [`crate::reconstruct::reconstruct`]: `generator` (left as it is:
@@ -183,6 +187,7 @@ pub fn fit_network_from(
         losses: losses_seen,
         volume,
         psnr,
+        spread: None,
     })
 }
 

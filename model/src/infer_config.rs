@@ -146,6 +146,15 @@ pub struct InferConfig {
     /// estimate's. 0: the network's volume alone.
     #[serde(default, skip_serializing_if = "is_zero")]
     pub mean_sweeps_weight: f64,
+    /// With `mean_sweeps_weight` = W > 0 and several fits averaged: the blend's weight at
+    /// each voxel is W × s² / (s² + S²) instead of W, where s is the voxel's standard
+    /// deviation across the fits ([`crate::ensemble`]) and S this value, both in normalised
+    /// density (× the HU window's width gives HU: 3072 HU for the presets' [−1024, 2048]).
+    /// SART-TV from the mean is blended in where the fits disagree — where the prior is
+    /// unsure — and not where they agree. With one fit (no spread) nothing is blended.
+    /// 0: the constant weight W everywhere.
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub mean_sweeps_spread: f64,
 }
 
 fn is_zero(x: &f64) -> bool {

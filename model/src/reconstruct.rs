@@ -53,6 +53,9 @@ pub struct Reconstruction {
     pub losses: Vec<f64>,
     /// The fitted codes `(z_sh, z_a)` (not whitened).
     pub codes: (Vec<f32>, Vec<f32>),
+    /// With several fits averaged ([`crate::ensemble`]): each voxel's standard deviation
+    /// across them (normalised density); `None` for a single fit.
+    pub spread: Option<Volume>,
     /// The estimated peak memory, bytes ([`crate::config::TrainConfig::inference_peak_bytes`]),
     /// checked against the memory available before the fit.
     pub peak_bytes: u128,
@@ -191,6 +194,7 @@ pub fn reconstruct(
         losses,
         mut volume,
         mut psnr,
+        spread,
     } = fit;
     let density_scale = generator.state.density_scale;
     let proj_scale = generator.state.proj_scale;
@@ -221,8 +225,17 @@ pub fn reconstruct(
         net.refine_seconds = t0.elapsed().as_secs_f64();
         network = Some(net);
     }
-    if infer.mean_sweeps_weight > 0.0 {
-        volume = blend_with_mean_sweeps(refs, &volume, &generator.prior, &density_scale, infer)?;
+    let blend =
+        infer.mean_sweeps_weight > 0.0 && (infer.mean_sweeps_spread == 0.0 || spread.is_some());
+    if blend {
+        volume = blend_with_mean_sweeps(
+            refs,
+            &volume,
+            spread.as_ref(),
+            &generator.prior,
+            &density_scale,
+            infer,
+        )?;
         psnr = projection_psnr(&volume, &density_scale, refs, proj_scale)?;
     }
     let stats = &generator.codes.stats;
@@ -236,14 +249,17 @@ pub fn reconstruct(
         psnr,
         losses,
         codes: (read(z_sh), read(z_a)),
+        spread,
     })
 }
 
 /// (1 − w) × `volume` + w × SART-TV from the mean training volume alone (`infer`'s sweeps),
-/// w = `infer.mean_sweeps_weight`.
+/// voxel by voxel: w = W = `infer.mean_sweeps_weight`, or, with `infer.mean_sweeps_spread`
+/// = S > 0 and the fits' `spread` s, w = W × s² / (s² + S²).
 fn blend_with_mean_sweeps(
     refs: &[Reference],
     volume: &Volume,
+    spread: Option<&Volume>,
     prior: &crate::prior::MeanVolume,
     density_scale: &crate::render::DensityScale,
     infer: &InferConfig,
@@ -253,12 +269,26 @@ fn blend_with_mean_sweeps(
         mean: 1.0,
     };
     let classical = sweep_from(refs, volume, prior, density_scale, infer, from_mean)?;
-    let w = infer.mean_sweeps_weight as f32;
+    let weight = infer.mean_sweeps_weight;
+    let s2 = infer.mean_sweeps_spread.powi(2);
+    let at = |i: usize| -> f32 {
+        match spread {
+            Some(sd) if s2 > 0.0 => {
+                let v = f64::from(sd.data()[i]).powi(2);
+                (weight * v / (v + s2)) as f32
+            }
+            _ => weight as f32,
+        }
+    };
     let blended = volume
         .data()
         .iter()
         .zip(classical.data())
-        .map(|(&n, &c)| (1.0 - w) * n + w * c)
+        .enumerate()
+        .map(|(i, (&n, &c))| {
+            let w = at(i);
+            (1.0 - w) * n + w * c
+        })
         .collect();
     Ok(Volume::new(
         volume.dims(),

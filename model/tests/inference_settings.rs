@@ -103,11 +103,27 @@ fn an_ensemble_is_the_mean_of_its_fits() {
         .unwrap();
         fits.push(f.volume.data().to_vec());
     }
+    // Its spread: each voxel's standard deviation across the three fits (root-mean-square
+    // deviation from their mean), computed here in two passes; none for one fit.
+    assert!(one.spread.is_none());
+    let sd = three.spread.as_ref().expect("three fits have a spread");
+    assert_eq!(sd.dims(), three.volume.dims());
     for (i, &v) in three.volume.data().iter().enumerate() {
         let want = fits.iter().map(|f| f64::from(f[i])).sum::<f64>() / 3.0;
         assert!(
             (f64::from(v) - want).abs() < 1e-6,
             "voxel {i}: {v} against {want}"
+        );
+        let var = fits
+            .iter()
+            .map(|f| (f64::from(f[i]) - want).powi(2))
+            .sum::<f64>()
+            / 3.0;
+        assert!(
+            (f64::from(sd.data()[i]) - var.sqrt()).abs() < 1e-5,
+            "voxel {i}: spread {} against {}",
+            sd.data()[i],
+            var.sqrt()
         );
     }
     let spread = fits[1]
@@ -172,6 +188,79 @@ fn an_ensemble_is_the_mean_of_its_fits() {
     bad.infer.ensemble_max_views = Some(0);
     let e = bad.validate().unwrap_err().to_string();
     assert!(e.contains("infer.ensemble_max_views = 0"), "{e}");
+}
+
+/// With `mean_sweeps_spread` S and several fits, each voxel blends SART-TV from the mean in
+/// with weight W × s² / (s² + S²), s its spread across the fits: where the fits agree the
+/// network's volume stays, where they disagree it moves towards the classical one; with one
+/// fit nothing is blended; a negative or NaN S is refused by name.
+#[test]
+fn the_spread_weighted_blend_moves_only_where_the_fits_disagree() {
+    let dir = tempfile::tempdir().unwrap();
+    let Setup {
+        item,
+        config,
+        ck,
+        refs,
+        dev,
+    } = untrained_one_item(dir.path());
+    let grid = item.ct.as_ref().unwrap();
+    let settings = SartTvSettings::default();
+    let run = |w: f64, s: f64, fits: usize| {
+        let mut infer = config.infer.clone();
+        infer.iterations = 6;
+        infer.code_iterations = 3;
+        infer.psnr_threshold = 99.0;
+        infer.refine_iterations = settings.sweeps;
+        infer.refine_tv_step = settings.tv_step;
+        infer.ensemble = fits;
+        infer.mean_sweeps_weight = w;
+        infer.mean_sweeps_spread = s;
+        let generator = checkpoint::load_generator(&ck, &dev).unwrap();
+        reconstruct(generator, &refs, grid, &infer, 5, &dev, |_, _| {}).unwrap()
+    };
+    let net = run(0.0, 0.0, 3);
+    let sd = net.spread.as_ref().expect("three fits have a spread");
+    let mut sorted: Vec<f32> = sd.data().to_vec();
+    sorted.sort_by(f32::total_cmp);
+    let big = sorted[sorted.len() / 2];
+    assert!(big > 1e-4, "the fits agree everywhere: median spread {big}");
+    let (w, s) = (0.8, f64::from(big));
+    let blended = run(w, s, 3);
+    let generator = checkpoint::load_generator(&ck, &dev).unwrap();
+    let classical = SartTv::from_mean(generator.prior.clone())
+        .reconstruct(&refs, grid, &generator.state.density_scale)
+        .unwrap();
+    let (mut moved_low, mut moved_high) = (0.0f64, 0.0f64);
+    for (i, &b) in blended.volume.data().iter().enumerate() {
+        let (n, c) = (net.volume.data()[i], classical.data()[i]);
+        let v = f64::from(sd.data()[i]).powi(2);
+        let wv = (w * v / (v + s * s)) as f32;
+        let want = (1.0 - wv) * n + wv * c;
+        assert!((b - want).abs() < 1e-6, "voxel {i}: {b} against {want}");
+        let moved = f64::from((b - n).abs());
+        if sd.data()[i] < big / 4.0 {
+            moved_low = moved_low.max(moved / f64::from((c - n).abs()).max(1e-9));
+        } else if sd.data()[i] > big * 4.0 {
+            moved_high = moved_high.max(moved / f64::from((c - n).abs()).max(1e-9));
+        }
+    }
+    // Where the spread is under a quarter of S the weight is under W / 17; above 4 S, over 16 W / 17.
+    assert!(moved_low <= 0.8 / 17.0 + 1e-4, "{moved_low}");
+    if sorted[sorted.len() - 1] > big * 4.0 {
+        assert!(moved_high >= 0.8 * 16.0 / 17.0 - 1e-4, "{moved_high}");
+    }
+    // One fit: no spread, so nothing is blended (the constant weight is S = 0's).
+    let single = run(w, s, 1);
+    assert!(single.spread.is_none());
+    assert_eq!(single.volume.data(), run(0.0, 0.0, 1).volume.data());
+
+    for bad_s in [-0.1, f64::NAN] {
+        let mut bad = config.clone();
+        bad.infer.mean_sweeps_spread = bad_s;
+        let e = bad.validate().unwrap_err().to_string();
+        assert!(e.contains("infer.mean_sweeps_spread"), "{e}");
+    }
 }
 
 /// w = 1 gives the baseline "SART-TV from the mean" (made by the baseline's own code), w = 0
