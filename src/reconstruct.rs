@@ -5,10 +5,11 @@ use crate::progress::Bar;
 use anyhow::Result;
 use clap::Args;
 use std::path::PathBuf;
-use tomograf_eval::protocol::{ItemReconstruction, paper_poses, reconstruct_item, write_hu};
+use tomograf_eval::protocol::{
+    ItemReconstruction, paper_poses, reconstruct_item, spread_hu, write_hu,
+};
 use tomograf_model::config::{InferOverrides, Tune};
 use tomograf_model::scatter_correction::ScatterCorrection;
-use tomograf_sim::Volume;
 use tomograf_sim::geometry::angles::parse_pose;
 
 /// Flags that override a checkpoint's inference settings (`reconstruct`, `evaluate`).
@@ -115,10 +116,7 @@ pub fn run(args: ReconstructArgs) -> Result<()> {
                 args.output.display()
             );
         };
-        let width = item.window.hi - item.window.lo;
-        let hu: Vec<f32> = sd.data().iter().map(|&v| v * width).collect();
-        let hu = Volume::new(sd.dims(), sd.spacing(), sd.origin(), sd.direction(), hu)?;
-        tomograf_datasets::nifti::write_nifti(path, &hu)?;
+        tomograf_datasets::nifti::write_nifti(path, &spread_hu(&item, sd)?)?;
     }
     eprintln!(
         "{} iterations, PSNR per view {:?} dB (estimated peak memory {:.0} MiB): {}",

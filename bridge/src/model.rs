@@ -10,7 +10,7 @@ use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use std::path::PathBuf;
 use tomograf_eval::evaluation::{DEFAULT_PCA_NOISE, Evaluation, evaluate as run_evaluation, merge};
-use tomograf_eval::protocol::{ItemReconstruction, hu, paper_poses, reconstruct_item};
+use tomograf_eval::protocol::{ItemReconstruction, hu, paper_poses, reconstruct_item, spread_hu};
 use tomograf_eval::tuning::BaselineSettings;
 use tomograf_model::config::{InferOverrides, Tune};
 use tomograf_model::scatter_correction::ScatterCorrection;
@@ -50,9 +50,11 @@ fn correction(name: &str) -> PyResult<ScatterCorrection> {
 /// checkpoint's inference settings; ``scatter_correction`` is ``"none"``, ``"prior"`` or
 /// ``"oracle"``. ``progress(stage, done, total, message)`` is called per iteration.
 ///
-/// Returns a dict: ``volume`` (a :class:`Volume` in HU on the item's CT grid),
-/// ``iterations``, ``psnr_db`` (per input view, of the rendered rays) and ``notes`` (the
-/// lines the command line prints).
+/// Returns a dict: ``volume`` (a :class:`Volume` in HU on the item's CT grid), ``spread``
+/// (where a checkpoint averages several fits for this view count: each voxel's standard
+/// deviation across them, a :class:`Volume` in HU; else ``None``), ``iterations``,
+/// ``psnr_db`` (per input view, of the rendered rays) and ``notes`` (the lines the command
+/// line prints).
 #[pyfunction]
 #[pyo3(signature = (item, checkpoint, *, views=1, poses=None, iterations=None,
     psnr_threshold=None, refine=None, tune=None, seed=0, backend=None,
@@ -92,12 +94,21 @@ pub fn reconstruct<'py>(
     let reporter = PyProgress::new(progress);
     let done = py.detach(|| -> anyhow::Result<_> {
         let (item, rec) = reconstruct_item(&job, &reporter)?;
-        Ok((hu(&item, &rec.volume)?, rec.iterations, rec.psnr))
+        let spread = rec
+            .spread
+            .as_ref()
+            .map(|s| spread_hu(&item, s))
+            .transpose()?;
+        Ok((hu(&item, &rec.volume)?, spread, rec.iterations, rec.psnr))
     });
     let notes = reporter.finish(py)?;
-    let (volume, iterations, psnr) = done.map_err(|e| errors::value(format!("{e:#}")))?;
+    let (volume, spread, iterations, psnr) = done.map_err(|e| errors::value(format!("{e:#}")))?;
     let d = PyDict::new(py);
     d.set_item("volume", Py::new(py, PyVolume::wrap(volume))?)?;
+    match spread {
+        Some(s) => d.set_item("spread", Py::new(py, PyVolume::wrap(s))?)?,
+        None => d.set_item("spread", py.None())?,
+    }
     d.set_item("iterations", iterations)?;
     d.set_item("psnr_db", psnr)?;
     d.set_item("notes", notes)?;

@@ -42,6 +42,21 @@ def test_reconstruct_is_the_cli_reconstruction(tmp_path, cli, test_set):
     assert by_pose["volume"].array.tobytes() == ours.array.tobytes()
 
 
+def test_reconstruct_returns_the_ensembles_spread(tmp_path, cli, test_set):
+    """The demo checkpoint fits once: no spread. The mixed one averages four fits from one
+    view: its spread (HU) is the command line's `--spread` file bit for bit, ≥ 0 and not
+    zero everywhere."""
+    item = test_set / "00000"
+    assert tomograf.reconstruct(item, CHECKPOINT, iterations=2)["spread"] is None
+    mixed = ROOT / "model" / "checkpoints" / "lidc-full-chest"
+    cli("reconstruct", item, "--checkpoint", mixed, "-o", tmp_path / "v.nii.gz",
+        "--iterations", "2", "--spread", tmp_path / "sd.nii.gz")
+    ours = tomograf.reconstruct(item, mixed, iterations=2)["spread"]
+    theirs = tomograf.Volume.load(tmp_path / "sd.nii.gz")
+    assert ours.array.tobytes() == theirs.array.tobytes()
+    assert ours.array.min() >= 0 and ours.array.max() > 0
+
+
 def test_evaluate_scores_as_the_cli_does(tmp_path, cli, test_set):
     cli("evaluate", test_set, "--checkpoint", CHECKPOINT, "-o", tmp_path / "cli",
         "--views", "1", "--iterations", "3", "--no-baselines")

@@ -254,6 +254,20 @@ pub fn hu(item: &Item, volume: &Volume) -> Result<Volume> {
     Ok(item.window.denormalize(volume)?)
 }
 
+/// A spread of normalised density (the ensemble's voxel-wise standard deviation,
+/// [`Reconstruction::spread`]) in HU: scaled by the width of `item`'s HU window, not shifted.
+pub fn spread_hu(item: &Item, spread: &Volume) -> Result<Volume> {
+    let width = item.window.hi - item.window.lo;
+    let hu = spread.data().iter().map(|&v| v * width).collect();
+    Ok(Volume::new(
+        spread.dims(),
+        spread.spacing(),
+        spread.origin(),
+        spread.direction(),
+        hu,
+    )?)
+}
+
 /// Writes a normalised volume as NIfTI in HU.
 pub fn write_hu(item: &Item, volume: &Volume, path: &Path) -> Result<()> {
     tomograf_datasets::nifti::write_nifti(path, &hu(item, volume)?)?;

@@ -323,8 +323,10 @@ def reconstruct(
     72°, 10 = every 36°); ``poses`` (``["ap", "lateral"]``, ``["0", "45,10"]``: θ or θ,φ in
     degrees) instead. The other keywords override the checkpoint's inference settings.
     ``progress(stage, done, total, message)`` is called per iteration. Returns ``volume``
-    (a Volume in HU on the item's CT grid), ``iterations``, ``psnr_db`` (per input view)
-    and ``notes`` (the lines the command line prints)."""
+    (a Volume in HU on the item's CT grid), ``spread`` (where the checkpoint averages
+    several fits for this view count, each voxel's standard deviation across them: a Volume
+    in HU; else None), ``iterations``, ``psnr_db`` (per input view) and ``notes`` (the
+    lines the command line prints)."""
 
 def evaluate(
     data: Union[str, "PathLike[str]"],
