@@ -22,6 +22,9 @@ cd "$(dirname "$0")/.."
 decision_setup "$1" "${2:-decision18}"
 grep -q '"iteration": 72000' "$parent/state.json" && grep -q '^ensemble = 4$' "$parent/config.toml" \
     || { echo "$parent is not decision 17's q (72 000 iterations, ensemble = 4)" >&2; exit 1; }
+# Since decision 18 the shipped checkpoint carries r's setting: q is the commit before (e826753a).
+! grep -q '^mean_sweeps_spread' "$parent/config.toml" \
+    || { echo "$parent already carries decision 18's blend: run this from commit e826753a" >&2; exit 1; }
 py=${PYTHON:-python3}
 "$py" -c "import numpy, nibabel" \
     || { echo "decision18_grid.py needs numpy and nibabel: PYTHON=/path/to/python" >&2; exit 1; }

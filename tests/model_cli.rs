@@ -557,8 +557,8 @@ fn model_bench_prints_ratios_against_its_baselines() {
 /// `state.json` records, with the demo checkpoint's
 /// inference settings. It loads and reconstructs a 64³ full-chest phantom from one view to
 /// a finite volume, and its settings differ from the demo checkpoint's in nothing but what
-/// it learnt, for how long, the open gate from 5 views and the four fits averaged from one
-/// view its own validation chose (decision 14).
+/// it learnt, for how long, the open gate from 5 views, the four fits averaged from one view
+/// and the blend where they disagree its own validation chose (decisions 14 and 18).
 #[test]
 fn the_mixed_population_checkpoint_reconstructs() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("model/checkpoints");
@@ -587,10 +587,17 @@ fn the_mixed_population_checkpoint_reconstructs() {
     let text = std::fs::read_to_string(mixed.join("config.toml")).unwrap();
     assert!(text.contains("\nrefine_always_from_views = 5\n"), "{text}");
     assert!(
-        text.trim_end()
-            .ends_with("ensemble = 4\nensemble_code_sd = 1.0\nensemble_max_views = 1"),
+        text.contains("\nensemble = 4\nensemble_code_sd = 1.0\nensemble_max_views = 1\n"),
         "{text}"
     );
+    // Decision 18: SART-TV from the mean blended in where the one-view fits disagree, at
+    // half weight where their spread is 100 HU (100 / 3072 of the window).
+    assert!(
+        text.trim_end()
+            .ends_with("\nmean_sweeps_weight = 0.5\nmean_sweeps_spread = 0.032552083333333336"),
+        "{text}"
+    );
+    assert!((0.032552083333333336f64 * 3072.0 - 100.0).abs() < 1e-9);
     let tmp = tempfile::tempdir().unwrap();
     let data = tmp.path().join("data");
     ok(&tomograf(&[
