@@ -258,14 +258,7 @@ pub fn hu(item: &Item, volume: &Volume) -> Result<Volume> {
 /// [`Reconstruction::spread`]) in HU: scaled by the width of `item`'s HU window, not shifted.
 pub fn spread_hu(item: &Item, spread: &Volume) -> Result<Volume> {
     let width = item.window.hi - item.window.lo;
-    let hu = spread.data().iter().map(|&v| v * width).collect();
-    Ok(Volume::new(
-        spread.dims(),
-        spread.spacing(),
-        spread.origin(),
-        spread.direction(),
-        hu,
-    )?)
+    Ok(spread.map(|v| v * width)?)
 }
 
 /// Writes a normalised volume as NIfTI in HU.

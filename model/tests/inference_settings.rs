@@ -51,6 +51,33 @@ fn untrained_one_item(dir: &Path) -> Setup {
     }
 }
 
+/// `config`'s inference cut short (6 iterations, 3 of them codes alone, no early stop),
+/// with the data-consistency sweeps of SART-TV's defaults: what the blend tests run.
+fn short_fit_with_sweeps(config: &TrainConfig) -> tomograf_model::config::InferConfig {
+    let settings = SartTvSettings::default();
+    let mut infer = config.infer.clone();
+    infer.iterations = 6;
+    infer.code_iterations = 3;
+    infer.psnr_threshold = 99.0;
+    infer.refine_iterations = settings.sweeps;
+    infer.refine_tv_step = settings.tv_step;
+    infer
+}
+
+/// The baseline "SART-TV from the mean" of the checkpoint in `ck`, made by the baseline's
+/// own code.
+fn sart_tv_from_mean(
+    ck: &Path,
+    refs: &[Reference],
+    grid: &tomograf_sim::Volume,
+    dev: &burn::tensor::Device,
+) -> tomograf_sim::Volume {
+    let generator = checkpoint::load_generator(ck, dev).unwrap();
+    SartTv::from_mean(generator.prior.clone())
+        .reconstruct(refs, grid, &generator.state.density_scale)
+        .unwrap()
+}
+
 /// The ensemble's volume is the voxel-wise mean of its fits, each fit made on its own
 /// (first from the mean code with the ensemble's seed, the others from
 /// `starting_codes` with their own seeds); one fit is the plain fit, byte for byte; the
@@ -205,14 +232,8 @@ fn the_spread_weighted_blend_moves_only_where_the_fits_disagree() {
         dev,
     } = untrained_one_item(dir.path());
     let grid = item.ct.as_ref().unwrap();
-    let settings = SartTvSettings::default();
     let run = |w: f64, s: f64, fits: usize| {
-        let mut infer = config.infer.clone();
-        infer.iterations = 6;
-        infer.code_iterations = 3;
-        infer.psnr_threshold = 99.0;
-        infer.refine_iterations = settings.sweeps;
-        infer.refine_tv_step = settings.tv_step;
+        let mut infer = short_fit_with_sweeps(&config);
         infer.ensemble = fits;
         infer.mean_sweeps_weight = w;
         infer.mean_sweeps_spread = s;
@@ -227,10 +248,7 @@ fn the_spread_weighted_blend_moves_only_where_the_fits_disagree() {
     assert!(big > 1e-4, "the fits agree everywhere: median spread {big}");
     let (w, s) = (0.8, f64::from(big));
     let blended = run(w, s, 3);
-    let generator = checkpoint::load_generator(&ck, &dev).unwrap();
-    let classical = SartTv::from_mean(generator.prior.clone())
-        .reconstruct(&refs, grid, &generator.state.density_scale)
-        .unwrap();
+    let classical = sart_tv_from_mean(&ck, &refs, grid, &dev);
     let (mut moved_low, mut moved_high) = (0.0f64, 0.0f64);
     for (i, &b) in blended.volume.data().iter().enumerate() {
         let (n, c) = (net.volume.data()[i], classical.data()[i]);
@@ -277,14 +295,8 @@ fn the_blend_runs_from_the_network_to_sart_tv_from_the_mean() {
         dev,
     } = untrained_one_item(dir.path());
     let grid = item.ct.as_ref().unwrap();
-    let settings = SartTvSettings::default();
     let run = |w: f64| {
-        let mut infer = config.infer.clone();
-        infer.iterations = 6;
-        infer.code_iterations = 3;
-        infer.psnr_threshold = 99.0;
-        infer.refine_iterations = settings.sweeps;
-        infer.refine_tv_step = settings.tv_step;
+        let mut infer = short_fit_with_sweeps(&config);
         infer.refine_below_db = 200.0; // the sweeps from the network run too
         infer.mean_sweeps_weight = w;
         let generator = checkpoint::load_generator(&ck, &dev).unwrap();
@@ -293,9 +305,7 @@ fn the_blend_runs_from_the_network_to_sart_tv_from_the_mean() {
     let (r0, r1, half) = (run(0.0), run(1.0), run(0.5));
     let generator = checkpoint::load_generator(&ck, &dev).unwrap();
     let state = &generator.state;
-    let baseline = SartTv::from_mean(generator.prior.clone())
-        .reconstruct(&refs, grid, &state.density_scale)
-        .unwrap();
+    let baseline = sart_tv_from_mean(&ck, &refs, grid, &dev);
     let max_diff = |a: &[f32], b: &[f32]| {
         a.iter()
             .zip(b)
