@@ -22,7 +22,7 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 . scripts/realistic_sets.sh
 decision_setup "$1" "${2:-decision19}"
-d18=$(realpath "${D18_OUT:?D18_OUT=decision 18's output folder (scripts/decision18.sh)}")/tune
+d18=$(realpath "${D18_OUT:?set D18_OUT to the output folder of scripts/decision18.sh}")/tune
 [ -d "$d18" ] || { echo "$d18: no decision 18 tuning data" >&2; exit 1; }
 grep -q '"iteration": 72000' "$parent/state.json" \
     && grep -q '^ensemble = 4$' "$parent/config.toml" \
