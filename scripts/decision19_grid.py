@@ -12,7 +12,8 @@ sd.nii.gz). Each setting (c, W, S) blends as decision 18 does, (1 − w) × net 
 with w = W × sd² / (sd² + S²) voxel by voxel, and is scored by body PSNR as
 model/src/metrics.rs scores it (decision18_grid.body_psnr). The shipped checkpoint q is
 c = 1, W = 0.5, S = 100 HU. Prints the mean per set and over the phantoms per setting and the
-rule's choice: the highest mean among c ≠ 1, if above q's; else none.
+rule's choice: the highest mean among c ≠ 1, if above q's; else none. Then, for reading, the
+fits' mean spread inside the body (HU) per set and c.
 
 numpy and nibabel.
 """
@@ -41,6 +42,7 @@ def main():
     if not code_sds:
         sys.exit(f"{tune}: no cC folder")
     rows = []  # (set, id, {setting: score})
+    spreads = []  # (set, {c: mean spread in the body, HU})
     for d in sorted(p for p in d18.glob("*/*") if (p / "classical.nii.gz").is_file()):
         item = pathlib.Path((d / "item.txt").read_text().strip())
         window = json.loads((item / "item.json").read_text())["hu_window"]
@@ -53,16 +55,20 @@ def main():
             wv = w * sd**2 / (sd**2 + s**2)
             return body_psnr((1 - wv) * net + wv * classical, truth, lo, hi, mask)
 
-        scores = {SHIPPED: blended(load(d / "net.nii.gz"), load(d / "sd.nii.gz"), 0.5, 100.0)}
+        sd1 = load(d / "sd.nii.gz")
+        scores = {SHIPPED: blended(load(d / "net.nii.gz"), sd1, 0.5, 100.0)}
+        spread = {1.0: float(sd1[mask].mean())}
         for c in code_sds:
             cd = tune / f"c{c:g}" / d.parent.name / d.name
             if not (cd / "sd.nii.gz").is_file():
                 sys.exit(f"{cd}: no sd.nii.gz (scripts/decision19.sh makes it)")
             net, sd = load(cd / "net.nii.gz"), load(cd / "sd.nii.gz")
+            spread[c] = float(sd[mask].mean())
             for w in WEIGHTS:
                 for s in SPREADS_HU:
                     scores[(c, w, s)] = blended(net, sd, w, s)
         rows.append((d.parent.name, d.name, scores))
+        spreads.append((d.parent.name, spread))
     if not rows:
         sys.exit(f"{d18}: no phantom with net.nii.gz, sd.nii.gz and classical.nii.gz")
 
@@ -86,6 +92,13 @@ def main():
     else:
         print(f"chosen: none (the best, c = {best[0]:g}, W = {best[1]:g}, S = {best[2]:g} HU, "
               f"{mean[best]:.3f} dB, is not above {mean[SHIPPED]:.3f} as shipped)")
+    print("\n### The fits' spread: mean inside the body (HU), mean over the set's phantoms\n")
+    cs = [1.0, *code_sds]
+    print("| set | " + " | ".join(f"c = {c:g}" for c in cs) + " |")
+    print("|---|" + "---:|" * len(cs))
+    for s in sets:
+        print(f"| {s} | " + " | ".join(
+            f"{np.mean([sp[c] for n, sp in spreads if n == s]):.1f}" for c in cs) + " |")
 
 
 if __name__ == "__main__":
