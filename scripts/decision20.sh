@@ -1,0 +1,92 @@
+#!/usr/bin/env bash
+# Issue 47, decision 20 (docs/real-ct/decision20-RULE.txt, written before its candidate existed
+# in code, before any setting was scored and before its qualifying sets were made): the
+# spread-weighted blend with SART-TV from the mean given the weight W2 in place of W when the
+# fits' average explains the one view below P dB ([infer] mean_sweeps_below_db,
+# mean_sweeps_weight_below).
+#
+#   PYTHON=… D18_OUT=DECISION18_OUT scripts/decision20.sh [OUT]
+#
+# D18_OUT: decision 18's folder (scripts/decision18.sh), whose tune/ holds per W and U phantom the
+# shipped networks' one-view volume, its fits' spread, SART-TV from the mean volume and the log
+# with the volume's projection PSNR. Steps, each skipped when its output exists (resumable):
+#   1. the grid (scripts/decision20_grid.py → OUT/grid.md; ≈ 1 min): the setting with the
+#      highest mean body PSNR over the 24 phantoms, if above the shipped one's; else the script
+#      stops;
+#   2. new sets W'' and U'' (OUT/val) and the shipped checkpoint q scored on them from one view
+#      (OUT/eval-q-SET; ≈ 15 min on 2 cores); with STOP_AFTER_Q=1 the script stops here;
+#   3. the chosen setting as a checkpoint copy (OUT/r), scored the same way (OUT/eval-r-SET);
+#   4. the rule (scripts/validation_rule.py) → OUT/decision.md.
+# BIN: the tomograf binary to use (default: target/release/tomograf, built here).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+. scripts/realistic_sets.sh
+out_arg=${1:-decision20}
+decision_setup . "$out_arg"
+bin=${BIN:-$bin}
+d18=$(realpath "${D18_OUT:?set D18_OUT to the output folder of scripts/decision18.sh}")/tune
+[ -d "$d18" ] || { echo "$d18: no decision 18 tuning data" >&2; exit 1; }
+grep -q '"iteration": 72000' "$parent/state.json" \
+    && grep -q '^mean_sweeps_weight = 0.5$' "$parent/config.toml" \
+    && grep -q '^mean_sweeps_spread = 0.032552083333333336$' "$parent/config.toml" \
+    && ! grep -q '^mean_sweeps_below_db' "$parent/config.toml" \
+    || { echo "$parent is not decision 18's q (72 000 it., W = 0.5, S = 100 HU, no P)" >&2; exit 1; }
+py=${PYTHON:-python3}
+"$py" -c "import numpy, nibabel" \
+    || { echo "decision20_grid.py needs numpy and nibabel: PYTHON=/path/to/python" >&2; exit 1; }
+
+# 1. The grid.
+"$py" scripts/decision20_grid.py "$d18" | tee "$out/grid.md"
+chosen=$(grep '^chosen: ' "$out/grid.md")
+case "$chosen" in
+    "chosen: none"*) echo "no setting is above the shipped one: q stays" | tee "$out/decision.md"; exit 0 ;;
+esac
+read -r w w2 s_hu p_db < <(sed -E \
+    's/^chosen: W = ([0-9.]+), W2 = ([0-9.]+), S = ([0-9.]+) HU, P = ([0-9.]+) dB.*/\1 \2 \3 \4/' <<< "$chosen")
+
+# 2. W'' and U'': new phantoms, made as scripts/prior_probe.sh makes its sets; q scored on them.
+common=(--size 64 --views 10 --split val --preset kv-flat-panel-120kvp --heterogeneity 60)
+for variant_flags in "base" "deform8 --deform 8"; do
+    read -r vname vflags <<< "$variant_flags"
+    for pop in "lidc 78000 16" "full-chest 88000 13"; do
+        read -r profile seed augment <<< "$pop"
+        # shellcheck disable=SC2086 # vflags, word-split on purpose
+        [ -f "$out/val/$profile-$vname/manifest.jsonl" ] || $bin dataset -o "$out/val/$profile-$vname" \
+            --phantoms 6 --seed "$seed" --profile "$profile" --augment "$augment" "${common[@]}" $vflags
+    done
+done
+warped="lidc-deform8 full-chest-deform8"
+unwarped="lidc-base full-chest-base"
+for s in $warped $unwarped; do
+    [ -f "$out/eval-q-$s/results.csv" ] || $bin evaluate "$out/val/$s" \
+        --checkpoint "$parent" --views 1 --no-baselines -o "$out/eval-q-$s"
+done
+[ "${STOP_AFTER_Q:-0}" = 1 ] && { echo "q scored; stopping as STOP_AFTER_Q asks"; exit 0; }
+
+# 3. r: q with the chosen setting (S in normalised density: HU over the window's 3072 HU).
+if [ ! -f "$out/r/config.toml" ]; then
+    rm -rf "$out/r.tmp"
+    cp -r "$parent" "$out/r.tmp"
+    s_norm=$(python3 -c "print(repr($s_hu / 3072.0))")
+    w_f=$(python3 -c "print(repr(float($w)))")
+    w2_f=$(python3 -c "print(repr(float($w2)))")
+    p_f=$(python3 -c "print(repr(float($p_db)))")
+    sed -i "s/^mean_sweeps_weight = .*/mean_sweeps_weight = $w_f/; s/^mean_sweeps_spread = .*/mean_sweeps_spread = $s_norm/; \$a mean_sweeps_below_db = $p_f\nmean_sweeps_weight_below = $w2_f" \
+        "$out/r.tmp/config.toml"
+    mv "$out/r.tmp" "$out/r"
+fi
+for s in $warped $unwarped; do
+    [ -f "$out/eval-r-$s/results.csv" ] || $bin evaluate "$out/val/$s" \
+        --checkpoint "$out/r" --views 1 --no-baselines -o "$out/eval-r-$s"
+done
+
+# 4. The rule.
+# shellcheck disable=SC2086 # the set lists, word-split on purpose
+{
+    echo "$chosen"
+    echo "## Rule (i): W'' and U'' together"
+    python3 scripts/validation_rule.py "$(arm q "$out/eval-q-" $warped $unwarped)" \
+        "$(arm r "$out/eval-r-" $warped $unwarped)"
+    echo "## Rule (ii): U'' alone"
+    python3 scripts/validation_rule.py "$(arm q "$out/eval-q-" $unwarped)" "$(arm r "$out/eval-r-" $unwarped)"
+} | tee "$out/decision.md"
