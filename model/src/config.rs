@@ -304,10 +304,31 @@ impl TrainConfig {
             self.infer.mean_sweeps_weight
         );
         ensure!(
-            self.infer.mean_sweeps_weight == 0.0 || self.infer.refine_iterations > 0,
-            "infer.mean_sweeps_weight = {} blends in SART-TV from the mean, which needs \
-             refine_iterations ≥ 1 sweeps (it is 0)",
-            self.infer.mean_sweeps_weight
+            self.infer.mean_sweeps_below_db.is_some()
+                == self.infer.mean_sweeps_weight_below.is_some(),
+            "infer.mean_sweeps_below_db and infer.mean_sweeps_weight_below go together: give \
+             both (the PSNR in dB below which the blend's weight changes, and that weight) or \
+             neither"
+        );
+        if let Some(db) = self.infer.mean_sweeps_below_db {
+            ensure!(
+                db.is_finite(),
+                "infer.mean_sweeps_below_db = {db} must be a finite PSNR in dB"
+            );
+        }
+        if let Some(w) = self.infer.mean_sweeps_weight_below {
+            ensure!(
+                (0.0..=1.0).contains(&w),
+                "infer.mean_sweeps_weight_below = {w} must be in [0, 1] (the weight of SART-TV \
+                 from the mean when the views are explained below mean_sweeps_below_db)"
+            );
+        }
+        ensure!(
+            self.infer.mean_sweeps_weight_max() == 0.0 || self.infer.refine_iterations > 0,
+            "infer.mean_sweeps_weight = {} (mean_sweeps_weight_below = {:?}) blends in SART-TV \
+             from the mean, which needs refine_iterations ≥ 1 sweeps (it is 0)",
+            self.infer.mean_sweeps_weight,
+            self.infer.mean_sweeps_weight_below
         );
         ensure!(
             self.infer.mean_sweeps_spread.is_finite() && self.infer.mean_sweeps_spread >= 0.0,

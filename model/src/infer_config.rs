@@ -155,6 +155,19 @@ pub struct InferConfig {
     /// 0: the constant weight W everywhere.
     #[serde(default, skip_serializing_if = "is_zero")]
     pub mean_sweeps_spread: f64,
+    /// With `mean_sweeps_weight_below`: when the mean over the views of the network volume's
+    /// projection PSNR (dB, after its sweeps when they ran: what `reconstruct` reports per
+    /// view) is below this, the blend's W is `mean_sweeps_weight_below` in place of
+    /// `mean_sweeps_weight`. A view the prior explains less well than in-distribution inputs
+    /// do is a sign that its anatomy is wrong; there SART-TV from the mean is trusted more.
+    /// The threshold holds for the detector and noise it was chosen at (a noisier view fits
+    /// to a lower PSNR whatever the anatomy). `None`: W always.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub mean_sweeps_below_db: Option<f64>,
+    /// The blend's W when the views' projection PSNR is below `mean_sweeps_below_db`, in
+    /// [0, 1]; given with it or not at all.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub mean_sweeps_weight_below: Option<f64>,
 }
 
 fn is_zero(x: &f64) -> bool {
@@ -262,6 +275,29 @@ pub struct InferOverrides {
 }
 
 impl InferConfig {
+    /// The blend's W for views whose projection PSNRs (dB) are `psnr`:
+    /// `mean_sweeps_weight_below` when their mean is below `mean_sweeps_below_db`, else
+    /// `mean_sweeps_weight`.
+    pub fn mean_sweeps_weight_for(&self, psnr: &[f64]) -> f64 {
+        match (self.mean_sweeps_below_db, self.mean_sweeps_weight_below) {
+            (Some(db), Some(w)) if !psnr.is_empty() => {
+                let mean = psnr.iter().sum::<f64>() / psnr.len() as f64;
+                if mean < db {
+                    w
+                } else {
+                    self.mean_sweeps_weight
+                }
+            }
+            _ => self.mean_sweeps_weight,
+        }
+    }
+
+    /// The largest blend weight these settings can give (the sweeps must run for it).
+    pub fn mean_sweeps_weight_max(&self) -> f64 {
+        self.mean_sweeps_weight
+            .max(self.mean_sweeps_weight_below.unwrap_or(0.0))
+    }
+
     /// The number of fits averaged for `views` reference views: `ensemble`, or 1 with
     /// more views than `ensemble_max_views`.
     pub fn ensemble_fits(&self, views: usize) -> usize {
@@ -295,10 +331,12 @@ impl InferConfig {
         }
         if let Some(n) = o.refine_iterations {
             ensure!(
-                n > 0 || c.mean_sweeps_weight == 0.0,
+                n > 0 || c.mean_sweeps_weight_max() == 0.0,
                 "0 data-consistency sweeps, but the checkpoint's infer.mean_sweeps_weight = {} \
-                 blends in SART-TV from the mean, which needs at least 1",
-                c.mean_sweeps_weight
+                 (mean_sweeps_weight_below = {:?}) blends in SART-TV from the mean, which \
+                 needs at least 1",
+                c.mean_sweeps_weight,
+                c.mean_sweeps_weight_below
             );
             c.refine_iterations = n;
         }

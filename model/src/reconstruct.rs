@@ -225,8 +225,8 @@ pub fn reconstruct(
         net.refine_seconds = t0.elapsed().as_secs_f64();
         network = Some(net);
     }
-    let blend =
-        infer.mean_sweeps_weight > 0.0 && (infer.mean_sweeps_spread == 0.0 || spread.is_some());
+    let weight = infer.mean_sweeps_weight_for(&psnr);
+    let blend = weight > 0.0 && (infer.mean_sweeps_spread == 0.0 || spread.is_some());
     if blend {
         volume = blend_with_mean_sweeps(
             refs,
@@ -235,6 +235,7 @@ pub fn reconstruct(
             &generator.prior,
             &density_scale,
             infer,
+            weight,
         )?;
         psnr = projection_psnr(&volume, &density_scale, refs, proj_scale)?;
     }
@@ -254,8 +255,9 @@ pub fn reconstruct(
 }
 
 /// (1 − w) × `volume` + w × SART-TV from the mean training volume alone (`infer`'s sweeps),
-/// voxel by voxel: w = W = `infer.mean_sweeps_weight`, or, with `infer.mean_sweeps_spread`
-/// = S > 0 and the fits' `spread` s, w = W × s² / (s² + S²).
+/// voxel by voxel: w = W = `weight` ([`InferConfig::mean_sweeps_weight_for`] the volume's
+/// views), or, with `infer.mean_sweeps_spread` = S > 0 and the fits' `spread` s,
+/// w = W × s² / (s² + S²).
 fn blend_with_mean_sweeps(
     refs: &[Reference],
     volume: &Volume,
@@ -263,13 +265,13 @@ fn blend_with_mean_sweeps(
     prior: &crate::prior::MeanVolume,
     density_scale: &crate::render::DensityScale,
     infer: &InferConfig,
+    weight: f64,
 ) -> Result<Volume> {
     let from_mean = StartWeights {
         network: 0.0,
         mean: 1.0,
     };
     let classical = sweep_from(refs, volume, prior, density_scale, infer, from_mean)?;
-    let weight = infer.mean_sweeps_weight;
     let s2 = infer.mean_sweeps_spread.powi(2);
     let at = |i: usize| -> f32 {
         match spread {

@@ -1,6 +1,7 @@
 //! Inference settings beyond the single fit (`tiny` model): `[infer] ensemble` (several fits
 //! from drawn starting codes, averaged) and `mean_sweeps_weight` (the final volume shrunk
-//! towards SART-TV from the mean).
+//! towards SART-TV from the mean, its weight set by the fits' spread and the views'
+//! projection PSNR).
 
 mod common;
 
@@ -346,4 +347,70 @@ fn the_blend_runs_from_the_network_to_sart_tv_from_the_mean() {
     bad.infer.refine_iterations = 0;
     let e = bad.validate().unwrap_err().to_string();
     assert!(e.contains("needs refine_iterations ≥ 1"), "{e}");
+}
+
+/// `mean_sweeps_below_db` P with `mean_sweeps_weight_below` W2: when the views' mean
+/// projection PSNR (the network volume's, what the blend sees) is below P the blend's W is
+/// W2, otherwise W — each byte for byte the plain blend with that weight; with W = 0 the blend
+/// runs only below P; the two settings come together or not at all; a W2 outside [0, 1] or a
+/// NaN P is refused by name.
+#[test]
+fn the_blend_takes_its_other_weight_below_the_psnr_threshold() {
+    let dir = tempfile::tempdir().unwrap();
+    let Setup {
+        item,
+        config,
+        ck,
+        refs,
+        dev,
+    } = untrained_one_item(dir.path());
+    let grid = item.ct.as_ref().unwrap();
+    let run = |w: f64, below: Option<(f64, f64)>| {
+        let mut infer = short_fit_with_sweeps(&config);
+        infer.ensemble = 3;
+        infer.mean_sweeps_spread = 0.02;
+        infer.mean_sweeps_weight = w;
+        infer.mean_sweeps_below_db = below.map(|b| b.0);
+        infer.mean_sweeps_weight_below = below.map(|b| b.1);
+        let generator = checkpoint::load_generator(&ck, &dev).unwrap();
+        reconstruct(generator, &refs, grid, &infer, 5, &dev, |_, _| {}).unwrap()
+    };
+    let net = run(0.0, None);
+    let p = net.psnr.iter().sum::<f64>() / net.psnr.len() as f64;
+    assert!(p.is_finite(), "{:?}", net.psnr);
+    let (plain_lo, plain_hi) = (run(0.2, None), run(0.9, None));
+    assert_ne!(plain_lo.volume.data(), plain_hi.volume.data());
+    let below = run(0.2, Some((p + 1.0, 0.9)));
+    assert_eq!(below.volume.data(), plain_hi.volume.data());
+    let above = run(0.2, Some((p - 1.0, 0.9)));
+    assert_eq!(above.volume.data(), plain_lo.volume.data());
+    assert_eq!(
+        run(0.0, Some((p + 1.0, 0.9))).volume.data(),
+        plain_hi.volume.data()
+    );
+    assert_eq!(
+        run(0.0, Some((p - 1.0, 0.9))).volume.data(),
+        net.volume.data()
+    );
+
+    let mut infer = config.infer.clone();
+    infer.mean_sweeps_weight = 0.25;
+    infer.mean_sweeps_below_db = Some(36.0);
+    infer.mean_sweeps_weight_below = Some(1.0);
+    assert_eq!(infer.mean_sweeps_weight_for(&[30.0, 41.0]), 1.0);
+    assert_eq!(infer.mean_sweeps_weight_for(&[36.0]), 0.25);
+
+    let mut bad = config.clone();
+    bad.infer.mean_sweeps_below_db = Some(38.0);
+    let e = bad.validate().unwrap_err().to_string();
+    assert!(e.contains("go together"), "{e}");
+    bad.infer.mean_sweeps_weight_below = Some(1.5);
+    let e = bad.validate().unwrap_err().to_string();
+    assert!(e.contains("infer.mean_sweeps_weight_below = 1.5"), "{e}");
+    bad.infer.mean_sweeps_weight_below = Some(1.0);
+    bad.infer.mean_sweeps_below_db = Some(f64::NAN);
+    let e = bad.validate().unwrap_err().to_string();
+    assert!(e.contains("infer.mean_sweeps_below_db = NaN"), "{e}");
+    bad.infer.mean_sweeps_below_db = Some(38.0);
+    bad.validate().unwrap();
 }
