@@ -14,7 +14,8 @@ w = W' × sd² / (sd² + S²) voxel by voxel, W' = W2 when the mean of the PSNRs
 otherwise, and is scored by body PSNR as model/src/metrics.rs scores it
 (decision18_grid.body_psnr). The shipped checkpoint q is W = W2 = 0.5, S = 100 HU. Prints
 each phantom's PSNR per view, the mean body PSNR per set and over the phantoms per setting,
-and the rule's choice: the highest mean, if above q's; else none.
+and the rule's choice: the highest mean, if above q's; else none. Then, for reading, the
+network's volume and SART-TV from the mean alone (no blend), mean body PSNR per set.
 
 numpy and nibabel.
 """
@@ -76,6 +77,8 @@ def main():
             weight = w2 if p is not None and fit_db < p else w
             wv = weight * sd**2 / (sd**2 + s**2)
             scores[k] = body_psnr((1 - wv) * net + wv * classical, truth, lo, hi, mask)
+        scores["network"] = body_psnr(net, truth, lo, hi, mask)
+        scores["classical"] = body_psnr(classical, truth, lo, hi, mask)
         rows.append((d.parent.name, d.name, fit_db, scores))
     if not rows:
         sys.exit(f"{d18}: no phantom with net.nii.gz, sd.nii.gz and classical.nii.gz")
@@ -89,7 +92,7 @@ def main():
     for s in sets:
         print(f"| {s} | " + " | ".join(f"{r[2]:.2f}" for r in rows if r[0] == s) + " |")
 
-    keys = list(rows[0][3])
+    keys = [k for k in rows[0][3] if isinstance(k, tuple)]
     mean = {k: float(np.mean([r[3][k] for r in rows])) for k in keys}
     print(f"\n## TomoGRAF body PSNR (dB) from one view, mean over {len(rows)} phantoms\n")
     print("| W | W2 (below P) | S (HU) | P (dB) | " + " | ".join(sets) + " | all |")
@@ -108,6 +111,12 @@ def main():
     else:
         print(f"chosen: none (the best, {name}, {mean[best]:.3f} dB, is not above "
               f"{mean[SHIPPED]:.3f} as shipped)")
+    print("\n## Unblended: the network's volume and SART-TV from the mean, body PSNR (dB)\n")
+    print("| set | network | SART-TV from the mean | difference |")
+    print("|---|---:|---:|---:|")
+    for s in sets:
+        n, c = (np.mean([r[3][k] for r in rows if r[0] == s]) for k in ("network", "classical"))
+        print(f"| {s} | {n:.2f} | {c:.2f} | {n - c:+.2f} |")
 
 
 if __name__ == "__main__":
