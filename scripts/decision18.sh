@@ -29,14 +29,6 @@ py=${PYTHON:-python3}
 "$py" -c "import numpy, nibabel" \
     || { echo "decision18_grid.py needs numpy and nibabel: PYTHON=/path/to/python" >&2; exit 1; }
 
-# A copy of the shipped checkpoint whose [infer] differs by the lines sed makes of $2.
-variant() { # DIR SED_SCRIPT
-    [ -f "$1/config.toml" ] && return
-    rm -rf "$1.tmp"
-    cp -r "$parent" "$1.tmp"
-    sed -i "$2" "$1.tmp/config.toml"
-    mv "$1.tmp" "$1"
-}
 # SART-TV from the mean alone: one fit (its volume is not used) and the blend's weight 1.
 variant "$out/classical" 's/^ensemble = 4$/ensemble = 1/; $a mean_sweeps_weight = 1.0'
 

@@ -35,6 +35,11 @@ SPREADS_HU = [25.0, 50.0, 100.0, 200.0]
 BODY_HU = -900.0
 
 
+def load(path):
+    """A NIfTI volume as float64 numpy."""
+    return np.asarray(nib.load(path).get_fdata(dtype=np.float64))
+
+
 def body_psnr(volume_hu, truth, lo, hi, mask):
     v = np.clip((volume_hu - lo) / (hi - lo), 0.0, 1.0)
     rmse = np.sqrt(np.mean((v[mask] - truth[mask]) ** 2))
@@ -48,10 +53,9 @@ def main():
         item = pathlib.Path((d / "item.txt").read_text().strip())
         window = json.loads((item / "item.json").read_text())["hu_window"]
         lo, hi = float(window["lo"]), float(window["hi"])
-        truth = np.asarray(nib.load(item / "ct.nii.gz").get_fdata(dtype=np.float64))
+        truth = load(item / "ct.nii.gz")
         mask = truth > (BODY_HU - lo) / (hi - lo)
-        load = lambda n: np.asarray(nib.load(d / n).get_fdata(dtype=np.float64))
-        net, sd, classical = load("net.nii.gz"), load("sd.nii.gz"), load("classical.nii.gz")
+        net, sd, classical = (load(d / n) for n in ("net.nii.gz", "sd.nii.gz", "classical.nii.gz"))
         scores = {(0.0, 0.0): body_psnr(net, truth, lo, hi, mask)}
         for w in WEIGHTS:
             for s in SPREADS_HU:

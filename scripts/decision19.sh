@@ -34,15 +34,6 @@ py=${PYTHON:-python3}
 "$py" -c "import numpy, nibabel" \
     || { echo "decision19_grid.py needs numpy and nibabel: PYTHON=/path/to/python" >&2; exit 1; }
 
-# A copy of the shipped checkpoint whose [infer] differs by the lines sed makes of $2.
-variant() { # DIR SED_SCRIPT
-    [ -f "$1/config.toml" ] && return
-    rm -rf "$1.tmp"
-    cp -r "$parent" "$1.tmp"
-    sed -i "$2" "$1.tmp/config.toml"
-    mv "$1.tmp" "$1"
-}
-
 # 1. Tuning data on W and U, two phantoms at a time on one thread each.
 one_phantom() { # C SET ITEM_DIR
     local d=$out/tune/c$1/$2/$(basename "$3")
@@ -87,32 +78,9 @@ w_f=$(python3 -c "print(repr(float($w)))")
 variant "$out/r" "s/^ensemble_code_sd = 1.0\$/ensemble_code_sd = $c_f/; s/^mean_sweeps_weight = .*/mean_sweeps_weight = $w_f/; s/^mean_sweeps_spread = .*/mean_sweeps_spread = $s_norm/"
 
 # 3. W'' and U'': new phantoms, made as scripts/prior_probe.sh makes its sets.
-common=(--size 64 --views 10 --split val --preset kv-flat-panel-120kvp --heterogeneity 60)
-for variant_flags in "base" "deform8 --deform 8"; do
-    read -r vname vflags <<< "$variant_flags"
-    for pop in "lidc 78000 16" "full-chest 88000 13"; do
-        read -r profile seed augment <<< "$pop"
-        # shellcheck disable=SC2086 # vflags, word-split on purpose
-        [ -f "$out/val/$profile-$vname/manifest.jsonl" ] || $bin dataset -o "$out/val/$profile-$vname" \
-            --phantoms 6 --seed "$seed" --profile "$profile" --augment "$augment" "${common[@]}" $vflags
-    done
-done
-warped="lidc-deform8 full-chest-deform8"
-unwarped="lidc-base full-chest-base"
-for s in $warped $unwarped; do
-    for arm in q:"$parent" r:"$out/r"; do
-        [ -f "$out/eval-${arm%%:*}-$s/results.csv" ] || $bin evaluate "$out/val/$s" \
-            --checkpoint "${arm#*:}" --views 1 --no-baselines -o "$out/eval-${arm%%:*}-$s"
-    done
-done
+qualifying_sets 78000 88000
+qualify_one_view q "$parent"
+qualify_one_view r "$out/r"
 
 # 4. The rule.
-# shellcheck disable=SC2086 # the set lists, word-split on purpose
-{
-    echo "$chosen"
-    echo "## Rule (i): W'' and U'' together"
-    python3 scripts/validation_rule.py "$(arm q "$out/eval-q-" $warped $unwarped)" \
-        "$(arm r "$out/eval-r-" $warped $unwarped)"
-    echo "## Rule (ii): U'' alone"
-    python3 scripts/validation_rule.py "$(arm q "$out/eval-q-" $unwarped)" "$(arm r "$out/eval-r-" $unwarped)"
-} | tee "$out/decision.md"
+qualify_rule "$chosen" "''"

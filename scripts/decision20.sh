@@ -45,48 +45,17 @@ read -r w w2 s_hu p_db < <(sed -E \
     's/^chosen: W = ([0-9.]+), W2 = ([0-9.]+), S = ([0-9.]+) HU, P = ([0-9.]+) dB.*/\1 \2 \3 \4/' <<< "$chosen")
 
 # 2. W'' and U'': new phantoms, made as scripts/prior_probe.sh makes its sets; q scored on them.
-common=(--size 64 --views 10 --split val --preset kv-flat-panel-120kvp --heterogeneity 60)
-for variant_flags in "base" "deform8 --deform 8"; do
-    read -r vname vflags <<< "$variant_flags"
-    for pop in "lidc 78000 16" "full-chest 88000 13"; do
-        read -r profile seed augment <<< "$pop"
-        # shellcheck disable=SC2086 # vflags, word-split on purpose
-        [ -f "$out/val/$profile-$vname/manifest.jsonl" ] || $bin dataset -o "$out/val/$profile-$vname" \
-            --phantoms 6 --seed "$seed" --profile "$profile" --augment "$augment" "${common[@]}" $vflags
-    done
-done
-warped="lidc-deform8 full-chest-deform8"
-unwarped="lidc-base full-chest-base"
-for s in $warped $unwarped; do
-    [ -f "$out/eval-q-$s/results.csv" ] || $bin evaluate "$out/val/$s" \
-        --checkpoint "$parent" --views 1 --no-baselines -o "$out/eval-q-$s"
-done
+qualifying_sets 78000 88000
+qualify_one_view q "$parent"
 [ "${STOP_AFTER_Q:-0}" = 1 ] && { echo "q scored; stopping as STOP_AFTER_Q asks"; exit 0; }
 
 # 3. r: q with the chosen setting (S in normalised density: HU over the window's 3072 HU).
-if [ ! -f "$out/r/config.toml" ]; then
-    rm -rf "$out/r.tmp"
-    cp -r "$parent" "$out/r.tmp"
-    s_norm=$(python3 -c "print(repr($s_hu / 3072.0))")
-    w_f=$(python3 -c "print(repr(float($w)))")
-    w2_f=$(python3 -c "print(repr(float($w2)))")
-    p_f=$(python3 -c "print(repr(float($p_db)))")
-    sed -i "s/^mean_sweeps_weight = .*/mean_sweeps_weight = $w_f/; s/^mean_sweeps_spread = .*/mean_sweeps_spread = $s_norm/; \$a mean_sweeps_below_db = $p_f\nmean_sweeps_weight_below = $w2_f" \
-        "$out/r.tmp/config.toml"
-    mv "$out/r.tmp" "$out/r"
-fi
-for s in $warped $unwarped; do
-    [ -f "$out/eval-r-$s/results.csv" ] || $bin evaluate "$out/val/$s" \
-        --checkpoint "$out/r" --views 1 --no-baselines -o "$out/eval-r-$s"
-done
+s_norm=$(python3 -c "print(repr($s_hu / 3072.0))")
+w_f=$(python3 -c "print(repr(float($w)))")
+w2_f=$(python3 -c "print(repr(float($w2)))")
+p_f=$(python3 -c "print(repr(float($p_db)))")
+variant "$out/r" "s/^mean_sweeps_weight = .*/mean_sweeps_weight = $w_f/; s/^mean_sweeps_spread = .*/mean_sweeps_spread = $s_norm/; \$a mean_sweeps_below_db = $p_f\nmean_sweeps_weight_below = $w2_f"
+qualify_one_view r "$out/r"
 
 # 4. The rule.
-# shellcheck disable=SC2086 # the set lists, word-split on purpose
-{
-    echo "$chosen"
-    echo "## Rule (i): W'' and U'' together"
-    python3 scripts/validation_rule.py "$(arm q "$out/eval-q-" $warped $unwarped)" \
-        "$(arm r "$out/eval-r-" $warped $unwarped)"
-    echo "## Rule (ii): U'' alone"
-    python3 scripts/validation_rule.py "$(arm q "$out/eval-q-" $unwarped)" "$(arm r "$out/eval-r-" $unwarped)"
-} | tee "$out/decision.md"
+qualify_rule "$chosen" "''"

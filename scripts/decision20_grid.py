@@ -24,21 +24,16 @@ import pathlib
 import re
 import sys
 
-import nibabel as nib
 import numpy as np
 
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
-from decision18_grid import BODY_HU, body_psnr  # noqa: E402
+from decision18_grid import BODY_HU, body_psnr, load  # noqa: E402
 
 WEIGHTS = [0.25, 0.5]
 WEIGHTS_BELOW = [0.5, 0.75, 1.0]
 SPREADS_HU = [50.0, 100.0, 200.0]
 BELOW_DB = [37.0, 38.0, 39.0, 40.0]
 SHIPPED = (0.5, 0.5, 100.0, None)
-
-
-def load(path):
-    return np.asarray(nib.load(path).get_fdata(dtype=np.float64))
 
 
 def view_psnr(log):

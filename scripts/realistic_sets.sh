@@ -102,3 +102,59 @@ decision_setup() {
     export MIMALLOC_PURGE_DELAY=-1
     parent=$PWD/model/checkpoints/lidc-full-chest
 }
+
+# variant DIR SED_SCRIPT: a copy of the shipped checkpoint ($parent) whose config.toml differs
+# by the lines sed makes of SED_SCRIPT (decisions 18–20); kept if DIR exists.
+variant() {
+    [ -f "$1/config.toml" ] && return
+    rm -rf "$1.tmp"
+    cp -r "$parent" "$1.tmp"
+    sed -i "$2" "$1.tmp/config.toml"
+    mv "$1.tmp" "$1"
+}
+
+# Decisions 18–20's qualifying sets and rule, with $bin and $out set by the caller.
+# qualifying_sets LIDC_SEED FC_SEED: six lidc (--augment 16) and six full-chest (--augment 13)
+# validation phantoms from those seeds, made as scripts/prior_probe.sh makes its sets, as made
+# (OUT/val/POP-base) and warped by 8 mm (OUT/val/POP-deform8).
+qualifying_sets() {
+    local common=(--size 64 --views 10 --split val --preset kv-flat-panel-120kvp --heterogeneity 60)
+    local variant_flags vname vflags pop profile seed augment
+    for variant_flags in "base" "deform8 --deform 8"; do
+        read -r vname vflags <<< "$variant_flags"
+        for pop in "lidc $1 16" "full-chest $2 13"; do
+            read -r profile seed augment <<< "$pop"
+            # shellcheck disable=SC2086 # vflags, word-split on purpose
+            [ -f "$out/val/$profile-$vname/manifest.jsonl" ] || $bin dataset -o "$out/val/$profile-$vname" \
+                --phantoms 6 --seed "$seed" --profile "$profile" --augment "$augment" "${common[@]}" $vflags
+        done
+    done
+}
+qualifying_warped="lidc-deform8 full-chest-deform8"
+qualifying_unwarped="lidc-base full-chest-base"
+
+# qualify_one_view NAME CHECKPOINT: TomoGRAF from one view on the qualifying sets into
+# $out/eval-NAME-SET.
+qualify_one_view() {
+    local s
+    for s in $qualifying_warped $qualifying_unwarped; do
+        [ -f "$out/eval-$1-$s/results.csv" ] || $bin evaluate "$out/val/$s" \
+            --checkpoint "$2" --views 1 --no-baselines -o "$out/eval-$1-$s"
+    done
+}
+
+# qualify_rule CHOSEN_LINE PRIMES: rule (i) over the warped and as-made sets, rule (ii) over the
+# as-made alone, q against r, into $out/decision.md; PRIMES names the sets (' or '').
+qualify_rule() {
+    # shellcheck disable=SC2086 # the set lists, word-split on purpose
+    {
+        echo "$1"
+        echo "## Rule (i): W$2 and U$2 together"
+        python3 scripts/validation_rule.py \
+            "$(arm q "$out/eval-q-" $qualifying_warped $qualifying_unwarped)" \
+            "$(arm r "$out/eval-r-" $qualifying_warped $qualifying_unwarped)"
+        echo "## Rule (ii): U$2 alone"
+        python3 scripts/validation_rule.py "$(arm q "$out/eval-q-" $qualifying_unwarped)" \
+            "$(arm r "$out/eval-r-" $qualifying_unwarped)"
+    } | tee "$out/decision.md"
+}
