@@ -158,3 +158,33 @@ qualify_rule() {
             "$(arm r "$out/eval-r-" $qualifying_unwarped)"
     } | tee "$out/decision.md"
 }
+
+# tuning_volumes SET ITEMS_DIR: per phantom of ITEMS_DIR, into $out/tune/SET/ID, what decisions
+# 20 and 21's grid (scripts/decision20_grid.py) scores: the shipped networks' one-view volume
+# without the blend (net.nii.gz; the checkpoint $out/net: $parent with mean_sweeps_weight 0), the
+# four fits' spread (sd.nii.gz), the log with the volume's PSNR per view (net.log), and SART-TV
+# from the mean alone (classical.nii.gz; $out/classical: one fit, the blend's weight 1
+# everywhere). Two phantoms at a time on one thread each; each phantom done is kept.
+tuning_volumes() {
+    variant "$out/net" 's/^mean_sweeps_weight = .*/mean_sweeps_weight = 0.0/'
+    variant "$out/classical" 's/^ensemble = 4$/ensemble = 1/; s/^mean_sweeps_weight = .*/mean_sweeps_weight = 1.0/; s/^mean_sweeps_spread = .*/mean_sweeps_spread = 0.0/'
+    local items=("$2"/[0-9]*/) i
+    for ((i = 0; i < ${#items[@]}; i += 2)); do
+        tuning_phantom "$1" "${items[i]%/}" &
+        if ((i + 1 < ${#items[@]})); then
+            tuning_phantom "$1" "${items[i + 1]%/}" &
+        fi
+        wait
+    done
+}
+tuning_phantom() { # SET ITEM_DIR
+    local d=$out/tune/$1/$(basename "$2")
+    [ -f "$d/classical.nii.gz" ] && return
+    mkdir -p "$d"
+    echo "$2" > "$d/item.txt"
+    $bin --threads 1 reconstruct "$2" --checkpoint "$out/net" --views 1 -o "$d/net.nii.gz" \
+        --spread "$d/sd.nii.gz" 2> "$d/net.log"
+    $bin --threads 1 reconstruct "$2" --checkpoint "$out/classical" --views 1 --iterations 1 \
+        -o "$d/classical.tmp.nii.gz" 2> "$d/classical.log"
+    mv "$d/classical.tmp.nii.gz" "$d/classical.nii.gz"
+}

@@ -1,0 +1,86 @@
+#!/usr/bin/env bash
+# Issue 47, decision 21 (docs/real-ct/decision21-RULE.txt, written before any of its settings
+# was scored, before its tuning volumes on the warped sets and its qualifying sets were made):
+# decision 20's lever — the blend with SART-TV from the mean given the weight W2 in place of W
+# when the fits' average explains the one view below P dB — tuned and qualified on lidc
+# phantoms warped by 12 and 16 mm, whose one-view profile is the real CTs'
+# (docs/real-ct/warp-probe.md), with phantoms as made as the guard.
+#
+#   PYTHON=… PROBE_OUT=… WARP_OUT=… scripts/decision21.sh [OUT]
+#
+# PROBE_OUT: scripts/prior_probe.sh's folder (its sets as made, PROBE_OUT/val/POP-base);
+# WARP_OUT: scripts/warp_probe.sh's folder (its sets, WARP_OUT/val, and the shipped
+# checkpoint's scores on them, WARP_OUT/eval). Steps, each skipped when its output exists
+# (resumable):
+#   1. tuning volumes (OUT/tune; realistic_sets.sh's tuning_volumes) on the lidc phantoms warped
+#      by 12 and 16 mm and the lidc and full-chest phantoms as made, 24 in all (≈ 15 min on 2
+#      cores);
+#   2. the grid (scripts/decision20_grid.py --decision 21 → OUT/grid.md; ≈ 2 min), after
+#      checking that the shipped setting scores the warped sets' phantoms as `evaluate` did: the
+#      setting with the highest mean body PSNR over the 24, if above the shipped one's; else
+#      the script stops;
+#   3. new sets W3 and U3 (OUT/val) and the shipped checkpoint q and r = q with the chosen
+#      setting scored on them from one view (OUT/eval-q-SET, OUT/eval-r-SET; ≈ 15 min each);
+#   4. the rule (scripts/validation_rule.py) → OUT/decision.md.
+# BIN: the tomograf binary to use (default: target/release/tomograf, built here).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+. scripts/realistic_sets.sh
+decision_setup . "${1:-decision21}"
+bin=${BIN:-$bin}
+probe=$(realpath "${PROBE_OUT:?set PROBE_OUT to the output folder of scripts/prior_probe.sh}")
+warp=$(realpath "${WARP_OUT:?set WARP_OUT to the output folder of scripts/warp_probe.sh}")
+grep -q '"iteration": 72000' "$parent/state.json" \
+    && grep -q '^mean_sweeps_weight = 0.5$' "$parent/config.toml" \
+    && grep -q '^mean_sweeps_spread = 0.032552083333333336$' "$parent/config.toml" \
+    && ! grep -q '^mean_sweeps_below_db' "$parent/config.toml" \
+    || { echo "$parent is not decision 18's q (72 000 it., W = 0.5, S = 100 HU, no P)" >&2; exit 1; }
+py=${PYTHON:-python3}
+"$py" -c "import numpy, nibabel" \
+    || { echo "decision20_grid.py needs numpy and nibabel: PYTHON=/path/to/python" >&2; exit 1; }
+
+# 1. Tuning volumes.
+for s in lidc-deform12 lidc-deform16; do tuning_volumes "$s" "$warp/val/$s"; done
+for s in lidc-base full-chest-base; do tuning_volumes "$s" "$probe/val/$s"; done
+
+# 2. The grid.
+"$py" scripts/decision20_grid.py --decision 21 "$out/tune" \
+    --check "lidc-deform12=$warp/eval/lidc-deform12" \
+    --check "lidc-deform16=$warp/eval/lidc-deform16" | tee "$out/grid.md"
+chosen=$(grep '^chosen: ' "$out/grid.md")
+case "$chosen" in
+    "chosen: none"*) echo "no setting is above the shipped one: q stays" | tee "$out/decision.md"; exit 0 ;;
+esac
+read -r w w2 s_hu p_db < <(sed -E \
+    's/^chosen: W = ([0-9.]+), W2 = ([0-9.]+), S = ([0-9.]+) HU, P = ([0-9.]+) dB.*/\1 \2 \3 \4/' <<< "$chosen")
+
+# 3. W3 and U3: new phantoms; q and r scored on them from one view.
+common=(--size 64 --views 10 --split val --preset kv-flat-panel-120kvp --heterogeneity 60)
+for spec in "lidc-deform12 lidc 79000 16 --deform 12" "lidc-deform16 lidc 79100 16 --deform 16" \
+    "lidc-base lidc 79200 16" "full-chest-base full-chest 89000 13"; do
+    read -r name profile seed augment flags <<< "$spec"
+    # shellcheck disable=SC2086 # flags, word-split on purpose
+    [ -f "$out/val/$name/manifest.jsonl" ] || $bin dataset -o "$out/val/$name" --phantoms 6 \
+        --seed "$seed" --profile "$profile" --augment "$augment" "${common[@]}" $flags
+done
+qualifying_warped="lidc-deform12 lidc-deform16"
+qualifying_unwarped="lidc-base full-chest-base"
+qualify_one_view q "$parent"
+s_norm=$(python3 -c "print(repr($s_hu / 3072.0))")
+w_f=$(python3 -c "print(repr(float($w)))")
+w2_f=$(python3 -c "print(repr(float($w2)))")
+p_f=$(python3 -c "print(repr(float($p_db)))")
+variant "$out/r" "s/^mean_sweeps_weight = .*/mean_sweeps_weight = $w_f/; s/^mean_sweeps_spread = .*/mean_sweeps_spread = $s_norm/; \$a mean_sweeps_below_db = $p_f\nmean_sweeps_weight_below = $w2_f"
+qualify_one_view r "$out/r"
+
+# 4. The rule: (i) over W3, (ii) over U3.
+# shellcheck disable=SC2086 # the set lists, word-split on purpose
+{
+    echo "$chosen"
+    echo "## Rule (i): W3 (lidc warped by 12 and 16 mm)"
+    python3 scripts/validation_rule.py "$(arm q "$out/eval-q-" $qualifying_warped)" \
+        "$(arm r "$out/eval-r-" $qualifying_warped)"
+    echo "## Rule (ii): U3 (as made)"
+    python3 scripts/validation_rule.py "$(arm q "$out/eval-q-" $qualifying_unwarped)" \
+        "$(arm r "$out/eval-r-" $qualifying_unwarped)"
+} | tee "$out/decision.md"
