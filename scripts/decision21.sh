@@ -21,7 +21,9 @@
 #      the script stops;
 #   3. new sets W3 and U3 (OUT/val) and the shipped checkpoint q and r = q with the chosen
 #      setting scored on them from one view (OUT/eval-q-SET, OUT/eval-r-SET; ≈ 15 min each);
-#   4. the rule (scripts/validation_rule.py) → OUT/decision.md.
+#   4. the rule (scripts/validation_rule.py) → OUT/decision.md, whose last line is the verdict:
+#      r is taken when (i) r − q over W3 is resolved ahead and (ii) over U3 not resolved behind
+#      (validation_rule.py's own last line under (ii) names q whenever r does not also lead there).
 # BIN: the tomograf binary to use (default: target/release/tomograf, built here).
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -84,3 +86,10 @@ qualify_one_view r "$out/r"
     python3 scripts/validation_rule.py "$(arm q "$out/eval-q-" $qualifying_unwarped)" \
         "$(arm r "$out/eval-r-" $qualifying_unwarped)"
 } | tee "$out/decision.md"
+i_ok=$(sed -n '/^## Rule (i)/,/^## Rule (ii)/p' "$out/decision.md" | grep -c '^- r − q: .*(resolved, ahead)' || true)
+ii_bad=$(sed -n '/^## Rule (ii)/,$p' "$out/decision.md" | grep -c '^- r − q: .*(resolved, behind)' || true)
+if [ "$i_ok" = 1 ] && [ "$ii_bad" = 0 ]; then
+    echo "Decision 21: r is taken ((i) resolved ahead over W3, (ii) not resolved behind over U3)."
+else
+    echo "Decision 21: q stays ((i) resolved ahead over W3: $i_ok; (ii) resolved behind over U3: $ii_bad)."
+fi | tee -a "$out/decision.md"

@@ -558,7 +558,7 @@ fn model_bench_prints_ratios_against_its_baselines() {
 /// inference settings. It loads and reconstructs a 64³ full-chest phantom from one view to
 /// a finite volume, and its settings differ from the demo checkpoint's in nothing but what
 /// it learnt, for how long, the open gate from 5 views, the four fits averaged from one view
-/// and the blend where they disagree its own validation chose (decisions 14 and 18).
+/// and the blend where they disagree its own validation chose (decisions 14, 18 and 21).
 #[test]
 fn the_mixed_population_checkpoint_reconstructs() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("model/checkpoints");
@@ -590,14 +590,17 @@ fn the_mixed_population_checkpoint_reconstructs() {
         text.contains("\nensemble = 4\nensemble_code_sd = 1.0\nensemble_max_views = 1\n"),
         "{text}"
     );
-    // Decision 18: SART-TV from the mean blended in where the one-view fits disagree, at
-    // half weight where their spread is 100 HU (100 / 3072 of the window).
+    // Decisions 18 and 21: SART-TV from the mean blended in where the one-view fits
+    // disagree, only when their average explains the view below 40 dB, then at weight 0.75 ×
+    // ½ where their spread is 50 HU (50 / 3072 of the window).
     assert!(
-        text.trim_end()
-            .ends_with("\nmean_sweeps_weight = 0.5\nmean_sweeps_spread = 0.032552083333333336"),
+        text.trim_end().ends_with(
+            "\nmean_sweeps_weight = 0.0\nmean_sweeps_spread = 0.016276041666666668\n\
+             mean_sweeps_below_db = 40.0\nmean_sweeps_weight_below = 0.75"
+        ),
         "{text}"
     );
-    assert!((0.032552083333333336f64 * 3072.0 - 100.0).abs() < 1e-9);
+    assert!((0.016276041666666668f64 * 3072.0 - 50.0).abs() < 1e-9);
     let tmp = tempfile::tempdir().unwrap();
     let data = tmp.path().join("data");
     ok(&tomograf(&[
