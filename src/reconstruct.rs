@@ -118,6 +118,13 @@ pub fn run(args: ReconstructArgs) -> Result<()> {
         };
         tomograf_datasets::nifti::write_nifti(path, &spread_hu(&item, sd)?)?;
     }
+    if let Some(b) = &rec.blend {
+        eprintln!(
+            "SART-TV from the mean blended in with W = {} (the volume before the blend explains \
+             the views at {:.2} dB on average; the checkpoint's [infer] mean_sweeps_*)",
+            b.weight, b.views_psnr_db
+        );
+    }
     eprintln!(
         "{} iterations, PSNR per view {:?} dB (estimated peak memory {:.0} MiB): {}",
         rec.iterations,

@@ -53,8 +53,10 @@ fn correction(name: &str) -> PyResult<ScatterCorrection> {
 /// Returns a dict: ``volume`` (a :class:`Volume` in HU on the item's CT grid), ``spread``
 /// (where a checkpoint averages several fits for this view count: each voxel's standard
 /// deviation across them, a :class:`Volume` in HU; else ``None``), ``iterations``,
-/// ``psnr_db`` (per input view, of the rendered rays) and ``notes`` (the lines the command
-/// line prints).
+/// ``psnr_db`` (per input view, of the rendered rays), ``blend`` (where the checkpoint blended
+/// SART-TV from the mean in: a dict with its ``weight`` W and ``views_psnr_db``, the views'
+/// mean projection PSNR before the blend that chose W; else ``None``) and ``notes`` (the lines
+/// the command line prints).
 #[pyfunction]
 #[pyo3(signature = (item, checkpoint, *, views=1, poses=None, iterations=None,
     psnr_threshold=None, refine=None, tune=None, seed=0, backend=None,
@@ -99,10 +101,17 @@ pub fn reconstruct<'py>(
             .as_ref()
             .map(|s| spread_hu(&item, s))
             .transpose()?;
-        Ok((hu(&item, &rec.volume)?, spread, rec.iterations, rec.psnr))
+        Ok((
+            hu(&item, &rec.volume)?,
+            spread,
+            rec.iterations,
+            rec.psnr,
+            rec.blend,
+        ))
     });
     let notes = reporter.finish(py)?;
-    let (volume, spread, iterations, psnr) = done.map_err(|e| errors::value(format!("{e:#}")))?;
+    let (volume, spread, iterations, psnr, blend) =
+        done.map_err(|e| errors::value(format!("{e:#}")))?;
     let d = PyDict::new(py);
     d.set_item("volume", Py::new(py, PyVolume::wrap(volume))?)?;
     match spread {
@@ -111,6 +120,15 @@ pub fn reconstruct<'py>(
     }
     d.set_item("iterations", iterations)?;
     d.set_item("psnr_db", psnr)?;
+    match blend {
+        Some(b) => {
+            let bd = PyDict::new(py);
+            bd.set_item("weight", b.weight)?;
+            bd.set_item("views_psnr_db", b.views_psnr_db)?;
+            d.set_item("blend", bd)?;
+        }
+        None => d.set_item("blend", py.None())?,
+    }
     d.set_item("notes", notes)?;
     Ok(d)
 }

@@ -43,18 +43,24 @@ def test_reconstruct_is_the_cli_reconstruction(tmp_path, cli, test_set):
 
 
 def test_reconstruct_returns_the_ensembles_spread(tmp_path, cli, test_set):
-    """The demo checkpoint fits once: no spread. The mixed one averages four fits from one
-    view: its spread (HU) is the command line's `--spread` file bit for bit, ≥ 0 and not
-    zero everywhere."""
+    """The demo checkpoint fits once: no spread, no blend. The mixed one averages four fits
+    from one view: its spread (HU) is the command line's `--spread` file bit for bit, ≥ 0 and
+    not zero everywhere, and it reports the blend its settings chose."""
     item = test_set / "00000"
-    assert tomograf.reconstruct(item, CHECKPOINT, iterations=2)["spread"] is None
+    single = tomograf.reconstruct(item, CHECKPOINT, iterations=2)
+    assert single["spread"] is None and single["blend"] is None
     mixed = ROOT / "model" / "checkpoints" / "lidc-full-chest"
     cli("reconstruct", item, "--checkpoint", mixed, "-o", tmp_path / "v.nii.gz",
         "--iterations", "2", "--spread", tmp_path / "sd.nii.gz")
-    ours = tomograf.reconstruct(item, mixed, iterations=2)["spread"]
+    result = tomograf.reconstruct(item, mixed, iterations=2)
+    ours = result["spread"]
     theirs = tomograf.Volume.load(tmp_path / "sd.nii.gz")
     assert ours.array.tobytes() == theirs.array.tobytes()
     assert ours.array.min() >= 0 and ours.array.max() > 0
+    # Two iterations leave the fits' average far from explaining the view (below the
+    # checkpoint's mean_sweeps_below_db = 40 dB): the blend ran with mean_sweeps_weight_below.
+    assert result["blend"]["views_psnr_db"] < 40.0
+    assert result["blend"]["weight"] == 0.75
 
 
 def test_evaluate_scores_as_the_cli_does(tmp_path, cli, test_set):

@@ -59,6 +59,20 @@ pub struct Reconstruction {
     /// The estimated peak memory, bytes ([`crate::config::TrainConfig::inference_peak_bytes`]),
     /// checked against the memory available before the fit.
     pub peak_bytes: u128,
+    /// The blend with SART-TV from the mean, when it ran (`[infer] mean_sweeps_weight`,
+    /// `mean_sweeps_weight_below`); `None` when it did not.
+    pub blend: Option<Blend>,
+}
+
+/// What the blend with SART-TV from the mean did (see [`InferConfig::mean_sweeps_weight_for`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Blend {
+    /// W, the weight of SART-TV from the mean (where the fits' spread is large against
+    /// `mean_sweeps_spread`; everywhere when that is 0), in [0, 1].
+    pub weight: f64,
+    /// The mean over the views of the projection PSNR (dB) of the volume before the blend:
+    /// what chose W against `mean_sweeps_below_db`.
+    pub views_psnr_db: f64,
 }
 
 /// The network's volume before data-consistency sweeps.
@@ -226,8 +240,12 @@ pub fn reconstruct(
         network = Some(net);
     }
     let weight = infer.mean_sweeps_weight_for(&psnr);
-    let blend = weight > 0.0 && (infer.mean_sweeps_spread == 0.0 || spread.is_some());
-    if blend {
+    let blend =
+        (weight > 0.0 && (infer.mean_sweeps_spread == 0.0 || spread.is_some())).then(|| Blend {
+            weight,
+            views_psnr_db: psnr.iter().sum::<f64>() / psnr.len() as f64,
+        });
+    if blend.is_some() {
         volume = blend_with_mean_sweeps(
             refs,
             &volume,
@@ -251,6 +269,7 @@ pub fn reconstruct(
         losses,
         codes: (read(z_sh), read(z_a)),
         spread,
+        blend,
     })
 }
 

@@ -12,7 +12,7 @@ use tomograf_model::config::TrainConfig;
 use tomograf_model::data::Item;
 use tomograf_model::ensemble::{fit_ensemble, member_seed, starting_codes};
 use tomograf_model::fit::{fit_network, fit_network_from, projection_psnr};
-use tomograf_model::reconstruct::{Reference, reconstruct};
+use tomograf_model::reconstruct::{Blend, Reference, reconstruct};
 use tomograf_model::train::{Trainer, projection_scale};
 
 /// An untrained `tiny` model of one item saved under `dir`, and two views of another item.
@@ -388,10 +388,19 @@ fn the_blend_takes_its_other_weight_below_the_psnr_threshold() {
         run(0.0, Some((p + 1.0, 0.9))).volume.data(),
         plain_hi.volume.data()
     );
-    assert_eq!(
-        run(0.0, Some((p - 1.0, 0.9))).volume.data(),
-        net.volume.data()
-    );
+    let off = run(0.0, Some((p - 1.0, 0.9)));
+    assert_eq!(off.volume.data(), net.volume.data());
+    // What ran is recorded: the weight and the PSNR that chose it (the unblended volume's).
+    assert_eq!(net.blend, None);
+    let blend = |weight| {
+        Some(Blend {
+            weight,
+            views_psnr_db: p,
+        })
+    };
+    assert_eq!(below.blend, blend(0.9));
+    assert_eq!(above.blend, blend(0.2));
+    assert_eq!(off.blend, None);
 
     let mut infer = config.infer.clone();
     infer.mean_sweeps_weight = 0.25;

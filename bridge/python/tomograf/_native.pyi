@@ -325,8 +325,10 @@ def reconstruct(
     ``progress(stage, done, total, message)`` is called per iteration. Returns ``volume``
     (a Volume in HU on the item's CT grid), ``spread`` (where the checkpoint averages
     several fits for this view count, each voxel's standard deviation across them: a Volume
-    in HU; else None), ``iterations``, ``psnr_db`` (per input view) and ``notes`` (the
-    lines the command line prints)."""
+    in HU; else None), ``iterations``, ``psnr_db`` (per input view), ``blend`` (where the
+    checkpoint blended SART-TV from the mean in: ``{"weight": W, "views_psnr_db": dB}``,
+    the views' mean projection PSNR before the blend that chose W; else None) and ``notes``
+    (the lines the command line prints)."""
 
 def evaluate(
     data: Union[str, "PathLike[str]"],
