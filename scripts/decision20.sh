@@ -18,6 +18,7 @@
 #   3. the chosen setting as a checkpoint copy (OUT/r), scored the same way (OUT/eval-r-SET);
 #   4. the rule (scripts/validation_rule.py) → OUT/decision.md.
 # BIN: the tomograf binary to use (default: target/release/tomograf, built here).
+# q is decision 18's setting: since decision 21 shipped its r, run this from commit 41712143.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 . scripts/realistic_sets.sh
@@ -26,14 +27,8 @@ decision_setup . "$out_arg"
 bin=${BIN:-$bin}
 d18=$(realpath "${D18_OUT:?set D18_OUT to the output folder of scripts/decision18.sh}")/tune
 [ -d "$d18" ] || { echo "$d18: no decision 18 tuning data" >&2; exit 1; }
-grep -q '"iteration": 72000' "$parent/state.json" \
-    && grep -q '^mean_sweeps_weight = 0.5$' "$parent/config.toml" \
-    && grep -q '^mean_sweeps_spread = 0.032552083333333336$' "$parent/config.toml" \
-    && ! grep -q '^mean_sweeps_below_db' "$parent/config.toml" \
-    || { echo "$parent is not decision 18's q (72 000 it., W = 0.5, S = 100 HU, no P)" >&2; exit 1; }
-py=${PYTHON:-python3}
-"$py" -c "import numpy, nibabel" \
-    || { echo "decision20_grid.py needs numpy and nibabel: PYTHON=/path/to/python" >&2; exit 1; }
+require_decision18_q
+grid_python
 
 # 1. The grid.
 "$py" scripts/decision20_grid.py "$d18" | tee "$out/grid.md"
@@ -41,8 +36,6 @@ chosen=$(grep '^chosen: ' "$out/grid.md")
 case "$chosen" in
     "chosen: none"*) echo "no setting is above the shipped one: q stays" | tee "$out/decision.md"; exit 0 ;;
 esac
-read -r w w2 s_hu p_db < <(sed -E \
-    's/^chosen: W = ([0-9.]+), W2 = ([0-9.]+), S = ([0-9.]+) HU, P = ([0-9.]+) dB.*/\1 \2 \3 \4/' <<< "$chosen")
 
 # 2. W'' and U'': new phantoms, made as scripts/prior_probe.sh makes its sets; q scored on them.
 qualifying_sets 78000 88000
@@ -50,11 +43,7 @@ qualify_one_view q "$parent"
 [ "${STOP_AFTER_Q:-0}" = 1 ] && { echo "q scored; stopping as STOP_AFTER_Q asks"; exit 0; }
 
 # 3. r: q with the chosen setting (S in normalised density: HU over the window's 3072 HU).
-s_norm=$(python3 -c "print(repr($s_hu / 3072.0))")
-w_f=$(python3 -c "print(repr(float($w)))")
-w2_f=$(python3 -c "print(repr(float($w2)))")
-p_f=$(python3 -c "print(repr(float($p_db)))")
-variant "$out/r" "s/^mean_sweeps_weight = .*/mean_sweeps_weight = $w_f/; s/^mean_sweeps_spread = .*/mean_sweeps_spread = $s_norm/; \$a mean_sweeps_below_db = $p_f\nmean_sweeps_weight_below = $w2_f"
+blend_variant "$out/r" "$chosen"
 qualify_one_view r "$out/r"
 
 # 4. The rule.

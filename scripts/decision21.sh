@@ -25,6 +25,7 @@
 #      r is taken when (i) r − q over W3 is resolved ahead and (ii) over U3 not resolved behind
 #      (validation_rule.py's own last line under (ii) names q whenever r does not also lead there).
 # BIN: the tomograf binary to use (default: target/release/tomograf, built here).
+# q is decision 18's setting: since decision 21 shipped its r, run this from commit 41712143.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 . scripts/realistic_sets.sh
@@ -32,14 +33,8 @@ decision_setup . "${1:-decision21}"
 bin=${BIN:-$bin}
 probe=$(realpath "${PROBE_OUT:?set PROBE_OUT to the output folder of scripts/prior_probe.sh}")
 warp=$(realpath "${WARP_OUT:?set WARP_OUT to the output folder of scripts/warp_probe.sh}")
-grep -q '"iteration": 72000' "$parent/state.json" \
-    && grep -q '^mean_sweeps_weight = 0.5$' "$parent/config.toml" \
-    && grep -q '^mean_sweeps_spread = 0.032552083333333336$' "$parent/config.toml" \
-    && ! grep -q '^mean_sweeps_below_db' "$parent/config.toml" \
-    || { echo "$parent is not decision 18's q (72 000 it., W = 0.5, S = 100 HU, no P)" >&2; exit 1; }
-py=${PYTHON:-python3}
-"$py" -c "import numpy, nibabel" \
-    || { echo "decision20_grid.py needs numpy and nibabel: PYTHON=/path/to/python" >&2; exit 1; }
+require_decision18_q
+grid_python
 
 # 1. Tuning volumes.
 for s in lidc-deform12 lidc-deform16; do tuning_volumes "$s" "$warp/val/$s"; done
@@ -53,8 +48,6 @@ chosen=$(grep '^chosen: ' "$out/grid.md")
 case "$chosen" in
     "chosen: none"*) echo "no setting is above the shipped one: q stays" | tee "$out/decision.md"; exit 0 ;;
 esac
-read -r w w2 s_hu p_db < <(sed -E \
-    's/^chosen: W = ([0-9.]+), W2 = ([0-9.]+), S = ([0-9.]+) HU, P = ([0-9.]+) dB.*/\1 \2 \3 \4/' <<< "$chosen")
 
 # 3. W3 and U3: new phantoms; q and r scored on them from one view.
 common=(--size 64 --views 10 --split val --preset kv-flat-panel-120kvp --heterogeneity 60)
@@ -68,11 +61,7 @@ done
 qualifying_warped="lidc-deform12 lidc-deform16"
 qualifying_unwarped="lidc-base full-chest-base"
 qualify_one_view q "$parent"
-s_norm=$(python3 -c "print(repr($s_hu / 3072.0))")
-w_f=$(python3 -c "print(repr(float($w)))")
-w2_f=$(python3 -c "print(repr(float($w2)))")
-p_f=$(python3 -c "print(repr(float($p_db)))")
-variant "$out/r" "s/^mean_sweeps_weight = .*/mean_sweeps_weight = $w_f/; s/^mean_sweeps_spread = .*/mean_sweeps_spread = $s_norm/; \$a mean_sweeps_below_db = $p_f\nmean_sweeps_weight_below = $w2_f"
+blend_variant "$out/r" "$chosen"
 qualify_one_view r "$out/r"
 
 # 4. The rule: (i) over W3, (ii) over U3.

@@ -188,3 +188,35 @@ tuning_phantom() { # SET ITEM_DIR
         -o "$d/classical.tmp.nii.gz" 2> "$d/classical.log"
     mv "$d/classical.tmp.nii.gz" "$d/classical.nii.gz"
 }
+
+# Decisions 20 and 21's q and r. require_decision18_q: stops unless $parent carries decision
+# 18's blend (W = 0.5, S = 100 HU, no P), their q; since decision 21 the shipped checkpoint
+# carries its r, so both scripts run from commit 41712143 (before it shipped).
+require_decision18_q() {
+    grep -q '"iteration": 72000' "$parent/state.json" \
+        && grep -q '^mean_sweeps_weight = 0.5$' "$parent/config.toml" \
+        && grep -q '^mean_sweeps_spread = 0.032552083333333336$' "$parent/config.toml" \
+        && ! grep -q '^mean_sweeps_below_db' "$parent/config.toml" \
+        || { echo "$parent is not decision 18's q (72 000 it., W = 0.5, S = 100 HU, no P): run this from commit 41712143, before decision 21 shipped its setting" >&2; exit 1; }
+}
+
+# grid_python: $py, the Python (PYTHON, default python3) that runs scripts/decision20_grid.py,
+# checked for numpy and nibabel.
+grid_python() {
+    py=${PYTHON:-python3}
+    "$py" -c "import numpy, nibabel" \
+        || { echo "decision20_grid.py needs numpy and nibabel: PYTHON=/path/to/python" >&2; exit 1; }
+}
+
+# blend_variant DIR CHOSEN_LINE: q with the setting decision20_grid.py's "chosen: W = …, W2 = …,
+# S = … HU, P = … dB" line names (S in normalised density: HU over the window's 3072 HU).
+blend_variant() {
+    local w w2 s_hu p_db s_norm w_f w2_f p_f
+    read -r w w2 s_hu p_db < <(sed -E \
+        's/^chosen: W = ([0-9.]+), W2 = ([0-9.]+), S = ([0-9.]+) HU, P = ([0-9.]+) dB.*/\1 \2 \3 \4/' <<< "$2")
+    s_norm=$(python3 -c "print(repr($s_hu / 3072.0))")
+    w_f=$(python3 -c "print(repr(float($w)))")
+    w2_f=$(python3 -c "print(repr(float($w2)))")
+    p_f=$(python3 -c "print(repr(float($p_db)))")
+    variant "$1" "s/^mean_sweeps_weight = .*/mean_sweeps_weight = $w_f/; s/^mean_sweeps_spread = .*/mean_sweeps_spread = $s_norm/; \$a mean_sweeps_below_db = $p_f\nmean_sweeps_weight_below = $w2_f"
+}
